@@ -1,0 +1,295 @@
+// npfkct-bench: runs episodes of a benchmark problem with a planner and a per-step budget and
+// prints one JSON object per run.
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <iostream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "episode_runner.h"
+#include "npfkct/solver/advt.h"
+#include "npfkct/solver/kct.h"
+#include "npfkct/solver/models/light_dark.h"
+#include "npfkct/solver/models/rock_sample.h"
+#include "npfkct/solver/models/tiger.h"
+#include "npfkct/solver/models/vdp_tag.h"
+#include "npfkct/solver/option_setters.h"
+#include "npfkct/solver/pomcp.h"
+#include "npfkct/solver/pomcpow.h"
+
+namespace npfkct::bench {
+namespace {
+
+struct Config {
+  std::string problem;
+  std::string planner;
+  int episodes = 100;
+  double time_ms = 1000.0;
+  int64_t sims = 0;
+  uint64_t seed = 1;
+  int threads = 1;
+  int max_steps = 0;
+  std::string rollout;
+  std::vector<std::string> options;
+};
+
+/// Runs one closed-loop episode: the planner plans on its belief, the true model executes.
+template <class M, class P, class SuccessFn>
+EpisodeResult RunEpisode(const M& model, P& planner, const Budget& budget, int max_steps,
+                         uint64_t seed, SuccessFn success) {
+  EpisodeResult result;
+  Rng rng(seed);
+  Rng world(seed ^ 0x5bd1e995u);
+  planner.Reset(rng);
+  auto state = model.SampleInitialState(world);
+  double discount = 1.0;
+  for (int t = 0; t < max_steps; ++t) {
+    auto d = planner.Plan(budget, rng);
+    if (!d.status.ok()) {
+      result.error = d.status.ToString();
+      break;
+    }
+    result.sims_per_step.push_back(d.stats.simulations);
+    result.ms_per_step.push_back(d.stats.elapsed_ms);
+    auto step = model.Step(state, d.action, world);
+    result.discounted_return += discount * step.reward;
+    result.undiscounted_return += step.reward;
+    discount *= model.Discount();
+    ++result.steps;
+    if (step.terminal) {
+      result.success = success(step);
+      break;
+    }
+    planner.Advance(d.action, step.observation, rng);
+    state = std::move(step.state);
+  }
+  return result;
+}
+
+template <class Options>
+bool ApplyOptions(Options* o, const std::vector<std::string>& assignments) {
+  for (const auto& a : assignments) {
+    Status s = SetOptionFromString(o, a);
+    if (!s.ok()) {
+      std::cerr << "npfkct-bench: " << s.message() << "\nknown options:";
+      for (const auto& name : OptionNames(o)) std::cerr << " " << name;
+      std::cerr << "\n";
+      return false;
+    }
+  }
+  if (Status s = o->Validate(); !s.ok()) {
+    std::cerr << "npfkct-bench: invalid options: " << s.message() << "\n";
+    return false;
+  }
+  return true;
+}
+
+void PrintJson(const Config& c, const RunSummary& s, int max_steps) {
+  std::printf(
+      "{\"problem\": \"%s\", \"planner\": \"%s\", \"episodes\": %d, \"time_ms\": %g, "
+      "\"sims\": %lld, \"max_steps\": %d, \"seed\": %llu, \"threads\": %d, \"rollout\": \"%s\", "
+      "\"options\": [",
+      JsonEscape(c.problem).c_str(), JsonEscape(c.planner).c_str(), c.episodes, c.time_ms,
+      static_cast<long long>(c.sims), max_steps, static_cast<unsigned long long>(c.seed),
+      c.threads, JsonEscape(c.rollout).c_str());
+  for (size_t i = 0; i < c.options.size(); ++i) {
+    std::printf("%s\"%s\"", i ? ", " : "", JsonEscape(c.options[i]).c_str());
+  }
+  std::printf(
+      "], \"mean_discounted_return\": %.4f, \"stderr\": %.4f, \"ci95\": %.4f, "
+      "\"success_rate\": ",
+      s.mean_return, s.stderr_return, s.ci95_return);
+  if (s.success_rate) {
+    std::printf("%.4f", *s.success_rate);
+  } else {
+    std::printf("null");
+  }
+  std::printf(
+      ", \"mean_steps\": %.3f, \"ci95_steps\": %.3f, \"median_sims_per_step\": %.1f, "
+      "\"median_sims_per_second\": %.1f, \"wall_seconds\": %.2f, \"failed_episodes\": %d",
+      s.mean_steps, s.ci95_steps, s.median_sims_per_step, s.median_sims_per_second,
+      s.wall_seconds, s.failed_episodes);
+  if (!s.first_error.empty()) std::printf(", \"error\": \"%s\"", JsonEscape(s.first_error).c_str());
+  std::printf("}\n");
+  std::fflush(stdout);
+}
+
+template <class M, class P, class Options, class SuccessFn>
+int Run(const Config& c, const M& model, Options options, int default_max_steps,
+        bool success_defined, SuccessFn success) {
+  if (!ApplyOptions(&options, c.options)) return 2;
+  const Budget budget{c.time_ms, c.sims};
+  if (Status s = budget.Validate(); !s.ok()) {
+    std::cerr << "npfkct-bench: " << s.message() << "\n";
+    return 2;
+  }
+  const int max_steps = c.max_steps > 0 ? c.max_steps : default_max_steps;
+  auto summary = RunEpisodes(
+      c.episodes, c.threads, success_defined,
+      [&](int i) {
+        P planner(model, options);
+        return RunEpisode(model, planner, budget, max_steps, c.seed * 1000003ULL + i, success);
+      },
+      c.problem + "/" + c.planner);
+  PrintJson(c, summary, max_steps);
+  return summary.failed_episodes == 0 ? 0 : 1;
+}
+
+int Unsupported(const Config& c) {
+  std::cerr << "npfkct-bench: planner '" << c.planner << "' does not apply to problem '"
+            << c.problem << "'\n";
+  return 2;
+}
+
+int RunTiger(const Config& c) {
+  // Default rollout: always listen (random rollouts bury every value under -600, see README).
+  models::Tiger::Rollout rollout = models::Tiger::Rollout::kListen;
+  if (c.rollout == "random") {
+    rollout = models::Tiger::Rollout::kRandom;
+  } else if (!c.rollout.empty() && c.rollout != "listen") {
+    std::cerr << "npfkct-bench: tiger rollouts are 'random' or 'listen'\n";
+    return 2;
+  }
+  const models::Tiger model(0.85, 0.95, rollout);
+  auto never = [](const auto&) { return false; };
+  if (c.planner == "pomcp") {
+    PomcpOptions o;  // c = reward range 110
+    o.search.num_particles = 2000;
+    return Run<models::Tiger, Pomcp<models::Tiger>>(c, model, o, 100, false, never);
+  }
+  if (c.planner == "pomcpow") {
+    PomcpowOptions o;
+    o.search.num_particles = 2000;
+    o.enable_action_pw = false;
+    return Run<models::Tiger, Pomcpow<models::Tiger>>(c, model, o, 100, false, never);
+  }
+  return Unsupported(c);
+}
+
+int RunRockSample(const Config& c) {
+  const auto model = models::RockSample::Standard78();
+  auto exited = [](const auto& step) { return step.reward == 10.0; };
+  if (c.planner == "pomcp") {
+    PomcpOptions o;  // c = reward range 20, preferred-action prior (10, 1.0), as POMCP 1.0
+    o.prior_value = 1.0;
+    o.search.num_particles = 4096;
+    o.search.discount_horizon = 0.01;
+    o.search.max_depth = 90;
+    o.search.belief.reinvigoration_fraction = 1.0 / 16.0;
+    return Run<models::RockSample, Pomcp<models::RockSample>>(c, model, o, 100, true, exited);
+  }
+  return Unsupported(c);
+}
+
+int RunLightDark(const Config& c) {
+  const models::SimpleLightDark model;
+  auto declared_at_zero = [](const auto& step) { return step.reward == 100.0; };
+  if (c.planner == "pomcp") {
+    PomcpOptions o;  // the POMCPOW paper's POMCP with continuous observations
+    o.exploration_c = 100.0;
+    o.search.max_depth = 20;
+    o.search.num_particles = 10000;
+    o.search.leaf_value = SearchOptions::LeafValue::kHeuristic;
+    return Run<models::SimpleLightDark, Pomcp<models::SimpleLightDark>>(c, model, o, 100, true,
+                                                                         declared_at_zero);
+  }
+  if (c.planner == "pomcpow") {
+    PomcpowOptions o;  // the POMCPOW paper's settings
+    o.exploration_c = 90.0;
+    o.enable_action_pw = false;
+    o.observations.k = 5.0;
+    o.observations.alpha = 1.0 / 15.0;
+    o.observations.check_repeat = false;
+    o.search.max_depth = 20;
+    o.search.num_particles = 10000;
+    o.search.leaf_value = SearchOptions::LeafValue::kHeuristic;
+    return Run<models::SimpleLightDark, Pomcpow<models::SimpleLightDark>>(c, model, o, 100, true,
+                                                                           declared_at_zero);
+  }
+  return Unsupported(c);
+}
+
+int RunVdpTag(const Config& c) {
+  models::VdpTag::Rollout rollout = models::VdpTag::Rollout::kRandom;
+  if (c.rollout == "tonextml") {
+    rollout = models::VdpTag::Rollout::kToNextMl;
+  } else if (!c.rollout.empty() && c.rollout != "random") {
+    std::cerr << "npfkct-bench: vdptag rollouts are 'random' or 'tonextml'\n";
+    return 2;
+  }
+  const models::VdpTag model(rollout);
+  auto tagged = [](const auto& step) { return step.state.tagged; };
+  using Model = models::VdpTag;
+  if (c.planner == "pomcpow" || c.planner == "vomcpow") {
+    PomcpowOptions o;  // the POMCPOW paper's VDP Tag settings
+    o.exploration_c = 110.0;
+    o.k_action = 30.0;
+    o.alpha_action = 1.0 / 30.0;
+    o.observations.k = 5.0;
+    o.observations.alpha = 1.0 / 100.0;
+    o.observations.check_repeat = false;
+    o.search.max_depth = 10;
+    o.search.num_particles = 10000;
+    if (c.planner == "vomcpow") {  // the VPW paper's tuned settings
+      o.use_voo = true;
+      o.exploration_c = 85.0;
+      o.observations.k = 2.5;
+      o.voo.uniform_probability = 0.7;
+      o.voo.proposal_stddev = std::sqrt(0.1);
+      o.voo.accept_radius = 0.01;
+      o.voo.max_tries = 20;
+    }
+    return Run<Model, Pomcpow<Model>>(c, model, o, 100, true, tagged);
+  }
+  if (c.planner == "advt") {
+    AdvtOptions o;  // the ADVT authors' VDP Tag configuration
+    o.exploration_c = 156.6;
+    o.diameter_coefficient = 5.0;
+    o.split_coefficient = 5.0;
+    o.observations.k = 5.0;
+    o.observations.alpha = 1.0 / 100.0;
+    o.observations.check_repeat = false;
+    o.search.max_depth = 10;
+    o.search.num_particles = 10000;
+    return Run<Model, Advt<Model>>(c, model, o, 100, true, tagged);
+  }
+  if (c.planner == "kct") {
+    KctOptions o;
+    o.observations.k = 5.0;
+    o.observations.alpha = 1.0 / 100.0;
+    o.observations.check_repeat = false;
+    o.search.max_depth = 10;
+    o.search.num_particles = 10000;
+    return Run<Model, KCenterTree<Model>>(c, model, o, 100, true, tagged);
+  }
+  return Unsupported(c);
+}
+
+}  // namespace
+}  // namespace npfkct::bench
+
+int main(int argc, char** argv) {
+  npfkct::bench::Config c;
+  CLI::App app{"npfkct-bench: closed-loop benchmark runs of the npfkct planners"};
+  app.add_option("--problem", c.problem, "tiger | rocksample | lightdark | vdptag")->required();
+  app.add_option("--planner", c.planner, "pomcp | pomcpow | vomcpow | advt | kct")->required();
+  app.add_option("--episodes", c.episodes, "episodes to run")->check(CLI::PositiveNumber);
+  app.add_option("--time-ms", c.time_ms, "planning time per step in ms (0: no time limit)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--sims", c.sims, "simulations per step (0: no limit)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--seed", c.seed, "base seed; episode i uses seed * 1000003 + i");
+  app.add_option("--threads", c.threads, "episodes run in parallel")->check(CLI::PositiveNumber);
+  app.add_option("--max-steps", c.max_steps, "episode length limit (default per problem)");
+  app.add_option("--rollout", c.rollout,
+                 "tiger: listen (default) | random; vdptag: random (default) | tonextml");
+  app.add_option("--opt", c.options, "planner option key=value (repeatable)");
+  CLI11_PARSE(app, argc, argv);
+  if (c.problem == "tiger") return npfkct::bench::RunTiger(c);
+  if (c.problem == "rocksample") return npfkct::bench::RunRockSample(c);
+  if (c.problem == "lightdark") return npfkct::bench::RunLightDark(c);
+  if (c.problem == "vdptag") return npfkct::bench::RunVdpTag(c);
+  std::cerr << "npfkct-bench: unknown problem '" << c.problem << "'\n";
+  return 2;
+}

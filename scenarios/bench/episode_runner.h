@@ -1,0 +1,157 @@
+// Closed-loop episode runner shared by the benchmark problems: plan, execute in the true model,
+// observe, update the belief; across episodes on several threads.
+#pragma once
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <functional>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "npfkct/solver/planner.h"
+#include "npfkct/solver/rng.h"
+#include "npfkct/solver/status.h"
+
+namespace npfkct::bench {
+
+/// One episode's outcome.
+struct EpisodeResult {
+  double discounted_return = 0.0;
+  double undiscounted_return = 0.0;
+  int steps = 0;
+  bool success = false;
+  std::vector<int64_t> sims_per_step;
+  std::vector<double> ms_per_step;
+  std::string error;  ///< Non-empty when planning failed.
+};
+
+/// Aggregates of a run.
+struct RunSummary {
+  int episodes = 0;
+  double mean_return = 0.0;
+  double stderr_return = 0.0;
+  double ci95_return = 0.0;
+  double mean_steps = 0.0;
+  double ci95_steps = 0.0;
+  std::optional<double> success_rate;
+  double median_sims_per_step = 0.0;
+  double median_sims_per_second = 0.0;
+  double wall_seconds = 0.0;
+  int failed_episodes = 0;
+  std::string first_error;
+};
+
+inline double Median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+/// Runs `episodes` episodes of `run_episode(index)` on `threads` threads and summarises them.
+/// Episode i is seeded from i alone, so results do not depend on the thread count.
+inline RunSummary RunEpisodes(int episodes, int threads, bool success_defined,
+                              const std::function<EpisodeResult(int)>& run_episode,
+                              const std::string& label) {
+  std::vector<EpisodeResult> results(episodes);
+  std::atomic<int> next{0}, done{0};
+  std::mutex print_mutex;
+  const bool tty = isatty(STDERR_FILENO);
+  const auto start = Clock::now();
+  auto worker = [&] {
+    for (int i = next++; i < episodes; i = next++) {
+      results[i] = run_episode(i);
+      const int finished = ++done;
+      if (tty) {
+        std::lock_guard<std::mutex> lock(print_mutex);
+        double sum = 0.0;
+        int counted = 0;
+        for (const auto& r : results) {
+          if (!r.sims_per_step.empty() || !r.error.empty()) {
+            sum += r.discounted_return;
+            ++counted;
+          }
+        }
+        std::fprintf(stderr, "\r%s: %d/%d episodes, mean return %.2f, %.0f s   ", label.c_str(),
+                     finished, episodes, counted ? sum / counted : 0.0,
+                     MillisSince(start) / 1000.0);
+        std::fflush(stderr);
+      }
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int t = 0; t < std::max(1, threads); ++t) pool.emplace_back(worker);
+  for (auto& t : pool) t.join();
+  if (tty) std::fprintf(stderr, "\n");
+
+  RunSummary s;
+  s.episodes = episodes;
+  s.wall_seconds = MillisSince(start) / 1000.0;
+  std::vector<double> sims, rate;
+  double sum = 0, sum2 = 0, steps = 0, steps2 = 0;
+  int successes = 0;
+  for (const auto& r : results) {
+    if (!r.error.empty()) {
+      ++s.failed_episodes;
+      if (s.first_error.empty()) s.first_error = r.error;
+    }
+    sum += r.discounted_return;
+    sum2 += r.discounted_return * r.discounted_return;
+    steps += r.steps;
+    steps2 += static_cast<double>(r.steps) * r.steps;
+    successes += r.success;
+    for (size_t k = 0; k < r.sims_per_step.size(); ++k) {
+      sims.push_back(static_cast<double>(r.sims_per_step[k]));
+      if (r.ms_per_step[k] > 0) rate.push_back(r.sims_per_step[k] / (r.ms_per_step[k] / 1000.0));
+    }
+  }
+  const double n = std::max(episodes, 1);
+  s.mean_return = sum / n;
+  const double var = episodes > 1 ? (sum2 - n * s.mean_return * s.mean_return) / (n - 1) : 0.0;
+  s.stderr_return = std::sqrt(std::max(var, 0.0) / n);
+  s.ci95_return = 1.96 * s.stderr_return;
+  s.mean_steps = steps / n;
+  const double var_steps =
+      episodes > 1 ? (steps2 - n * s.mean_steps * s.mean_steps) / (n - 1) : 0.0;
+  s.ci95_steps = 1.96 * std::sqrt(std::max(var_steps, 0.0) / n);
+  if (success_defined) s.success_rate = successes / n;
+  s.median_sims_per_step = Median(sims);
+  s.median_sims_per_second = Median(rate);
+  return s;
+}
+
+/// Minimal JSON string escaping.
+inline std::string JsonEscape(const std::string& in) {
+  std::string out;
+  for (char c : in) {
+    switch (c) {
+      case '"':
+        out += "\\\"";
+        break;
+      case '\\':
+        out += "\\\\";
+        break;
+      case '\n':
+        out += "\\n";
+        break;
+      default:
+        if (static_cast<unsigned char>(c) < 0x20) {
+          char buf[8];
+          std::snprintf(buf, sizeof buf, "\\u%04x", c);
+          out += buf;
+        } else {
+          out += c;
+        }
+    }
+  }
+  return out;
+}
+
+}  // namespace npfkct::bench

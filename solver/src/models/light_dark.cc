@@ -1,0 +1,71 @@
+#include "npfkct/solver/models/light_dark.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+namespace npfkct::models {
+
+SimpleLightDark::SimpleLightDark() : mdp_value_(2 * kRadius + 1, 0.0) {
+  // Value iteration on the fully observable problem.
+  std::vector<double> next(mdp_value_.size());
+  for (int iter = 0; iter < 2000; ++iter) {
+    double change = 0.0;
+    for (int s = -kRadius; s <= kRadius; ++s) {
+      double best = (s == 0) ? 100.0 : -100.0;
+      for (int move : kMoves) {
+        if (move == 0) continue;
+        const int sp = std::clamp(s + move, -kRadius, kRadius);
+        best = std::max(best, -1.0 + Discount() * mdp_value_[sp + kRadius]);
+      }
+      next[s + kRadius] = best;
+      change = std::max(change, std::abs(best - mdp_value_[s + kRadius]));
+    }
+    mdp_value_.swap(next);
+    if (change < 1e-9) break;
+  }
+}
+
+SimpleLightDark::State SimpleLightDark::SampleInitialState(Rng& rng) const {
+  return static_cast<int>(rng.UniformInt(61)) - 30;
+}
+
+StepResult<SimpleLightDark::State, SimpleLightDark::Observation> SimpleLightDark::Step(
+    const State& s, const Action& a, Rng& rng) const {
+  StepResult<State, Observation> r;
+  if (s == kTerminal) {
+    r.state = kTerminal;
+    r.terminal = true;
+  } else if (a == kDeclare) {
+    r.reward = (s == 0) ? 100.0 : -100.0;
+    r.state = kTerminal;
+    r.terminal = true;
+  } else {
+    r.reward = -1.0;
+    r.state = std::clamp(s + kMoves[a], -kRadius, kRadius);
+  }
+  r.observation = rng.Normal(r.state, NoiseStd(r.state));
+  return r;
+}
+
+double SimpleLightDark::ObservationLikelihood(const Action&, const State& sp,
+                                              const Observation& o) const {
+  const double sd = NoiseStd(sp);
+  const double z = (o - sp) / sd;
+  return std::exp(-0.5 * z * z) / (sd * std::sqrt(2.0 * std::numbers::pi));
+}
+
+double SimpleLightDark::HeuristicValue(const State& s) const {
+  if (s == kTerminal) return 0.0;
+  return mdp_value_[s + kRadius];
+}
+
+bool SimpleLightDark::Reinvigorate(const State&, const Action& a, const Observation& o, Rng& rng,
+                                   State* out) const {
+  if (a == kDeclare || !std::isfinite(o)) return false;
+  const double guess = rng.Normal(o, NoiseStd(o));
+  *out = static_cast<int>(std::clamp(std::round(guess), -double{kRadius}, double{kRadius}));
+  return true;
+}
+
+}  // namespace npfkct::models

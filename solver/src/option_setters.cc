@@ -1,0 +1,246 @@
+#include "npfkct/solver/option_setters.h"
+
+#include <cmath>
+#include <functional>
+#include <map>
+
+namespace npfkct {
+namespace {
+
+template <class O>
+using Setter = std::function<Status(O*, double)>;
+
+template <class O>
+Setter<O> Real(double O::*field) {
+  return [field](O* o, double v) {
+    o->*field = v;
+    return OkStatus();
+  };
+}
+template <class O>
+Setter<O> Int(int O::*field) {
+  return [field](O* o, double v) {
+    if (v != std::floor(v) || std::abs(v) > 1e9) return InvalidArgumentError("not an integer");
+    o->*field = static_cast<int>(v);
+    return OkStatus();
+  };
+}
+template <class O>
+Setter<O> Bool(bool O::*field) {
+  return [field](O* o, double v) {
+    if (v != 0.0 && v != 1.0) return InvalidArgumentError("not a boolean (0 or 1)");
+    o->*field = v != 0.0;
+    return OkStatus();
+  };
+}
+// A setter of a nested struct's field.
+template <class O, class Inner>
+Setter<O> Nested(Inner O::*member, Setter<Inner> inner) {
+  return [member, inner](O* o, double v) { return inner(&(o->*member), v); };
+}
+
+template <class O>
+Status Apply(const std::map<std::string, Setter<O>, std::less<>>& table, O* o, std::string_view key,
+             double value) {
+  auto it = table.find(key);
+  if (it == table.end()) {
+    // Allow the bare leaf name when exactly one nested key ends with it.
+    const std::string suffix = "." + std::string(key);
+    int matches = 0;
+    for (auto j = table.begin(); j != table.end(); ++j) {
+      if (j->first.size() > suffix.size() &&
+          j->first.compare(j->first.size() - suffix.size(), suffix.size(), suffix) == 0) {
+        it = j;
+        ++matches;
+      }
+    }
+    if (matches != 1) return InvalidArgumentError("unknown option '" + std::string(key) + "'");
+  }
+  if (std::isnan(value) && it->first.find("exploration_c") == std::string::npos &&
+      it->first.find("value_scale") == std::string::npos) {
+    return InvalidArgumentError("option " + it->first + ": value must be a number");
+  }
+  if (std::isinf(value)) return InvalidArgumentError("option " + it->first + ": value is infinite");
+  Status s = it->second(o, value);
+  if (!s.ok()) return InvalidArgumentError("option " + it->first + ": " + s.message());
+  return OkStatus();
+}
+
+template <class O>
+std::vector<std::string> Keys(const std::map<std::string, Setter<O>, std::less<>>& table) {
+  std::vector<std::string> keys;
+  for (const auto& [k, v] : table) keys.push_back(k);
+  return keys;
+}
+
+Setter<SearchOptions> LeafValue() {
+  return [](SearchOptions* o, double v) {
+    if (v == 0.0) {
+      o->leaf_value = SearchOptions::LeafValue::kRollout;
+    } else if (v == 1.0) {
+      o->leaf_value = SearchOptions::LeafValue::kHeuristic;
+    } else {
+      return InvalidArgumentError("0 (rollout) or 1 (heuristic)");
+    }
+    return OkStatus();
+  };
+}
+
+const std::map<std::string, Setter<SearchOptions>, std::less<>>& SearchTable() {
+  static const auto* table = new std::map<std::string, Setter<SearchOptions>, std::less<>>{
+      {"max_depth", Int(&SearchOptions::max_depth)},
+      {"discount_horizon", Real(&SearchOptions::discount_horizon)},
+      {"reuse_tree", Bool(&SearchOptions::reuse_tree)},
+      {"num_particles", Int(&SearchOptions::num_particles)},
+      {"leaf_value", LeafValue()},
+      {"belief.resample_threshold",
+       Nested(&SearchOptions::belief, Real(&BeliefUpdateOptions::resample_threshold))},
+      {"belief.reinvigoration_fraction",
+       Nested(&SearchOptions::belief, Real(&BeliefUpdateOptions::reinvigoration_fraction))},
+      {"belief.max_attempts_per_particle",
+       Nested(&SearchOptions::belief, Int(&BeliefUpdateOptions::max_attempts_per_particle))},
+  };
+  return *table;
+}
+
+template <class O>
+void AddSearch(std::map<std::string, Setter<O>, std::less<>>* table) {
+  for (const auto& [k, setter] : SearchTable()) {
+    (*table)["search." + k] = Nested(&O::search, setter);
+  }
+}
+
+const std::map<std::string, Setter<ObservationWidening>, std::less<>>& WideningTable() {
+  static const auto* table = new std::map<std::string, Setter<ObservationWidening>, std::less<>>{
+      {"enabled", Bool(&ObservationWidening::enabled)},
+      {"k", Real(&ObservationWidening::k)},
+      {"alpha", Real(&ObservationWidening::alpha)},
+      {"check_repeat", Bool(&ObservationWidening::check_repeat)},
+  };
+  return *table;
+}
+
+template <class O>
+void AddWidening(std::map<std::string, Setter<O>, std::less<>>* table) {
+  for (const auto& [k, setter] : WideningTable()) {
+    (*table)["observations." + k] = Nested(&O::observations, setter);
+  }
+}
+
+const std::map<std::string, Setter<PomcpOptions>, std::less<>>& PomcpTable() {
+  static const auto* table = [] {
+    auto* t = new std::map<std::string, Setter<PomcpOptions>, std::less<>>{
+        {"exploration_c", Real(&PomcpOptions::exploration_c)},
+        {"use_preferred_actions", Bool(&PomcpOptions::use_preferred_actions)},
+        {"prior_count", Int(&PomcpOptions::prior_count)},
+        {"prior_value", Real(&PomcpOptions::prior_value)},
+    };
+    AddSearch(t);
+    return t;
+  }();
+  return *table;
+}
+
+const std::map<std::string, Setter<PomcpowOptions>, std::less<>>& PomcpowTable() {
+  static const auto* table = [] {
+    auto* t = new std::map<std::string, Setter<PomcpowOptions>, std::less<>>{
+        {"exploration_c", Real(&PomcpowOptions::exploration_c)},
+        {"enable_action_pw", Bool(&PomcpowOptions::enable_action_pw)},
+        {"k_action", Real(&PomcpowOptions::k_action)},
+        {"alpha_action", Real(&PomcpowOptions::alpha_action)},
+        {"use_voo", Bool(&PomcpowOptions::use_voo)},
+        {"voo.uniform_probability",
+         Nested(&PomcpowOptions::voo, Real(&VooOptions::uniform_probability))},
+        {"voo.proposal_stddev", Nested(&PomcpowOptions::voo, Real(&VooOptions::proposal_stddev))},
+        {"voo.accept_radius", Nested(&PomcpowOptions::voo, Real(&VooOptions::accept_radius))},
+        {"voo.max_tries", Nested(&PomcpowOptions::voo, Int(&VooOptions::max_tries))},
+    };
+    AddSearch(t);
+    AddWidening(t);
+    return t;
+  }();
+  return *table;
+}
+
+const std::map<std::string, Setter<AdvtOptions>, std::less<>>& AdvtTable() {
+  static const auto* table = [] {
+    auto* t = new std::map<std::string, Setter<AdvtOptions>, std::less<>>{
+        {"exploration_c", Real(&AdvtOptions::exploration_c)},
+        {"diameter_coefficient", Real(&AdvtOptions::diameter_coefficient)},
+        {"split_coefficient", Real(&AdvtOptions::split_coefficient)},
+        {"diameter_samples", Int(&AdvtOptions::diameter_samples)},
+        {"walk_steps", Int(&AdvtOptions::walk_steps)},
+        {"backup",
+         [](AdvtOptions* o, double v) {
+           if (v != 0.0 && v != 1.0) return InvalidArgumentError("0 (Monte Carlo) or 1 (max)");
+           o->backup = v == 0.0 ? AdvtOptions::Backup::kMonteCarlo : AdvtOptions::Backup::kMax;
+           return OkStatus();
+         }},
+    };
+    AddSearch(t);
+    AddWidening(t);
+    return t;
+  }();
+  return *table;
+}
+
+const std::map<std::string, Setter<KctOptions>, std::less<>>& KctTable() {
+  static const auto* table = [] {
+    auto* t = new std::map<std::string, Setter<KctOptions>, std::less<>>{
+        {"k", Int(&KctOptions::k)},
+        {"w1", Real(&KctOptions::w1)},
+        {"w2", Real(&KctOptions::w2)},
+        {"value_scale", Real(&KctOptions::value_scale)},
+        {"c_r", Real(&KctOptions::c_r)},
+        {"d_lim", Real(&KctOptions::d_lim)},
+        {"w1_bar", Real(&KctOptions::w1_bar)},
+        {"w2_bar", Real(&KctOptions::w2_bar)},
+        {"num_candidates", Int(&KctOptions::num_candidates)},
+        {"max_initial_clusters", Int(&KctOptions::max_initial_clusters)},
+        {"max_feasibility_tries", Int(&KctOptions::max_feasibility_tries)},
+        {"backup",
+         [](KctOptions* o, double v) {
+           if (v != 0.0 && v != 1.0) return InvalidArgumentError("0 (Monte Carlo) or 1 (Bellman)");
+           o->backup = v == 0.0 ? KctOptions::Backup::kMonteCarlo : KctOptions::Backup::kBellman;
+           return OkStatus();
+         }},
+        {"final_action",
+         [](KctOptions* o, double v) {
+           if (v != 0.0 && v != 1.0) return InvalidArgumentError("0 (uniform) or 1 (center)");
+           o->final_action = v == 0.0 ? KctOptions::FinalAction::kUniformInSphere
+                                      : KctOptions::FinalAction::kCenter;
+           return OkStatus();
+         }},
+    };
+    AddSearch(t);
+    AddWidening(t);
+    return t;
+  }();
+  return *table;
+}
+
+}  // namespace
+
+Status SetOption(SearchOptions* o, std::string_view key, double value) {
+  return Apply(SearchTable(), o, key, value);
+}
+Status SetOption(PomcpOptions* o, std::string_view key, double value) {
+  return Apply(PomcpTable(), o, key, value);
+}
+Status SetOption(PomcpowOptions* o, std::string_view key, double value) {
+  return Apply(PomcpowTable(), o, key, value);
+}
+Status SetOption(AdvtOptions* o, std::string_view key, double value) {
+  return Apply(AdvtTable(), o, key, value);
+}
+Status SetOption(KctOptions* o, std::string_view key, double value) {
+  return Apply(KctTable(), o, key, value);
+}
+
+std::vector<std::string> OptionNames(const SearchOptions*) { return Keys(SearchTable()); }
+std::vector<std::string> OptionNames(const PomcpOptions*) { return Keys(PomcpTable()); }
+std::vector<std::string> OptionNames(const PomcpowOptions*) { return Keys(PomcpowTable()); }
+std::vector<std::string> OptionNames(const AdvtOptions*) { return Keys(AdvtTable()); }
+std::vector<std::string> OptionNames(const KctOptions*) { return Keys(KctTable()); }
+
+}  // namespace npfkct

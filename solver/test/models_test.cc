@@ -1,0 +1,226 @@
+// Checks of the benchmark models against their published definitions.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+#include "npfkct/solver/models/light_dark.h"
+#include "npfkct/solver/models/rock_sample.h"
+#include "npfkct/solver/models/tiger.h"
+#include "npfkct/solver/models/vdp_tag.h"
+
+namespace npfkct::models {
+namespace {
+
+TEST(TigerTest, RewardsAndReset) {
+  Tiger tiger;
+  Rng rng(1);
+  auto r = tiger.Step(0, Tiger::kListen, rng);
+  EXPECT_EQ(r.reward, -1.0);
+  EXPECT_EQ(r.state, 0);
+  EXPECT_EQ(tiger.Step(0, Tiger::kOpenLeft, rng).reward, -100.0);
+  EXPECT_EQ(tiger.Step(0, Tiger::kOpenRight, rng).reward, 10.0);
+  int left_after_reset = 0, correct = 0;
+  for (int i = 0; i < 10000; ++i) {
+    left_after_reset += tiger.Step(0, Tiger::kOpenRight, rng).state == 0;
+    correct += tiger.Step(1, Tiger::kListen, rng).observation == 1;
+  }
+  EXPECT_NEAR(left_after_reset / 10000.0, 0.5, 0.02);
+  EXPECT_NEAR(correct / 10000.0, 0.85, 0.01);
+  EXPECT_DOUBLE_EQ(tiger.ObservationLikelihood(Tiger::kListen, 1, 0), 0.15);
+  EXPECT_DOUBLE_EQ(tiger.ObservationLikelihood(Tiger::kOpenLeft, 1, 0), 0.5);
+}
+
+TEST(RockSampleTest, StandardLayout) {
+  auto rs = RockSample::Standard78();
+  EXPECT_EQ(rs.size(), 7);
+  EXPECT_EQ(rs.num_rocks(), 8);
+  EXPECT_EQ(rs.NumActions(), 13);
+  EXPECT_EQ(rs.start(), std::make_pair(0, 3));
+  EXPECT_EQ(rs.rock(0), std::make_pair(2, 0));
+  EXPECT_EQ(rs.rock(3), std::make_pair(6, 3));
+  EXPECT_EQ(rs.rock(7), std::make_pair(1, 6));
+  // Efficiency (1 + 2^(-d/20)) / 2: from the start, rock 3 at (6, 3) is 6 away.
+  EXPECT_NEAR(rs.Efficiency(0, 3, 3), 0.5 * (1 + std::exp2(-6.0 / 20.0)), 1e-12);
+  EXPECT_DOUBLE_EQ(rs.Efficiency(2, 0, 0), 1.0);
+}
+
+TEST(RockSampleTest, MovesExitAndSampling) {
+  auto rs = RockSample::Standard78();
+  Rng rng(2);
+  RockSample::State s = rs.SampleInitialState(rng);
+  s.good = 0b00000001;  // only rock 0 is good
+  // Walking east 6 times then once more exits with +10.
+  for (int i = 0; i < 6; ++i) {
+    auto r = rs.Step(s, RockSample::kEast, rng);
+    EXPECT_EQ(r.reward, 0.0);
+    s = r.state;
+  }
+  auto exit = rs.Step(s, RockSample::kEast, rng);
+  EXPECT_EQ(exit.reward, 10.0);
+  EXPECT_TRUE(exit.terminal);
+  // Off the grid elsewhere costs 100 and keeps the position.
+  RockSample::State w = rs.SampleInitialState(rng);
+  auto west = rs.Step(w, RockSample::kWest, rng);
+  EXPECT_EQ(west.reward, -100.0);
+  EXPECT_EQ(west.state.x, 0);
+  // Sampling: good rock +10 then it is collected (and bad); empty cell -100.
+  RockSample::State at0 = w;
+  at0.x = 2;
+  at0.y = 0;
+  at0.good = 1;
+  auto sample = rs.Step(at0, RockSample::kSample, rng);
+  EXPECT_EQ(sample.reward, 10.0);
+  EXPECT_EQ(sample.state.collected, 1);
+  EXPECT_EQ(rs.Step(sample.state, RockSample::kSample, rng).reward, -100.0);
+  at0.good = 0;
+  EXPECT_EQ(rs.Step(at0, RockSample::kSample, rng).reward, -10.0);
+  EXPECT_EQ(rs.Step(w, RockSample::kSample, rng).reward, -100.0);
+}
+
+TEST(RockSampleTest, CheckIsNoisyByDistanceAndTracksEvidence) {
+  auto rs = RockSample::Standard78();
+  Rng rng(3);
+  RockSample::State s = rs.SampleInitialState(rng);
+  s.good = 0xff;
+  int good = 0;
+  const int n = 20000;
+  for (int i = 0; i < n; ++i) {
+    good += rs.Step(s, RockSample::kFirstCheck + 3, rng).observation == RockSample::kGood;
+  }
+  EXPECT_NEAR(static_cast<double>(good) / n, rs.Efficiency(0, 3, 3), 0.01);
+  auto r = rs.Step(s, RockSample::kFirstCheck + 1, rng);
+  EXPECT_EQ(r.state.measured[1], 1);
+  EXPECT_EQ(std::abs(r.state.evidence[1]), 1);
+}
+
+TEST(RockSampleTest, LegalAndPreferredActions) {
+  auto rs = RockSample::Standard78();
+  Rng rng(4);
+  RockSample::State s = rs.SampleInitialState(rng);
+  std::vector<int> legal;
+  rs.LegalActions(s, &legal);
+  // At (0, 3): N, E, S (no W, no sample), 8 checks.
+  EXPECT_EQ(legal.size(), 3u + 8u);
+  std::vector<int> preferred;
+  rs.PreferredActions(s, &preferred);
+  // No evidence yet: all rocks interesting; W is off the grid.
+  EXPECT_NE(std::find(preferred.begin(), preferred.end(), RockSample::kEast), preferred.end());
+  EXPECT_EQ(std::find(preferred.begin(), preferred.end(), RockSample::kWest), preferred.end());
+  // Every rock believed bad: prefer exiting east.
+  for (int i = 0; i < 8; ++i) s.evidence[i] = -2;
+  rs.PreferredActions(s, &preferred);
+  EXPECT_EQ(preferred, std::vector<int>{RockSample::kEast});
+  // Standing on a rock believed good: sample it.
+  s.x = 0;
+  s.y = 1;
+  s.evidence[1] = 2;
+  rs.PreferredActions(s, &preferred);
+  EXPECT_EQ(preferred, std::vector<int>{RockSample::kSample});
+}
+
+TEST(SimpleLightDarkTest, DynamicsRewardsAndObservations) {
+  SimpleLightDark ld;
+  Rng rng(5);
+  auto r = ld.Step(5, 4, rng);  // +10
+  EXPECT_EQ(r.state, 15);
+  EXPECT_EQ(r.reward, -1.0);
+  EXPECT_EQ(ld.Step(58, 4, rng).state, 60);  // clamped
+  auto declare = ld.Step(0, SimpleLightDark::kDeclare, rng);
+  EXPECT_EQ(declare.reward, 100.0);
+  EXPECT_TRUE(declare.terminal);
+  EXPECT_EQ(ld.Step(3, SimpleLightDark::kDeclare, rng).reward, -100.0);
+  // Near the light observations are precise; far away they are not.
+  EXPECT_NEAR(ld.Step(9, 3, rng).observation, 10.0, 1e-2);
+  EXPECT_DOUBLE_EQ(SimpleLightDark::NoiseStd(-30), 40.0001);
+  for (int i = 0; i < 1000; ++i) {
+    const int s0 = ld.SampleInitialState(rng);
+    EXPECT_GE(s0, -30);
+    EXPECT_LE(s0, 30);
+  }
+}
+
+TEST(SimpleLightDarkTest, MdpValueIsExact) {
+  SimpleLightDark ld;
+  EXPECT_NEAR(ld.HeuristicValue(0), 100.0, 1e-9);
+  EXPECT_NEAR(ld.HeuristicValue(1), -1.0 + 0.95 * 100.0, 1e-9);
+  EXPECT_NEAR(ld.HeuristicValue(10), -1.0 + 0.95 * 100.0, 1e-9);
+  EXPECT_NEAR(ld.HeuristicValue(11), -1.0 + 0.95 * (-1.0 + 0.95 * 100.0), 1e-9);
+}
+
+TEST(VdpTagTest, TargetFollowsVanDerPolWithRk4) {
+  // One RK4 substep by hand from (1, 0): f = (mu (x - x^3/3 - y), x / mu).
+  double x = 1.0, y = 0.0;
+  double nx, ny;
+  VdpTag::NextMlTarget(x, y, &nx, &ny);
+  // The oscillator's limit cycle has amplitude about 2; the motion is smooth and bounded.
+  EXPECT_GT(nx, 1.0);
+  EXPECT_GT(ny, 0.0);
+  EXPECT_LT(std::hypot(nx - x, ny - y), 1.0);
+  // From the origin (a fixed point) the target does not move.
+  VdpTag::NextMlTarget(0.0, 0.0, &nx, &ny);
+  EXPECT_EQ(nx, 0.0);
+  EXPECT_EQ(ny, 0.0);
+}
+
+TEST(VdpTagTest, BarriersStopTheAgent) {
+  double nx, ny;
+  // Moving up across the +x barrier (y = 0, x in [0.2, 3.0]) stops just below it.
+  VdpTag::BarrierStop(1.0, -0.25, 0.0, 0.5, &nx, &ny);
+  EXPECT_NEAR(nx, 1.0, 1e-12);
+  EXPECT_NEAR(ny, 0.0, 1e-9);
+  EXPECT_LT(ny, 0.0);
+  // Through the central gap (|x| < 0.2) the agent passes.
+  VdpTag::BarrierStop(0.1, -0.25, 0.0, 0.5, &nx, &ny);
+  EXPECT_NEAR(ny, 0.25, 1e-9);
+  // Beyond the barrier's end (x > 3) it passes too.
+  VdpTag::BarrierStop(3.2, -0.25, 0.0, 0.5, &nx, &ny);
+  EXPECT_NEAR(ny, 0.25, 1e-9);
+}
+
+TEST(VdpTagTest, BeamsRewardsAndLikelihood) {
+  EXPECT_EQ(VdpTag::ActiveBeam(1.0, 0.1), 0);
+  EXPECT_EQ(VdpTag::ActiveBeam(0.1, 1.0), 1);
+  EXPECT_EQ(VdpTag::ActiveBeam(-1.0, -0.1), 4);
+  EXPECT_EQ(VdpTag::ActiveBeam(1.0, -0.1), 7);
+  EXPECT_EQ(VdpTag::ActiveBeam(1.0, 0.0), 7);  // theta = 0 maps to 2 pi: the last beam
+  VdpTag tag;
+  Rng rng(6);
+  // The target sits on the oscillator's fixed point (0, 0) and only jitters (std 0.05); the agent
+  // steps onto it and tags it with probability 1 - exp(-2) = 0.86.
+  VdpTag::State s{-0.5, 0.0, 0.0, 0.0, false};
+  HybridAction east{VdpTag::kMove, MakeActionVec({0.0})};
+  int tags = 0;
+  for (int i = 0; i < 200; ++i) {
+    auto r = tag.Step(s, east, rng);
+    if (r.terminal) {
+      ++tags;
+      EXPECT_EQ(r.reward, 100.0);
+    } else {
+      EXPECT_EQ(r.reward, -1.0);
+    }
+  }
+  EXPECT_NEAR(tags / 200.0, 0.86, 0.08);
+  HybridAction look{VdpTag::kMoveAndLook, MakeActionVec({std::numbers::pi})};
+  auto r = tag.Step(VdpTag::State{0, 0, 3, 3, false}, look, rng);
+  EXPECT_EQ(r.reward, -6.0);
+  EXPECT_GT(tag.ObservationLikelihood(look, r.state, r.observation), 0.0);
+  // A looking observation of a target at (2, 0.5) (beam 0, distance 2.06): far more likely under
+  // the true state than under a target mirrored into beam 3.
+  const VdpTag::State truth{0, 0, 2.0, 0.5, false};
+  VdpTag::Observation o;
+  for (int b = 0; b < 8; ++b) o[b] = 1.0 + 5.0 * rng.Normal();
+  o[0] = std::hypot(2.0, 0.5) + 0.1 * rng.Normal();
+  const VdpTag::State mirrored{0, 0, -2.0, 0.5, false};
+  EXPECT_GT(tag.ObservationLikelihood(look, truth, o),
+            1e3 * tag.ObservationLikelihood(look, mirrored, o));
+  // Without looking the beam is noisy (std 5) and the two states are hard to tell apart.
+  const double ratio = tag.ObservationLikelihood(HybridAction{VdpTag::kMove, MakeActionVec({0})},
+                                                 truth, o) /
+                       tag.ObservationLikelihood(HybridAction{VdpTag::kMove, MakeActionVec({0})},
+                                                 mirrored, o);
+  EXPECT_LT(ratio, 10.0);
+}
+
+}  // namespace
+}  // namespace npfkct::models
