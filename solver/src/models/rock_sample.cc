@@ -1,6 +1,7 @@
 #include "npfkct/solver/models/rock_sample.h"
 
 #include <cmath>
+#include <algorithm>
 #include <cstdlib>
 
 namespace npfkct::models {
@@ -100,10 +101,26 @@ StepResult<RockSample::State, RockSample::Observation> RockSample::Step(const St
   const double eta = Efficiency(n.x, n.y, rock);
   const bool correct = rng.Uniform() < eta;
   r.observation = (good == correct) ? kGood : kBad;
-  n.evidence[rock] = static_cast<int8_t>(n.evidence[rock] + (r.observation == kGood ? 1 : -1));
-  if (n.measured[rock] < 100) ++n.measured[rock];
-  if (n.x == rocks_[rock].first && n.y == rocks_[rock].second) n.certain |= (1u << rock);
+  RecordCheck(s, rock, r.observation, &n);
   return r;
+}
+
+void RockSample::RecordCheck(const State& before, int rock, Observation o, State* after) const {
+  after->evidence[rock] = static_cast<int8_t>(before.evidence[rock] + (o == kGood ? 1 : -1));
+  // log(eta / (1 - eta)), capped where the check is certain (eta = 1 at distance 0).
+  const double eta = Efficiency(before.x, before.y, rock);
+  const float lr = eta >= 1.0 ? 50.0f : static_cast<float>(std::log(eta / (1.0 - eta)));
+  after->log_odds[rock] = before.log_odds[rock] + ((o == kGood) ? lr : -lr);
+  after->measured[rock] = static_cast<int8_t>(std::min(before.measured[rock] + 1, 100));
+  if (before.x == rocks_[rock].first && before.y == rocks_[rock].second) {
+    after->certain |= static_cast<uint16_t>(1u << rock);
+  }
+}
+
+void RockSample::Condition(const State& s, const Action& a, const Observation& o,
+                           State* sp) const {
+  if (a < kFirstCheck || s.terminal || (o != kGood && o != kBad)) return;
+  RecordCheck(s, a - kFirstCheck, o, sp);
 }
 
 void RockSample::LegalActions(const State& s, std::vector<int>* out) const {
@@ -144,7 +161,7 @@ void RockSample::PreferredActions(const State& s, std::vector<int>* out) const {
   if (south && s.y > 0) out->push_back(kSouth);
   if (west && s.x > 0) out->push_back(kWest);
   for (int i = 0; i < num_rocks(); ++i) {
-    if (((s.collected >> i) & 1u) || ((s.certain >> i) & 1u)) continue;
+    if (((s.collected >> i) & 1u) || ((s.certain >> i) & 1u)) continue;  // ProbValuable in {0, 1}
     if (s.measured[i] < 5 && std::abs(s.evidence[i]) < 2) out->push_back(kFirstCheck + i);
   }
 }
@@ -166,16 +183,17 @@ double RockSample::ObservationLikelihood(const Action& a, const State& sp,
   return ((o == kGood) == good) ? eta : 1.0 - eta;
 }
 
-bool RockSample::Reinvigorate(const State& near, const Action& a, const Observation& o, Rng& rng,
+bool RockSample::Reinvigorate(const State& near, const Action&, const Observation&, Rng& rng,
                               State* out) const {
   if (near.terminal || num_rocks() == 0) return false;
   *out = near;
   const int flip = static_cast<int>(rng.UniformInt(num_rocks()));
   if ((out->collected >> flip) & 1u) return false;
+  const bool was_good = (out->good >> flip) & 1u;
+  // Posterior ratio P(flipped) / P(current) = exp(-+ log_odds).
+  const double log_ratio = was_good ? -out->log_odds[flip] : out->log_odds[flip];
+  if (log_ratio < 0.0 && rng.Uniform() >= std::exp(log_ratio)) return false;
   out->good ^= static_cast<uint16_t>(1u << flip);
-  if (a >= kFirstCheck && a - kFirstCheck == flip) {
-    return rng.Uniform() < ObservationLikelihood(a, *out, o);
-  }
   return true;
 }
 

@@ -187,6 +187,11 @@ class ParticleBelief {
       const State& s = Sample(rng);
       auto step = model.Step(s, a, rng);
       ++summary.simulations;
+      // Models that keep history in the state (e.g. RockSample's evidence counts) rewrite it as if
+      // the real observation had been generated.
+      if constexpr (requires { model.Condition(s, a, o, &step.state); }) {
+        model.Condition(s, a, o, &step.state);
+      }
       double z = model.ObservationLikelihood(a, step.state, o);
       if (!std::isfinite(z) || z < 0.0) z = 0.0;
       if (z > 0.0) ++summary.consistent;
@@ -271,17 +276,17 @@ class ParticleBelief {
                            const typename M::Observation& o, const BeliefUpdateOptions& options,
                            Rng& rng) {
     const int count = static_cast<int>(options.reinvigoration_fraction * size());
+    if (count == 0) return 0;
+    // Resample-move: moves are applied to equally weighted particles, each to the particle it
+    // starts from, so that moves which preserve the posterior (Metropolis-Hastings) keep it.
+    if (!uniform_) Resample(size(), rng);
     int done = 0;
     for (int k = 0; k < count; ++k) {
       State fresh;
-      const State& near = particles_[rng.UniformInt(size())];
-      if (!TryReinvigorate(model, near, a, o, rng, &fresh)) continue;
-      particles_[rng.UniformInt(size())] = std::move(fresh);
+      const int i = static_cast<int>(rng.UniformInt(size()));
+      if (!TryReinvigorate(model, particles_[i], a, o, rng, &fresh)) continue;
+      particles_[i] = std::move(fresh);
       ++done;
-    }
-    if (done > 0) {
-      weights_.assign(particles_.size(), 1.0);
-      Recompute();
     }
     return done;
   }

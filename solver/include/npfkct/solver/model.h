@@ -19,6 +19,8 @@
 //   bool Reinvigorate(const State& near, const Action&,               // a particle near `near` that
 //                     const Observation&, Rng&, State* out) const;    // is consistent with (a, o)
 //   double HeuristicValue(const State&) const;                        // leaf value instead of rollout
+//   void Condition(const State& s, const Action&, const Observation&, // rewrite history kept in s'
+//                  State* sp) const;                                  // for the real observation
 //
 // Discrete-action models (Action = int) add
 //   int NumActions() const;

@@ -30,6 +30,9 @@ class RockSample {
     uint16_t certain = 0;    ///< Bit i: rock i was checked from distance 0.
     std::array<int8_t, kMaxRocks> evidence{};  ///< #good - #bad observations per rock.
     std::array<int8_t, kMaxRocks> measured{};  ///< Checks per rock.
+    /// Log-odds that rock i is good given its check observations (the posterior, since rocks are
+    /// independent a priori and each check observes one rock).
+    std::array<float, kMaxRocks> log_odds{};
 
     friend bool operator==(const State&, const State&) = default;
   };
@@ -66,8 +69,11 @@ class RockSample {
   /// A uniformly random preferred action (legal when there are none).
   Action RolloutAction(const State& s, Rng& rng) const;
   double ObservationLikelihood(const Action& a, const State& sp, const Observation& o) const;
-  /// POMCP's local move: flip one random rock of `near`; when `a` checked a rock, keep the result
-  /// only if it reproduces `o` (accepted with its likelihood).
+  /// Rewrites the evidence of a check in `sp` (stepped from `s`) as if `o` had been observed.
+  void Condition(const State& s, const Action& a, const Observation& o, State* sp) const;
+  /// A Metropolis-Hastings move in the spirit of POMCP's local transforms: flip one random
+  /// uncollected rock of `near`, accepted with probability min(1, posterior ratio) from the rock's
+  /// log-odds, so the belief keeps its posterior while regaining diversity.
   bool Reinvigorate(const State& near, const Action& a, const Observation& o, Rng& rng,
                     State* out) const;
   double MinReward() const { return -10.0; }
@@ -82,6 +88,7 @@ class RockSample {
 
  private:
   int RockAt(int x, int y) const;
+  void RecordCheck(const State& before, int rock, Observation o, State* after) const;
 
   int size_;
   std::vector<std::pair<int, int>> rocks_;
