@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "episode_runner.h"
+#include "object_search_bench.h"
 #include "npfkct/solver/advt.h"
 #include "npfkct/solver/kct.h"
 #include "npfkct/solver/models/light_dark.h"
@@ -271,10 +272,21 @@ int RunVdpTag(const Config& c) {
 
 int main(int argc, char** argv) {
   npfkct::bench::Config c;
-  CLI::App app{"npfkct-bench: closed-loop benchmark runs of the npfkct planners"};
-  app.add_option("--problem", c.problem, "tiger | rocksample | lightdark | vdptag")->required();
-  app.add_option("--planner", c.planner, "pomcp | pomcpow | vomcpow | advt | kct")->required();
-  app.add_option("--episodes", c.episodes, "episodes to run")->check(CLI::PositiveNumber);
+  npfkct::bench::SearchBenchConfig search;
+  CLI::App app{
+      "npfkct-bench: closed-loop benchmark runs of the npfkct planners, on the classic POMDP "
+      "benchmarks (--problem) or on object-search scenarios (--scenario)"};
+  app.add_option("--problem", c.problem, "tiger | rocksample | lightdark | vdptag");
+  app.add_option("--scenario", search.scenarios,
+                 "object-search scenario file(s) (repeatable or comma-separated)")
+      ->delimiter(',');
+  app.add_option("--planner", search.planners,
+                 "problems: pomcp | pomcpow | vomcpow | advt | kct; scenarios: npfkct, kct, "
+                 "pomcp, gpomcp, pomcpow, vomcpow, advt or all (comma-separated)")
+      ->delimiter(',')
+      ->required();
+  app.add_option("--episodes,--trials", c.episodes, "episodes (trials) per run")
+      ->check(CLI::PositiveNumber);
   app.add_option("--time-ms", c.time_ms, "planning time per step in ms (0: no time limit)")
       ->check(CLI::NonNegativeNumber);
   app.add_option("--sims", c.sims, "simulations per step (0: no limit)")
@@ -285,11 +297,31 @@ int main(int argc, char** argv) {
   app.add_option("--rollout", c.rollout,
                  "tiger: listen (default) | random; vdptag: random (default) | tonextml");
   app.add_option("--opt", c.options, "planner option key=value (repeatable)");
+  app.add_option("--robot", search.robot, "scenarios: override the robot (fetch | stretch)");
+  app.add_option("--table", search.table_path, "scenarios: write a Markdown table (Table 1)");
+  app.add_option("--render", search.render_dir,
+                 "scenarios: write per-step PNGs of the first trial into this directory");
   CLI11_PARSE(app, argc, argv);
+  if (!search.scenarios.empty()) {
+    search.trials = c.episodes;
+    search.time_ms = c.time_ms;
+    search.sims = c.sims;
+    search.seed = c.seed;
+    search.threads = c.threads;
+    search.max_steps = c.max_steps;
+    search.options = c.options;
+    return npfkct::bench::RunObjectSearchBench(search);
+  }
+  if (search.planners.size() != 1) {
+    std::cerr << "npfkct-bench: one --planner per --problem run\n";
+    return 2;
+  }
+  c.planner = search.planners[0];
   if (c.problem == "tiger") return npfkct::bench::RunTiger(c);
   if (c.problem == "rocksample") return npfkct::bench::RunRockSample(c);
   if (c.problem == "lightdark") return npfkct::bench::RunLightDark(c);
   if (c.problem == "vdptag") return npfkct::bench::RunVdpTag(c);
-  std::cerr << "npfkct-bench: unknown problem '" << c.problem << "'\n";
+  std::cerr << "npfkct-bench: set --problem or --scenario (unknown problem '" << c.problem
+            << "')\n";
   return 2;
 }

@@ -129,17 +129,15 @@ class Advt {
     BeliefUpdateOptions b = options_.search.belief;
     if (b.num_particles == 0) b.num_particles = options_.search.num_particles;
     BeliefUpdateSummary summary = belief_.Update(model_, a, o, rng, b);
-    int next = -1;
-    if (options_.search.reuse_tree && tree_.root >= 0) {
-      const int ai = tree_.FindAction(tree_.root, a);
-      if (ai >= 0) next = tree_.act[ai].children.Find(o, HashObservation(o));
-    }
-    if (next < 0) {
-      tree_.Clear();
-    } else {
-      tree_.KeepSubtree(next);
-    }
+    KeepChild(a, o);
     return summary;
+  }
+
+  /// Keeps the subtree under (a, o) when tree reuse is on and installs `belief`: for models whose
+  /// belief is maintained outside the planner (object search).
+  void AdvanceTo(const Action& a, const Observation& o, ParticleBelief<State> belief) {
+    belief_ = std::move(belief);
+    KeepChild(a, o);
   }
 
   int64_t TreeSize() const { return tree_.size(); }
@@ -155,6 +153,19 @@ class Advt {
     double diameter = -1.0;  // cached estimate; < 0 until computed
   };
   using Tree = BeliefTree<M, Cell>;
+
+  void KeepChild(const Action& a, const Observation& o) {
+    int next = -1;
+    if (options_.search.reuse_tree && tree_.root >= 0) {
+      const int ai = tree_.FindAction(tree_.root, a);
+      if (ai >= 0) next = tree_.act[ai].children.Find(o, HashObservation(o));
+    }
+    if (next < 0) {
+      tree_.Clear();
+    } else {
+      tree_.KeepSubtree(next);
+    }
+  }
 
   static Decision<Action> Fail(Decision<Action> d, Status s) {
     d.status = std::move(s);

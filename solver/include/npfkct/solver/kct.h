@@ -181,6 +181,9 @@ class KCenterTree {
       tree_.root = tree_.NewObsNode();
     } else {
       AddSpheresToTree();
+      if (Status s = EnsureRootKinds(belief_.Sample(rng), rng); !s.ok()) {
+        return Fail(std::move(d), std::move(s));
+      }
     }
     d.stats.reused_visits = tree_.obs[tree_.root].n;
 
@@ -231,18 +234,15 @@ class KCenterTree {
     BeliefUpdateOptions b = options_.search.belief;
     if (b.num_particles == 0) b.num_particles = options_.search.num_particles;
     BeliefUpdateSummary summary = belief_.Update(model_, a, o, rng, b);
-    int next = -1;
-    if (options_.search.reuse_tree && tree_.root >= 0) {
-      const int ai = EntryContaining(a);
-      if (ai >= 0) next = tree_.act[ai].children.Find(o, HashObservation(o));
-    }
-    last_entry_ = -1;
-    if (next < 0) {
-      tree_.Clear();
-    } else {
-      tree_.KeepSubtree(next);
-    }
+    KeepChild(a, o);
     return summary;
+  }
+
+  /// Keeps the subtree under (a, o) when tree reuse is on and installs `belief`: for models whose
+  /// belief is maintained outside the planner (object search).
+  void AdvanceTo(const Action& a, const Observation& o, ParticleBelief<State> belief) {
+    belief_ = std::move(belief);
+    KeepChild(a, o);
   }
 
   int64_t TreeSize() const { return tree_.size(); }
@@ -324,6 +324,20 @@ class KCenterTree {
   };
   using Tree = BeliefTree<M, Sphere>;
 
+  void KeepChild(const Action& a, const Observation& o) {
+    int next = -1;
+    if (options_.search.reuse_tree && tree_.root >= 0) {
+      const int ai = EntryContaining(a);
+      if (ai >= 0) next = tree_.act[ai].children.Find(o, HashObservation(o));
+    }
+    last_entry_ = -1;
+    if (next < 0) {
+      tree_.Clear();
+    } else {
+      tree_.KeepSubtree(next);
+    }
+  }
+
   static Decision<Action> Fail(Decision<Action> d, Status s) {
     d.status = std::move(s);
     d.stats.budget_exhausted = false;
@@ -395,6 +409,28 @@ class KCenterTree {
         for (const Hypersphere& h : list) AddSphere(node, h);
       }
     }
+  }
+
+  // A reused root may lack kinds that became legal (e.g. objects detected since): add them.
+  Status EnsureRootKinds(const State& s, Rng& rng) {
+    const int root = tree_.root;
+    if (tree_.obs[root].actions.empty()) return OkStatus();
+    model_.ActionKinds(s, &scratch_);
+    for (int kind : std::vector<int>(scratch_)) {
+      const bool present =
+          std::any_of(tree_.obs[root].actions.begin(), tree_.obs[root].actions.end(),
+                      [&](int ai) { return tree_.act[ai].action.kind == kind; });
+      if (present) continue;
+      if (model_.KindSpace(kind).dim() == 0) {
+        HybridAction a;
+        a.kind = kind;
+        tree_.NewActNode(root, std::move(a));
+        continue;
+      }
+      if (Status st = EnsureSpheres(kind, rng); !st.ok()) return st;
+      for (const Hypersphere& h : spheres_[kind]) AddSphere(root, h);
+    }
+    return OkStatus();
   }
 
   int Select(int node) const {

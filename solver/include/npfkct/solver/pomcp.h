@@ -76,6 +76,11 @@ class Pomcp {
       ClearTree();
       d.stats.teardown_ms = MillisSince(t0);
     }
+    if (root_ >= 0 && obs_[root_].num_actions > 0 && !RootMatchesLegalActions(belief_.Sample(rng))) {
+      const auto t0 = Clock::now();
+      ClearTree();
+      d.stats.teardown_ms += MillisSince(t0);
+    }
     if (root_ < 0) root_ = NewObsNode();
     max_depth_ = 0;
     d.stats.reused_visits = obs_[root_].n;
@@ -95,19 +100,15 @@ class Pomcp {
   /// is on.
   BeliefUpdateSummary Advance(Action a, const Observation& o, Rng& rng) {
     BeliefUpdateSummary summary = belief_.Update(model_, a, o, rng, BeliefOptions());
-    int next = -1;
-    if (options_.search.reuse_tree && root_ >= 0) {
-      for (int i = 0; i < obs_[root_].num_actions; ++i) {
-        const ActNode& an = act_[obs_[root_].first_action + i];
-        if (an.action == a) next = an.children.Find(o, HashObservation(o));
-      }
-    }
-    if (next < 0) {
-      ClearTree();
-    } else {
-      KeepSubtree(next);
-    }
+    KeepChild(a, o);
     return summary;
+  }
+
+  /// Keeps the subtree under (a, o) when tree reuse is on and installs `belief`: for models whose
+  /// belief is maintained outside the planner (object search).
+  void AdvanceTo(Action a, const Observation& o, ParticleBelief<State> belief) {
+    belief_ = std::move(belief);
+    KeepChild(a, o);
   }
 
   /// Nodes in the tree (observation + action nodes).
@@ -132,6 +133,33 @@ class Pomcp {
     BeliefUpdateOptions b = options_.search.belief;
     if (b.num_particles == 0) b.num_particles = options_.search.num_particles;
     return b;
+  }
+
+  void KeepChild(Action a, const Observation& o) {
+    int next = -1;
+    if (options_.search.reuse_tree && root_ >= 0) {
+      for (int i = 0; i < obs_[root_].num_actions; ++i) {
+        const ActNode& an = act_[obs_[root_].first_action + i];
+        if (an.action == a) next = an.children.Find(o, HashObservation(o));
+      }
+    }
+    if (next < 0) {
+      ClearTree();
+    } else {
+      KeepSubtree(next);
+    }
+  }
+
+  // Whether the reused root's actions are the legal actions of the current belief (they may not
+  // be after the model changed, e.g. when new objects were detected).
+  bool RootMatchesLegalActions(const State& s) {
+    LegalActionsOf(model_, s, &scratch_);
+    const ObsNode& root = obs_[root_];
+    if (root.num_actions != static_cast<int>(scratch_.size())) return false;
+    for (int i = 0; i < root.num_actions; ++i) {
+      if (act_[root.first_action + i].action != scratch_[i]) return false;
+    }
+    return true;
   }
 
   static Decision<Action> Fail(Decision<Action> d, Status s) {

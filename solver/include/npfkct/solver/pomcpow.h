@@ -127,6 +127,24 @@ class Pomcpow {
     BeliefUpdateOptions b = options_.search.belief;
     if (b.num_particles == 0) b.num_particles = options_.search.num_particles;
     BeliefUpdateSummary summary = belief_.Update(model_, a, o, rng, b);
+    KeepChild(a, o);
+    return summary;
+  }
+
+  /// Keeps the subtree under (a, o) when tree reuse is on and installs `belief`: for models whose
+  /// belief is maintained outside the planner (object search).
+  void AdvanceTo(const Action& a, const Observation& o, ParticleBelief<State> belief) {
+    belief_ = std::move(belief);
+    KeepChild(a, o);
+  }
+
+  int64_t TreeSize() const { return tree_.size(); }
+  int64_t RootVisits() const { return tree_.root >= 0 ? tree_.obs[tree_.root].n : 0; }
+
+ private:
+  using Tree = BeliefTree<M>;
+
+  void KeepChild(const Action& a, const Observation& o) {
     int next = -1;
     if (options_.search.reuse_tree && tree_.root >= 0) {
       const int ai = tree_.FindAction(tree_.root, a);
@@ -137,14 +155,7 @@ class Pomcpow {
     } else {
       tree_.KeepSubtree(next);
     }
-    return summary;
   }
-
-  int64_t TreeSize() const { return tree_.size(); }
-  int64_t RootVisits() const { return tree_.root >= 0 ? tree_.obs[tree_.root].n : 0; }
-
- private:
-  using Tree = BeliefTree<M>;
 
   static Decision<Action> Fail(Decision<Action> d, Status s) {
     d.status = std::move(s);

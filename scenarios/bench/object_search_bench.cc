@@ -1,0 +1,241 @@
+#include "object_search_bench.h"
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <memory>
+#include <sstream>
+
+#include "episode_runner.h"
+#include "npfkct/sim/frame_io.h"
+#include "npfkct/sim/scenario.h"
+#include "npfkct/sim/simulator.h"
+#include "npfkct/solver/object_search/search_planner.h"
+
+namespace npfkct::bench {
+namespace {
+
+using object_search::ObjectSearchModel;
+using object_search::World;
+
+struct TrialContext {
+  const sim::Scenario* scenario;
+  std::string planner;
+  std::vector<std::pair<std::string, double>> options;
+  Budget budget;
+  int max_steps;
+  uint64_t seed;
+  std::string render_prefix;  // empty: no pictures
+};
+
+std::string Describe(const HybridAction& a, const World& w) {
+  if (a.kind == object_search::kMoveKind) {
+    const auto c = ObjectSearchModel::ConfigOf(a.x);
+    char buf[160];
+    std::snprintf(buf, sizeof buf, "move x=%.2f y=%.2f yaw=%.2f lift=%.2f pan=%.2f tilt=%.2f", c.x,
+                  c.y, c.yaw, c.lift, c.pan, c.tilt);
+    return buf;
+  }
+  const int i = object_search::KindObject(a.kind);
+  const std::string key = i < static_cast<int>(w.objects.size()) ? w.objects[i].key : "?";
+  static const char* kVerbs[] = {"declare target", "declare obstacle", "remove"};
+  return std::string(kVerbs[object_search::KindOffset(a.kind)]) + " " + key;
+}
+
+EpisodeResult RunTrial(const TrialContext& ctx) {
+  EpisodeResult result;
+  sim::Simulator simulator(*ctx.scenario, ctx.seed);
+  auto initial = simulator.InitialWorld();
+  if (!initial.ok()) {
+    result.error = initial.status().ToString();
+    return result;
+  }
+  World world = *initial;
+  Rng rng(ctx.seed * 7919 + 1), world_rng(ctx.seed * 104729 + 3);
+  // The robot looks once from its start before planning.
+  if (Status s = object_search::ApplyRealObservation(&world, simulator.Observe(world_rng));
+      !s.ok()) {
+    result.error = s.ToString();
+    return result;
+  }
+  ObjectSearchModel model(std::make_shared<World>(world));
+  auto made = object_search::MakeSearchPlanner(ctx.planner, model, ctx.options);
+  if (!made.ok()) {
+    result.error = made.status().ToString();
+    return result;
+  }
+  std::unique_ptr<object_search::SearchPlanner> planner = std::move(made).value();
+  const int particles = 300;
+  planner->SetBelief(ParticleBelief<object_search::State>::FromInitial(model, particles, rng));
+  double discount = 1.0;
+  for (int t = 0; t < ctx.max_steps; ++t) {
+    Decision<HybridAction> d = planner->Plan(ctx.budget, rng);
+    if (!d.status.ok()) {
+      result.error = d.status.ToString();
+      break;
+    }
+    result.sims_per_step.push_back(d.stats.simulations);
+    result.ms_per_step.push_back(d.stats.elapsed_ms);
+    const sim::ExecutionOutcome outcome = simulator.Execute(d.action, world, world_rng);
+    result.discounted_return += discount * outcome.reward;
+    result.undiscounted_return += outcome.reward;
+    discount *= world.params.discount;
+    ++result.steps;
+    if (d.action.kind != object_search::kMoveKind && outcome.success) {
+      (void)object_search::ApplyDiscreteOutcome(&world, object_search::KindObject(d.action.kind),
+                                                object_search::KindOffset(d.action.kind), true);
+    }
+    if (outcome.terminal) {
+      result.success = true;
+      break;
+    }
+    const object_search::RealObservation obs = simulator.Observe(world_rng);
+    std::vector<int> detected;
+    bool new_objects = false;
+    for (const auto& det : obs.objects) {
+      const int index = world.FindObject(det.key);
+      if (index < 0) new_objects = true;
+      detected.push_back(index);
+    }
+    const object_search::Observation key = model.RealObservationKey(detected);
+    if (Status s = object_search::ApplyRealObservation(&world, obs); !s.ok()) {
+      result.error = s.ToString();
+      break;
+    }
+    model.SetWorld(std::make_shared<World>(world));
+    planner->OnWorldChanged();
+    auto belief = ParticleBelief<object_search::State>::FromInitial(model, particles, rng);
+    if (new_objects) {
+      planner->SetBelief(std::move(belief));
+    } else {
+      planner->AdvanceTo(d.action, key, std::move(belief));
+    }
+    if (!ctx.render_prefix.empty()) {
+      char name[32];
+      std::snprintf(name, sizeof name, "-step%02d.png", t + 1);
+      const std::string caption = "step " + std::to_string(t + 1) + ": " +
+                                  Describe(d.action, world) + " (" + outcome.detail + ")";
+      (void)sim::WritePng(ctx.render_prefix + name,
+                          sim::RenderStep(world, simulator.Render(), caption));
+    }
+  }
+  return result;
+}
+
+std::string Cell(const RunSummary& s) {
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "%.1f ± %.1f \\| %.1f ± %.1f \\| %.0f%%", s.mean_return,
+                s.ci95_return, s.mean_steps, s.ci95_steps,
+                100.0 * s.success_rate.value_or(0.0));
+  return buf;
+}
+
+}  // namespace
+
+int RunObjectSearchBench(const SearchBenchConfig& config) {
+  std::vector<std::pair<std::string, double>> options;
+  for (const std::string& a : config.options) {
+    const size_t eq = a.find('=');
+    char* end = nullptr;
+    const std::string value = eq == std::string::npos ? "" : a.substr(eq + 1);
+    const double v = std::strtod(value.c_str(), &end);
+    if (eq == std::string::npos || value.empty() || end != value.c_str() + value.size()) {
+      std::cerr << "npfkct-bench: option '" << a << "' is not key=number\n";
+      return 2;
+    }
+    options.emplace_back(a.substr(0, eq), v);
+  }
+  const Budget budget{config.time_ms, config.sims};
+  if (Status s = budget.Validate(); !s.ok()) {
+    std::cerr << "npfkct-bench: " << s.message() << "\n";
+    return 2;
+  }
+  std::vector<std::string> planners = config.planners;
+  if (planners.size() == 1 && planners[0] == "all") {
+    planners = {"pomcp", "gpomcp", "pomcpow", "vomcpow", "advt", "kct"};
+  }
+  std::map<std::string, std::map<std::string, RunSummary>> table;
+  std::vector<std::string> scenario_names;
+  int failures = 0;
+  for (const std::string& path : config.scenarios) {
+    auto loaded = sim::LoadScenario(path);
+    if (!loaded.ok()) {
+      std::cerr << "npfkct-bench: " << loaded.status().message() << "\n";
+      return 2;
+    }
+    sim::Scenario scenario = *loaded;
+    if (!config.robot.empty()) scenario.robot = config.robot;
+    scenario_names.push_back(scenario.name);
+    for (const std::string& planner : planners) {
+      // Validate the planner name and options once before spending time.
+      {
+        auto world = sim::InitialWorld(scenario);
+        if (!world.ok()) {
+          std::cerr << "npfkct-bench: " << world.status().message() << "\n";
+          return 2;
+        }
+        ObjectSearchModel probe(std::make_shared<World>(*world));
+        auto made = object_search::MakeSearchPlanner(planner, probe, options);
+        if (!made.ok()) {
+          std::cerr << "npfkct-bench: " << made.status().message() << "\n";
+          return 2;
+        }
+      }
+      std::string render_prefix;
+      if (!config.render_dir.empty()) {
+        std::filesystem::create_directories(config.render_dir);
+        render_prefix = config.render_dir + "/" + scenario.name + "-" + planner;
+      }
+      const int max_steps = config.max_steps > 0 ? config.max_steps : scenario.params.max_steps;
+      RunSummary s = RunEpisodes(
+          config.trials, config.threads, true,
+          [&](int i) {
+            TrialContext ctx{&scenario, planner, options, budget, max_steps,
+                             config.seed * 1000003ULL + static_cast<uint64_t>(i),
+                             i == 0 ? render_prefix : std::string()};
+            return RunTrial(ctx);
+          },
+          scenario.name + "/" + planner);
+      table[planner][scenario.name] = s;
+      failures += s.failed_episodes;
+      std::printf(
+          "{\"scenario\": \"%s\", \"planner\": \"%s\", \"trials\": %d, \"time_ms\": %g, "
+          "\"sims\": %lld, \"robot\": \"%s\", \"seed\": %llu, \"threads\": %d, "
+          "\"mean_discounted_reward\": %.1f, \"ci95\": %.1f, \"mean_steps\": %.2f, "
+          "\"ci95_steps\": %.2f, \"success_rate\": %.3f, \"median_sims_per_step\": %.1f, "
+          "\"median_sims_per_second\": %.1f, \"wall_seconds\": %.1f, \"failed_trials\": %d%s%s%s}\n",
+          JsonEscape(scenario.name).c_str(), planner.c_str(), config.trials, config.time_ms,
+          static_cast<long long>(config.sims), scenario.robot.c_str(),
+          static_cast<unsigned long long>(config.seed), config.threads, s.mean_return,
+          s.ci95_return, s.mean_steps, s.ci95_steps, s.success_rate.value_or(0.0),
+          s.median_sims_per_step, s.median_sims_per_second, s.wall_seconds, s.failed_episodes,
+          s.first_error.empty() ? "" : ", \"error\": \"",
+          JsonEscape(s.first_error).c_str(), s.first_error.empty() ? "" : "\"");
+      std::fflush(stdout);
+    }
+  }
+  if (!config.table_path.empty()) {
+    std::ostringstream md;
+    md << "| Planner |";
+    for (const auto& sc : scenario_names) md << " " << sc << " |";
+    md << "\n|---|";
+    for (size_t i = 0; i < scenario_names.size(); ++i) md << "---|";
+    md << "\n";
+    for (const std::string& planner : planners) {
+      md << "| " << planner << " |";
+      for (const auto& sc : scenario_names) md << " " << Cell(table[planner][sc]) << " |";
+      md << "\n";
+    }
+    std::ofstream out(config.table_path);
+    out << md.str();
+    if (!out) {
+      std::cerr << "npfkct-bench: cannot write " << config.table_path << "\n";
+      return 2;
+    }
+  }
+  return failures == 0 ? 0 : 1;
+}
+
+}  // namespace npfkct::bench

@@ -1,0 +1,37 @@
+// Conversions of simulator frames to OpenCV images and PCL clouds, and the per-step pictures of
+// `npfkct-bench --render` (grid-world odds, the robot's view, the chosen action, like the paper's
+// figure 5). Only executables and the perception/server layers include this header.
+#pragma once
+
+#include <opencv2/core.hpp>
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
+
+#include <string>
+
+#include "npfkct/sim/simulator.h"
+#include "npfkct/solver/object_search/world.h"
+
+namespace npfkct::sim {
+
+/// The frame's colour image as an 8-bit BGR matrix.
+cv::Mat FrameBgr(const Frame& frame);
+/// The frame's depth image in metres (CV_32F, 0 where nothing was hit).
+cv::Mat FrameDepth(const Frame& frame);
+/// The frame as a coloured point cloud, in the camera's optical frame (x right, y down,
+/// z forward) or, with `world_frame`, in the world frame.
+pcl::PointCloud<pcl::PointXYZRGB>::Ptr FrameCloud(const Frame& frame, bool world_frame);
+
+/// A top view of the grid world's odds (red: likely target positions, blue: seen empty) with the
+/// known objects' footprints and the robot's pose.
+cv::Mat RenderGridWorld(const object_search::World& world, int pixels_per_metre = 200);
+
+/// The picture of one step: grid world on the left, the robot's view on the right, `caption`
+/// underneath.
+cv::Mat RenderStep(const object_search::World& world, const Frame& view,
+                   const std::string& caption);
+
+/// Writes a PNG; the status names the path on failure.
+Status WritePng(const std::string& path, const cv::Mat& image);
+
+}  // namespace npfkct::sim

@@ -1,0 +1,85 @@
+// The built-in world simulator: it plays the role Gazebo plays in the paper. It holds the true
+// scene, executes the robot's actions (with pose noise), and observes: either the geometric
+// observation (which faces of which objects are visible, with detection scores) for fast
+// benchmarking, or rendered RGB-D frames by ray casting (render.h).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "npfkct/sim/scenario.h"
+#include "npfkct/solver/object_search/model.h"
+#include "npfkct/solver/rng.h"
+#include "npfkct/solver/spaces.h"
+
+namespace npfkct::sim {
+
+/// What executing one action did in the true world.
+struct ExecutionOutcome {
+  double reward = 0.0;     ///< The paper's reward table applied to the true scene.
+  bool terminal = false;   ///< The target was removed.
+  bool success = false;    ///< A discrete action succeeded (declaration correct, removal done).
+  bool illegal = false;    ///< The action was illegal in the true world.
+  std::string detail;      ///< Human-readable account ("declared box3 obstacle", ...).
+};
+
+/// A camera frame rendered by ray casting: 8-bit RGB (row-major, 3 bytes per pixel), depth in
+/// metres (0 where nothing was hit within range), and per-pixel ids (-1 floor/none, furniture
+/// 1000 + index, scene objects their index).
+struct Frame {
+  int width = 0;
+  int height = 0;
+  double fx = 0, fy = 0, cx = 0, cy = 0;  ///< Pinhole intrinsics.
+  object_search::CameraPose pose;         ///< Camera pose in the world frame.
+  std::vector<uint8_t> rgb;
+  std::vector<float> depth;
+  std::vector<int16_t> ids;
+};
+
+/// The simulated world of a scenario.
+class Simulator {
+ public:
+  /// The scene of `scenario`, with its objects jittered by `seed` (noise.object_jitter), so that
+  /// a seed reproduces the world exactly.
+  Simulator(Scenario scenario, uint64_t seed);
+
+  const Scenario& scenario() const { return scenario_; }
+  const RobotConfig& robot() const { return robot_; }
+  const std::vector<SceneObject>& objects() const { return objects_; }
+  /// Whether scene object i was removed.
+  bool removed(int i) const { return removed_[i]; }
+  /// Index of the target among the scene objects.
+  int target_index() const { return target_; }
+  /// The robot's prior knowledge of this scene (map, workspaces, start).
+  StatusOr<object_search::World> InitialWorld() const { return sim::InitialWorld(scenario_); }
+
+  /// Executes `action` chosen with knowledge `world` (which maps object indices to scene
+  /// objects by key). Moves get pose noise; declarations and removals are judged against the
+  /// truth.
+  ExecutionOutcome Execute(const HybridAction& action, const object_search::World& world,
+                           Rng& rng);
+
+  /// The geometric observation from the robot's current configuration: every scene object whose
+  /// center the camera sees unoccluded, with its estimated box and, for each of its 4 face grids
+  /// nearest to the camera that are unoccluded, a noisy detection score (high for the target).
+  object_search::RealObservation Observe(Rng& rng) const;
+
+  /// Renders what the head camera sees (default 640 x 480).
+  Frame Render(int width = 640, int height = 480) const;
+
+  /// The boxes that occlude the view: furniture and every object not removed.
+  std::vector<Box> Occluders(int except = -1) const;
+
+ private:
+  Scenario scenario_;
+  object_search::RobotPreset preset_;
+  object_search::CameraModel camera_;
+  object_search::OccupancyMap occupancy_;
+  RobotConfig robot_;
+  std::vector<SceneObject> objects_;
+  std::vector<bool> removed_;
+  int target_ = -1;
+};
+
+}  // namespace npfkct::sim

@@ -1,0 +1,367 @@
+#include "npfkct/sim/scenario.h"
+
+#include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <sstream>
+
+namespace npfkct::sim {
+namespace {
+
+using nlohmann::json;
+
+Status Err(const std::string& path, const std::string& what) {
+  return InvalidArgumentError(path + ": " + what);
+}
+
+Status ReadNumber(const json& parent, const std::string& key, const std::string& path, double* out,
+                  bool required) {
+  if (!parent.contains(key)) return required ? Err(path + key, "missing") : OkStatus();
+  const json& v = parent.at(key);
+  if (!v.is_number()) return Err(path + key, "expected a number");
+  const double d = v.get<double>();
+  if (!std::isfinite(d)) return Err(path + key, "not finite");
+  *out = d;
+  return OkStatus();
+}
+
+Status ReadBool(const json& parent, const std::string& key, const std::string& path, bool* out) {
+  if (!parent.contains(key)) return OkStatus();
+  if (!parent.at(key).is_boolean()) return Err(path + key, "expected true or false");
+  *out = parent.at(key).get<bool>();
+  return OkStatus();
+}
+
+Status ReadString(const json& parent, const std::string& key, const std::string& path,
+                  std::string* out, bool required) {
+  if (!parent.contains(key)) return required ? Err(path + key, "missing") : OkStatus();
+  if (!parent.at(key).is_string()) return Err(path + key, "expected a string");
+  *out = parent.at(key).get<std::string>();
+  return OkStatus();
+}
+
+template <int N>
+Status ReadVector(const json& parent, const std::string& key, const std::string& path,
+                  Eigen::Matrix<double, N, 1>* out, bool required) {
+  if (!parent.contains(key)) return required ? Err(path + key, "missing") : OkStatus();
+  const json& v = parent.at(key);
+  if (!v.is_array() || v.size() != N) {
+    return Err(path + key, "expected " + std::to_string(N) + " numbers");
+  }
+  for (int i = 0; i < N; ++i) {
+    if (!v[i].is_number() || !std::isfinite(v[i].get<double>())) {
+      return Err(path + key + "[" + std::to_string(i) + "]", "expected a finite number");
+    }
+    (*out)[i] = v[i].get<double>();
+  }
+  return OkStatus();
+}
+
+Status ReadColor(const json& parent, const std::string& key, const std::string& path, Color* out) {
+  if (!parent.contains(key)) return OkStatus();
+  const json& v = parent.at(key);
+  if (!v.is_array() || v.size() != 3) return Err(path + key, "expected [r, g, b]");
+  for (int i = 0; i < 3; ++i) {
+    if (!v[i].is_number_integer() || v[i].get<int64_t>() < 0 || v[i].get<int64_t>() > 255) {
+      return Err(path + key + "[" + std::to_string(i) + "]", "expected an integer in [0, 255]");
+    }
+    (*out)[i] = static_cast<uint8_t>(v[i].get<int>());
+  }
+  return OkStatus();
+}
+
+Status ReadConfig(const json& j, const std::string& path, RobotConfig* c) {
+  if (!j.is_object()) return Err(path.substr(0, path.size() - 1), "expected an object");
+  for (auto [key, field] : {std::pair<const char*, double*>{"x", &c->x},
+                            {"y", &c->y},
+                            {"yaw", &c->yaw},
+                            {"lift", &c->lift},
+                            {"pan", &c->pan},
+                            {"tilt", &c->tilt}}) {
+    if (Status s = ReadNumber(j, key, path, field, false); !s.ok()) return s;
+  }
+  return OkStatus();
+}
+
+Status CheckKeys(const json& j, const std::string& path, const std::set<std::string>& known) {
+  for (auto it = j.begin(); it != j.end(); ++it) {
+    if (!known.count(it.key())) return Err(path + it.key(), "unknown field");
+  }
+  return OkStatus();
+}
+
+#define NPFKCT_RETURN_IF_ERROR(expr) \
+  do {                               \
+    Status _s = (expr);              \
+    if (!_s.ok()) return _s;         \
+  } while (0)
+
+Status ParseParams(const json& j, object_search::SearchParams* p) {
+  const std::string path = "params.";
+  if (!j.is_object()) return Err("params", "expected an object");
+  const std::pair<const char*, double*> reals[] = {
+      {"rMax", &p->r_max},           {"rCt", &p->r_ct},
+      {"rCo", &p->r_co},             {"rMin", &p->r_min},
+      {"rIll", &p->r_ill},           {"discount", &p->discount},
+      {"cO", &p->c_o},               {"etaStd", &p->eta_std},
+      {"nuP", &p->nu_p},             {"nuN", &p->nu_n},
+      {"declareThreshold", &p->declare_threshold},
+      {"guessOdds", &p->guess_odds}, {"guessSize", &p->guess_size},
+      {"gridFreeDelta", &p->grid_free_delta}};
+  std::set<std::string> known = {"nOdds", "maxSteps"};
+  for (auto [key, field] : reals) {
+    known.insert(key);
+    NPFKCT_RETURN_IF_ERROR(ReadNumber(j, key, path, field, false));
+  }
+  NPFKCT_RETURN_IF_ERROR(CheckKeys(j, path, known));
+  double n_odds = p->n_odds, max_steps = p->max_steps;
+  NPFKCT_RETURN_IF_ERROR(ReadNumber(j, "nOdds", path, &n_odds, false));
+  NPFKCT_RETURN_IF_ERROR(ReadNumber(j, "maxSteps", path, &max_steps, false));
+  if (n_odds != std::floor(n_odds)) return Err(path + "nOdds", "expected an integer");
+  if (max_steps != std::floor(max_steps) || max_steps > 1e6) {
+    return Err(path + "maxSteps", "expected an integer");
+  }
+  p->n_odds = static_cast<int>(n_odds);
+  p->max_steps = static_cast<int>(max_steps);
+  if (Status s = p->Validate(); !s.ok()) return Err("params", s.message());
+  return OkStatus();
+}
+
+}  // namespace
+
+Status Scenario::Validate() const {
+  if (name.empty()) return Err("name", "must not be empty");
+  if (!(room_min.x() < room_max.x() && room_min.y() < room_max.y())) {
+    return Err("room", "min must be below max");
+  }
+  if (!(map_resolution > 0.0) || map_resolution > 1.0) {
+    return Err("mapResolution", "must be in (0, 1]");
+  }
+  if ((room_max - room_min).prod() / (map_resolution * map_resolution) > 4e6) {
+    return Err("mapResolution", "the map would have more than 4e6 cells");
+  }
+  if (std::none_of(furniture.begin(), furniture.end(),
+                   [](const Furniture& f) { return f.workspace; })) {
+    return Err("furniture", "at least one piece must be a workspace");
+  }
+  if (base_regions.empty()) return Err("baseRegions", "at least one region is needed");
+  int targets = 0;
+  for (const SceneObject& o : objects) targets += o.target;
+  if (targets != 1) return Err("objects", "exactly one object must be the target");
+  if (objects.size() > 60) return Err("objects", "at most 60 objects are supported");
+  return OkStatus();
+}
+
+std::vector<object_search::Workspace> Scenario::Workspaces() const {
+  std::vector<object_search::Workspace> out;
+  for (const Furniture& f : furniture) {
+    if (!f.workspace) continue;
+    object_search::Workspace w;
+    w.name = f.name;
+    w.center = f.box.center.head<2>();
+    w.yaw = f.box.yaw;
+    w.length = f.box.size.x();
+    w.width = f.box.size.y();
+    w.height = f.box.size.z();
+    out.push_back(w);
+  }
+  return out;
+}
+
+StatusOr<Scenario> ParseScenario(const std::string& json_text) {
+  const json j = json::parse(json_text, nullptr, /*allow_exceptions=*/false);
+  if (j.is_discarded()) return InvalidArgumentError("scenario: not valid JSON");
+  if (!j.is_object()) return InvalidArgumentError("scenario: expected a JSON object");
+  NPFKCT_RETURN_IF_ERROR(CheckKeys(j, "",
+                                   {"name", "description", "robot", "room", "mapResolution",
+                                    "furniture", "baseRegions", "discretePoses", "objects",
+                                    "start", "noise", "params"}));
+  Scenario sc;
+  NPFKCT_RETURN_IF_ERROR(ReadString(j, "name", "", &sc.name, true));
+  NPFKCT_RETURN_IF_ERROR(ReadString(j, "description", "", &sc.description, false));
+  NPFKCT_RETURN_IF_ERROR(ReadString(j, "robot", "", &sc.robot, false));
+  if (Status s = object_search::RobotPreset::ByName(sc.robot).status(); !s.ok()) {
+    return Err("robot", s.message());
+  }
+  if (j.contains("room")) {
+    const json& room = j.at("room");
+    if (!room.is_object()) return Err("room", "expected an object");
+    NPFKCT_RETURN_IF_ERROR(CheckKeys(room, "room.", {"min", "max"}));
+    NPFKCT_RETURN_IF_ERROR(ReadVector<2>(room, "min", "room.", &sc.room_min, true));
+    NPFKCT_RETURN_IF_ERROR(ReadVector<2>(room, "max", "room.", &sc.room_max, true));
+  }
+  NPFKCT_RETURN_IF_ERROR(ReadNumber(j, "mapResolution", "", &sc.map_resolution, false));
+
+  if (!j.contains("furniture") || !j.at("furniture").is_array()) {
+    return Err("furniture", "expected an array");
+  }
+  std::set<std::string> names;
+  for (size_t i = 0; i < j.at("furniture").size(); ++i) {
+    const json& f = j.at("furniture")[i];
+    const std::string path = "furniture[" + std::to_string(i) + "].";
+    if (!f.is_object()) return Err(path.substr(0, path.size() - 1), "expected an object");
+    NPFKCT_RETURN_IF_ERROR(
+        CheckKeys(f, path, {"name", "center", "size", "yaw", "workspace", "color"}));
+    Furniture fu;
+    NPFKCT_RETURN_IF_ERROR(ReadString(f, "name", path, &fu.name, true));
+    if (!names.insert(fu.name).second) return Err(path + "name", "duplicate name '" + fu.name + "'");
+    Vec2 center;
+    NPFKCT_RETURN_IF_ERROR(ReadVector<2>(f, "center", path, &center, true));
+    NPFKCT_RETURN_IF_ERROR(ReadVector<3>(f, "size", path, &fu.box.size, true));
+    if (!(fu.box.size.minCoeff() > 0.0) || fu.box.size.maxCoeff() > 20.0) {
+      return Err(path + "size", "each extent must be in (0, 20] m");
+    }
+    NPFKCT_RETURN_IF_ERROR(ReadNumber(f, "yaw", path, &fu.box.yaw, false));
+    NPFKCT_RETURN_IF_ERROR(ReadBool(f, "workspace", path, &fu.workspace));
+    NPFKCT_RETURN_IF_ERROR(ReadColor(f, "color", path, &fu.color));
+    fu.box.center = Vec3(center.x(), center.y(), 0.5 * fu.box.size.z());
+    sc.furniture.push_back(fu);
+  }
+
+  if (!j.contains("baseRegions") || !j.at("baseRegions").is_array()) {
+    return Err("baseRegions", "expected an array");
+  }
+  for (size_t i = 0; i < j.at("baseRegions").size(); ++i) {
+    const json& r = j.at("baseRegions")[i];
+    const std::string path = "baseRegions[" + std::to_string(i) + "].";
+    if (!r.is_object()) return Err(path.substr(0, path.size() - 1), "expected an object");
+    NPFKCT_RETURN_IF_ERROR(CheckKeys(r, path, {"min", "max"}));
+    object_search::BaseRegion region;
+    NPFKCT_RETURN_IF_ERROR(ReadVector<2>(r, "min", path, &region.min, true));
+    NPFKCT_RETURN_IF_ERROR(ReadVector<2>(r, "max", path, &region.max, true));
+    if (!(region.min.x() < region.max.x() && region.min.y() < region.max.y())) {
+      return Err(path + "max", "must be above min in x and y");
+    }
+    sc.base_regions.push_back(region);
+  }
+
+  if (j.contains("discretePoses")) {
+    if (!j.at("discretePoses").is_array()) return Err("discretePoses", "expected an array");
+    for (size_t i = 0; i < j.at("discretePoses").size(); ++i) {
+      const std::string path = "discretePoses[" + std::to_string(i) + "].";
+      const json& p = j.at("discretePoses")[i];
+      if (p.is_object()) NPFKCT_RETURN_IF_ERROR(CheckKeys(p, path, {"x", "y", "yaw"}));
+      RobotConfig c;
+      NPFKCT_RETURN_IF_ERROR(ReadConfig(p, path, &c));
+      sc.discrete_poses.push_back(c);
+    }
+  }
+
+  if (!j.contains("objects") || !j.at("objects").is_array()) {
+    return Err("objects", "expected an array");
+  }
+  for (size_t i = 0; i < j.at("objects").size(); ++i) {
+    const json& o = j.at("objects")[i];
+    const std::string path = "objects[" + std::to_string(i) + "].";
+    if (!o.is_object()) return Err(path.substr(0, path.size() - 1), "expected an object");
+    NPFKCT_RETURN_IF_ERROR(CheckKeys(o, path,
+                                     {"name", "on", "position", "z", "size", "yaw", "color",
+                                      "target", "moveable", "texture"}));
+    SceneObject so;
+    NPFKCT_RETURN_IF_ERROR(ReadString(o, "name", path, &so.name, true));
+    if (!names.insert(so.name).second) return Err(path + "name", "duplicate name '" + so.name + "'");
+    std::string on;
+    NPFKCT_RETURN_IF_ERROR(ReadString(o, "on", path, &on, true));
+    const Furniture* support = nullptr;
+    for (const Furniture& f : sc.furniture) {
+      if (f.name == on) support = &f;
+    }
+    if (support == nullptr || !support->workspace) {
+      return Err(path + "on", "'" + on + "' is not a workspace");
+    }
+    Vec2 uv = Vec2::Zero();
+    NPFKCT_RETURN_IF_ERROR(ReadVector<2>(o, "position", path, &uv, true));
+    NPFKCT_RETURN_IF_ERROR(ReadVector<3>(o, "size", path, &so.box.size, true));
+    if (!(so.box.size.minCoeff() > 0.0) || so.box.size.maxCoeff() > 2.0) {
+      return Err(path + "size", "each extent must be in (0, 2] m");
+    }
+    double yaw = 0.0, z = 0.0;
+    NPFKCT_RETURN_IF_ERROR(ReadNumber(o, "yaw", path, &yaw, false));
+    NPFKCT_RETURN_IF_ERROR(ReadNumber(o, "z", path, &z, false));
+    if (z < 0.0) return Err(path + "z", "must be >= 0 (height above the surface)");
+    if (std::abs(uv.x()) > 0.5 * support->box.size.x() ||
+        std::abs(uv.y()) > 0.5 * support->box.size.y()) {
+      return Err(path + "position", "outside the surface of '" + on + "'");
+    }
+    const double c = std::cos(support->box.yaw), s = std::sin(support->box.yaw);
+    so.box.center = Vec3(support->box.center.x() + c * uv.x() - s * uv.y(),
+                         support->box.center.y() + s * uv.x() + c * uv.y(),
+                         support->box.size.z() + z + 0.5 * so.box.size.z());
+    so.box.yaw = support->box.yaw + yaw;
+    NPFKCT_RETURN_IF_ERROR(ReadColor(o, "color", path, &so.color));
+    NPFKCT_RETURN_IF_ERROR(ReadBool(o, "target", path, &so.target));
+    NPFKCT_RETURN_IF_ERROR(ReadBool(o, "moveable", path, &so.moveable));
+    double texture = 0;
+    NPFKCT_RETURN_IF_ERROR(ReadNumber(o, "texture", path, &texture, false));
+    if (texture < 0 || texture != std::floor(texture) || texture > 4e9) {
+      return Err(path + "texture", "expected a non-negative integer seed");
+    }
+    so.texture_seed = static_cast<uint32_t>(texture);
+    sc.objects.push_back(so);
+  }
+
+  if (j.contains("start")) {
+    NPFKCT_RETURN_IF_ERROR(CheckKeys(j.at("start"), "start.",
+                                     {"x", "y", "yaw", "lift", "pan", "tilt"}));
+    NPFKCT_RETURN_IF_ERROR(ReadConfig(j.at("start"), "start.", &sc.start));
+  }
+  if (j.contains("noise")) {
+    const json& n = j.at("noise");
+    if (!n.is_object()) return Err("noise", "expected an object");
+    const std::pair<const char*, double*> fields[] = {
+        {"poseXY", &sc.noise.pose_xy},
+        {"poseYaw", &sc.noise.pose_yaw},
+        {"objectJitter", &sc.noise.object_jitter},
+        {"boxEstimate", &sc.noise.box_estimate},
+        {"detection", &sc.noise.detection},
+        {"falseDetection", &sc.noise.false_detection}};
+    std::set<std::string> known;
+    for (auto [key, field] : fields) {
+      known.insert(key);
+      NPFKCT_RETURN_IF_ERROR(ReadNumber(n, key, "noise.", field, false));
+      if (*field < 0.0) return Err(std::string("noise.") + key, "must be >= 0");
+    }
+    NPFKCT_RETURN_IF_ERROR(CheckKeys(n, "noise.", known));
+    if (sc.noise.false_detection > 0.5) return Err("noise.falseDetection", "must be <= 0.5");
+  }
+  if (j.contains("params")) NPFKCT_RETURN_IF_ERROR(ParseParams(j.at("params"), &sc.params));
+  NPFKCT_RETURN_IF_ERROR(sc.Validate());
+  return sc;
+}
+
+StatusOr<Scenario> LoadScenario(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) return NotFoundError("cannot read scenario file '" + path + "'");
+  std::stringstream buffer;
+  buffer << in.rdbuf();
+  StatusOr<Scenario> s = ParseScenario(buffer.str());
+  if (!s.ok()) return Status(s.status().code(), path + ": " + s.status().message());
+  return s;
+}
+
+StatusOr<object_search::World> InitialWorld(const Scenario& scenario) {
+  auto robot = object_search::RobotPreset::ByName(scenario.robot);
+  if (!robot.ok()) return robot.status();
+  object_search::OccupancyMap map(scenario.room_min, scenario.room_max, scenario.map_resolution);
+  std::vector<Box> furniture;
+  for (const Furniture& f : scenario.furniture) {
+    map.AddBox(f.box);
+    furniture.push_back(f.box);
+  }
+  object_search::World world = object_search::World::Make(
+      *robot, scenario.params, furniture, map, scenario.base_regions,
+      object_search::GridWorld(scenario.Workspaces(), 0.02), scenario.start);
+  world.discrete_poses = scenario.discrete_poses;
+  if (Status s = world.Validate(); !s.ok()) return s;
+  if (!world.BaseFeasible(scenario.start.x, scenario.start.y)) {
+    // The start need not be in a base region, but it must be free.
+    if (!world.occupancy.DiscFree(scenario.start.x, scenario.start.y,
+                                  world.robot.footprint_radius)) {
+      return Err("start", "the robot's footprint collides with the map");
+    }
+  }
+  return world;
+}
+
+}  // namespace npfkct::sim

@@ -1,0 +1,317 @@
+#include "npfkct/sim/simulator.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace npfkct::sim {
+namespace {
+
+using object_search::kDeclaredObstacle;
+using object_search::kDeclaredTarget;
+using object_search::KindObject;
+using object_search::KindOffset;
+using object_search::kMoveKind;
+using object_search::ObjectSearchModel;
+
+// Ray-box hit with the face that was entered (0/1: -x/+x, 2/3: -y/+y, 4/5: -z/+z) and the hit
+// point in the box frame.
+bool HitBox(const Box& b, const Vec3& origin, const Vec3& dir, double* t_hit, int* face,
+            Vec3* local_hit) {
+  const double c = std::cos(b.yaw), s = std::sin(b.yaw);
+  const Vec3 d = origin - b.center;
+  const Vec3 o(c * d.x() + s * d.y(), -s * d.x() + c * d.y(), d.z());
+  const Vec3 v(c * dir.x() + s * dir.y(), -s * dir.x() + c * dir.y(), dir.z());
+  double lo = 1e-9, hi = std::numeric_limits<double>::infinity();
+  int lo_face = -1;
+  for (int i = 0; i < 3; ++i) {
+    const double half = 0.5 * b.size[i];
+    if (std::abs(v[i]) < 1e-15) {
+      if (std::abs(o[i]) > half) return false;
+      continue;
+    }
+    double t0 = (-half - o[i]) / v[i];
+    double t1 = (half - o[i]) / v[i];
+    int f0 = 2 * i, f1 = 2 * i + 1;
+    if (t0 > t1) {
+      std::swap(t0, t1);
+      std::swap(f0, f1);
+    }
+    if (t0 > lo) {
+      lo = t0;
+      lo_face = f0;
+    }
+    hi = std::min(hi, t1);
+    if (lo > hi) return false;
+  }
+  if (lo_face < 0) return false;  // origin inside the box
+  *t_hit = lo;
+  *face = lo_face;
+  *local_hit = o + lo * v;
+  return true;
+}
+
+Vec3 FaceNormalWorld(const Box& b, int face) {
+  Vec3 n = Vec3::Zero();
+  n[face / 2] = (face % 2) ? 1.0 : -1.0;
+  const double c = std::cos(b.yaw), s = std::sin(b.yaw);
+  return Vec3(c * n.x() - s * n.y(), s * n.x() + c * n.y(), n.z());
+}
+
+// A printed pattern: 6 x 6 coloured blocks per face with small dots, seeded per object and face,
+// so that feature matching (SIFT) finds corners on the target's faces.
+Color Pattern(uint32_t seed, int face, double u, double v) {
+  const int bu = std::clamp(static_cast<int>(u * 6.0), 0, 5);
+  const int bv = std::clamp(static_cast<int>(v * 6.0), 0, 5);
+  uint64_t h = HashMix(static_cast<uint64_t>(seed) * 1315423911ULL + face * 97 + bu * 7 + bv);
+  Color c = {static_cast<uint8_t>(40 + h % 200), static_cast<uint8_t>(40 + (h >> 8) % 200),
+             static_cast<uint8_t>(40 + (h >> 16) % 200)};
+  // A dark dot inside some blocks.
+  const double fu = u * 6.0 - bu, fv = v * 6.0 - bv;
+  if ((h >> 24) % 3 == 0 && std::abs(fu - 0.5) < 0.2 && std::abs(fv - 0.5) < 0.2) {
+    c = {20, 20, 20};
+  }
+  return c;
+}
+
+}  // namespace
+
+Simulator::Simulator(Scenario scenario, uint64_t seed) : scenario_(std::move(scenario)) {
+  preset_ = object_search::RobotPreset::ByName(scenario_.robot).value();
+  occupancy_ = object_search::OccupancyMap(scenario_.room_min, scenario_.room_max,
+                                           scenario_.map_resolution);
+  for (const Furniture& f : scenario_.furniture) occupancy_.AddBox(f.box);
+  robot_ = scenario_.start;
+  objects_ = scenario_.objects;
+  removed_.assign(objects_.size(), false);
+  Rng rng(seed * 0x9e3779b97f4a7c15ULL + 17);
+  for (size_t i = 0; i < objects_.size(); ++i) {
+    if (scenario_.noise.object_jitter > 0.0) {
+      objects_[i].box.center.x() += scenario_.noise.object_jitter * rng.Normal();
+      objects_[i].box.center.y() += scenario_.noise.object_jitter * rng.Normal();
+    }
+    if (objects_[i].target) target_ = static_cast<int>(i);
+  }
+}
+
+std::vector<Box> Simulator::Occluders(int except) const {
+  std::vector<Box> out;
+  for (const Furniture& f : scenario_.furniture) out.push_back(f.box);
+  for (size_t i = 0; i < objects_.size(); ++i) {
+    if (!removed_[i] && static_cast<int>(i) != except) out.push_back(objects_[i].box);
+  }
+  return out;
+}
+
+ExecutionOutcome Simulator::Execute(const HybridAction& action, const object_search::World& world,
+                                    Rng& rng) {
+  const object_search::SearchParams& p = world.params;
+  ExecutionOutcome out;
+  auto illegal = [&](const std::string& why) {
+    out.reward = p.r_ill;
+    out.illegal = true;
+    out.detail = why;
+    return out;
+  };
+  if (action.kind == kMoveKind) {
+    if (action.x.size() != 6 || !action.x.allFinite()) return illegal("malformed move");
+    RobotConfig c = ObjectSearchModel::ConfigOf(action.x);
+    if (c.lift < preset_.lift_min - 1e-9 || c.lift > preset_.lift_max + 1e-9 ||
+        c.pan < preset_.pan_min - 1e-9 || c.pan > preset_.pan_max + 1e-9 ||
+        c.tilt < preset_.tilt_min - 1e-9 || c.tilt > preset_.tilt_max + 1e-9) {
+      return illegal("joint limits exceeded");
+    }
+    if (!occupancy_.DiscFree(c.x, c.y, preset_.footprint_radius)) {
+      return illegal("base pose collides with the map");
+    }
+    c.x += scenario_.noise.pose_xy * rng.Normal();
+    c.y += scenario_.noise.pose_xy * rng.Normal();
+    c.yaw = object_search::WrapAngle(c.yaw + scenario_.noise.pose_yaw * rng.Normal());
+    if (occupancy_.DiscFree(c.x, c.y, preset_.footprint_radius)) robot_ = c;
+    out.reward = p.r_min;
+    out.success = true;
+    out.detail = "moved";
+    return out;
+  }
+  const int i = KindObject(action.kind);
+  if (action.kind < 1 || i < 1 || i >= static_cast<int>(world.objects.size())) {
+    return illegal("no such object");
+  }
+  const std::string& key = world.objects[i].key;
+  int scene = -1;
+  for (size_t k = 0; k < objects_.size(); ++k) {
+    if (objects_[k].name == key) scene = static_cast<int>(k);
+  }
+  if (scene < 0 || removed_[scene]) return illegal("object '" + key + "' is not in the scene");
+  const SceneObject& o = objects_[scene];
+  switch (KindOffset(action.kind)) {
+    case 0:
+      if (!o.target) return illegal("declared " + key + " the target wrongly");
+      out.reward = p.r_ct;
+      out.success = true;
+      out.detail = "declared " + key + " the target";
+      return out;
+    case 1:
+      if (o.target) return illegal("declared the target " + key + " an obstacle");
+      out.reward = p.r_co;
+      out.success = true;
+      out.detail = "declared " + key + " an obstacle";
+      return out;
+    default:
+      if (!o.moveable) return illegal(key + " cannot be moved");
+      if (world.objects[i].status == kDeclaredTarget && o.target) {
+        removed_[scene] = true;
+        out.reward = p.r_max;
+        out.terminal = true;
+        out.success = true;
+        out.detail = "removed the target " + key;
+        return out;
+      }
+      if (world.objects[i].status == kDeclaredObstacle && !o.target) {
+        removed_[scene] = true;
+        out.reward = 2.0 * p.r_min;
+        out.success = true;
+        out.detail = "removed obstacle " + key;
+        return out;
+      }
+      return illegal("removing undeclared " + key);
+  }
+}
+
+object_search::RealObservation Simulator::Observe(Rng& rng) const {
+  object_search::RealObservation obs;
+  obs.achieved = robot_;
+  const object_search::CameraPose pose = object_search::CameraPoseFor(preset_, robot_);
+  for (size_t i = 0; i < objects_.size(); ++i) {
+    if (removed_[i]) continue;
+    const SceneObject& o = objects_[i];
+    if (!object_search::InFrustum(camera_, pose, o.box.center)) continue;
+    std::vector<Box> occluders = Occluders(static_cast<int>(i));
+    // Smaller objects nested inside this one (a covered target) do not hide it.
+    occluders.erase(std::remove_if(occluders.begin(), occluders.end(),
+                                   [&](const Box& b) {
+                                     return b.size.prod() < o.box.size.prod() &&
+                                            o.box.Contains(b.center);
+                                   }),
+                    occluders.end());
+    auto hidden = [&](const Vec3& p) {
+      for (const Box& b : occluders) {
+        if (b.Contains(p) || b.BlocksSegment(pose.position, p)) return true;
+      }
+      return false;
+    };
+    if (hidden(o.box.center)) continue;
+    object_search::ObjectDetection d;
+    d.key = o.name;
+    d.box = o.box;
+    d.box.center += scenario_.noise.box_estimate * Vec3(rng.Normal(), rng.Normal(), rng.Normal());
+    d.box.size = (d.box.size + scenario_.noise.box_estimate *
+                                   Vec3(rng.Normal(), rng.Normal(), rng.Normal()))
+                     .cwiseMax(0.01);
+    d.moveability = o.moveable ? 0.95 : 0.05;
+    const auto corners = o.box.Corners();
+    std::array<std::pair<double, int>, 8> by_distance;
+    for (int k = 0; k < 8; ++k) {
+      by_distance[k] = {(corners[k] - pose.position).squaredNorm(), k};
+    }
+    std::partial_sort(by_distance.begin(), by_distance.begin() + 4, by_distance.end());
+    for (int n = 0; n < 4; ++n) {
+      const int k = by_distance[n].second;
+      const Vec3 p = corners[k] + 0.05 * (o.box.center - corners[k]);
+      if (!object_search::InFrustum(camera_, pose, p) || hidden(p)) continue;
+      double score = o.target ? 0.85 : 0.15;
+      if (rng.Bernoulli(scenario_.noise.false_detection)) score = 1.0 - score;
+      score = std::clamp(score + scenario_.noise.detection * rng.Normal(), 0.01, 0.99);
+      d.faces.push_back({k, score});
+    }
+    obs.objects.push_back(std::move(d));
+  }
+  return obs;
+}
+
+Frame Simulator::Render(int width, int height) const {
+  Frame f;
+  f.width = width;
+  f.height = height;
+  f.fx = 0.5 * width / camera_.TanHalfHorizontal();
+  f.fy = 0.5 * height / camera_.TanHalfVertical();
+  f.cx = 0.5 * width;
+  f.cy = 0.5 * height;
+  f.pose = object_search::CameraPoseFor(preset_, robot_);
+  f.rgb.assign(static_cast<size_t>(width) * height * 3, 0);
+  f.depth.assign(static_cast<size_t>(width) * height, 0.0f);
+  f.ids.assign(static_cast<size_t>(width) * height, -1);
+  constexpr double kMaxRange = 4.0;
+  const Vec3 light = Vec3(0.3, 0.2, 1.0).normalized();
+  struct Item {
+    Box box;
+    Color color;
+    uint32_t texture;
+    int16_t id;
+  };
+  std::vector<Item> items;
+  for (size_t k = 0; k < scenario_.furniture.size(); ++k) {
+    const Furniture& fu = scenario_.furniture[k];
+    items.push_back({fu.box, fu.color, 0, static_cast<int16_t>(1000 + k)});
+  }
+  for (size_t k = 0; k < objects_.size(); ++k) {
+    if (removed_[k]) continue;
+    items.push_back(
+        {objects_[k].box, objects_[k].color, objects_[k].texture_seed, static_cast<int16_t>(k)});
+  }
+  for (int v = 0; v < height; ++v) {
+    for (int u = 0; u < width; ++u) {
+      const Vec3 dir = (f.pose.forward - f.pose.left * ((u + 0.5 - f.cx) / f.fx) +
+                        f.pose.up * ((f.cy - v - 0.5) / f.fy));
+      const Vec3 unit = dir.normalized();
+      double best_t = std::numeric_limits<double>::infinity();
+      Color color = {0, 0, 0};
+      int16_t id = -1;
+      Vec3 normal = Vec3::UnitZ();
+      // Floor.
+      if (unit.z() < -1e-9) {
+        const double t = -f.pose.position.z() / unit.z();
+        const Vec3 hit = f.pose.position + t * unit;
+        best_t = t;
+        const bool check = (static_cast<int>(std::floor(hit.x() * 2)) +
+                            static_cast<int>(std::floor(hit.y() * 2))) & 1;
+        color = check ? Color{185, 185, 180} : Color{160, 160, 155};
+      }
+      for (const Item& item : items) {
+        double t;
+        int face;
+        Vec3 local;
+        if (!HitBox(item.box, f.pose.position, unit, &t, &face, &local) || t >= best_t) continue;
+        best_t = t;
+        id = item.id;
+        normal = FaceNormalWorld(item.box, face);
+        color = item.color;
+        if (item.texture != 0) {
+          const int a = (face / 2 + 1) % 3, b = (face / 2 + 2) % 3;
+          const double fu = local[a] / item.box.size[a] + 0.5;
+          const double fv = local[b] / item.box.size[b] + 0.5;
+          color = Pattern(item.texture, face, fu, fv);
+        }
+      }
+      const double depth = best_t * unit.dot(f.pose.forward);
+      if (!std::isfinite(best_t) || depth > kMaxRange) {
+        // Nothing within range: a plain backdrop colour, no depth.
+        const size_t idx = static_cast<size_t>(v) * width + u;
+        f.rgb[idx * 3] = 200;
+        f.rgb[idx * 3 + 1] = 205;
+        f.rgb[idx * 3 + 2] = 215;
+        continue;
+      }
+      const double shade = 0.55 + 0.45 * std::max(0.0, normal.dot(light));
+      const size_t idx = static_cast<size_t>(v) * width + u;
+      for (int ch = 0; ch < 3; ++ch) {
+        f.rgb[idx * 3 + ch] = static_cast<uint8_t>(std::clamp(color[ch] * shade, 0.0, 255.0));
+      }
+      f.depth[idx] = static_cast<float>(depth);
+      f.ids[idx] = id;
+    }
+  }
+  return f;
+}
+
+}  // namespace npfkct::sim

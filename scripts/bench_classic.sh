@@ -1,0 +1,53 @@
+#!/usr/bin/env bash
+# Reproduces every figure of the README's "Published benchmarks" section. Results are appended as
+# JSON lines to bench/results/classic.jsonl (one object per run, see npfkct-bench --help).
+# Usage: scripts/bench_classic.sh [section ...]   sections: tiger rocksample throughput lightdark vdptag
+# Takes about three hours on a 2-core machine with every section.
+set -euo pipefail
+NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+source "$NPFKCT_ROOT/scripts/deps.sh"
+npfkct_install_deps
+BUILD_DIR="${BUILD_DIR:-$NPFKCT_ROOT/build}"
+npfkct_build "$BUILD_DIR" >/dev/null
+BENCH="$BUILD_DIR/scenarios/npfkct-bench"
+OUT="${OUT:-$NPFKCT_ROOT/bench/results/classic.jsonl}"
+mkdir -p "$(dirname "$OUT")"
+THREADS="$(nproc)"
+run() { "$BENCH" "$@" | tee -a "$OUT"; }
+sections=("$@")
+[ ${#sections[@]} -eq 0 ] && sections=(tiger rocksample throughput lightdark vdptag)
+
+for section in "${sections[@]}"; do
+  case "$section" in
+    tiger)
+      # POMCP, 5000 simulations per step, 100 steps; optimal value 19.37 (19.25 over 100 steps).
+      run --problem tiger --planner pomcp --episodes 1000 --time-ms 0 --sims 5000 --threads "$THREADS"
+      run --problem tiger --planner pomcp --episodes 200 --time-ms 0 --sims 5000 --threads "$THREADS" --rollout random
+      ;;
+    rocksample)
+      # POMCP with preferred actions, 1 s per step (Silver & Veness: 20.71 +- 0.21).
+      run --problem rocksample --planner pomcp --episodes 100 --time-ms 1000 --threads "$THREADS"
+      ;;
+    throughput)
+      # Simulations per second of POMCP on RockSample(7,8), one thread, 1 s per step.
+      run --problem rocksample --planner pomcp --episodes 8 --time-ms 1000 --threads 1
+      ;;
+    lightdark)
+      # POMCPOW paper: POMCPOW 56.1 +- 0.6, POMCP (continuous observations) -7.1 +- 1.0 at 1 s.
+      run --problem lightdark --planner pomcpow --episodes 200 --time-ms 1000 --threads "$THREADS"
+      run --problem lightdark --planner pomcpow --episodes 300 --time-ms 0 --sims 10000 --threads "$THREADS"
+      run --problem lightdark --planner pomcp --episodes 200 --time-ms 100 --threads "$THREADS"
+      ;;
+    vdptag)
+      # POMCPOW paper: POMCPOW 29.3 +- 0.8 at 1 s (random rollouts). VPW paper at 1 s with
+      # ToNextML rollouts: VOMCPOW 33.2 +- 0.9, POMCPOW 28.3 +- 1.0.
+      for planner in pomcpow vomcpow advt kct; do
+        run --problem vdptag --planner "$planner" --episodes 300 --time-ms 100 --threads "$THREADS"
+      done
+      for planner in pomcpow vomcpow; do
+        run --problem vdptag --planner "$planner" --episodes 100 --time-ms 1000 --threads "$THREADS" --rollout tonextml
+      done
+      ;;
+    *) echo "unknown section $section" >&2; exit 2 ;;
+  esac
+done

@@ -1,0 +1,130 @@
+// The object-search POMDP of the paper (section 3, appendix A and J) as a generative model over a
+// World: hybrid actions MOVE(config) / DECLARE(i, target|obstacle) / REMOVE(i), a guessed target
+// sampled from the grid world, face-grid observations inside the camera frustum with occlusion,
+// and the paper's reward table.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "npfkct/solver/model.h"
+#include "npfkct/solver/object_search/world.h"
+#include "npfkct/solver/spaces.h"
+
+namespace npfkct::object_search {
+
+/// The per-particle part of an object's state: face odds, status, and whether this particle
+/// believes the robot can remove it. The box is shared (World::objects), except object 0's
+/// position, which every particle samples.
+struct ObjectParticle {
+  std::array<float, 8> odds{};
+  int8_t status = kUpdating;
+  bool moveable = true;
+  friend bool operator==(const ObjectParticle&, const ObjectParticle&) = default;
+};
+
+/// A state of the belief tree: the robot's configuration, the guessed target's position and the
+/// dynamic part of every object (index 0: the guessed target).
+struct State {
+  RobotConfig robot;
+  Vec3 target = Vec3::Zero();
+  std::vector<ObjectParticle> objects;
+  bool terminal = false;
+  friend bool operator==(const State& a, const State& b) {
+    return a.robot == b.robot && a.target == b.target && a.objects == b.objects &&
+           a.terminal == b.terminal;
+  }
+};
+
+/// An observation as the belief tree branches on it: which objects were seen, and for each the
+/// direction of its face-grid update (positive, negative, or neither).
+struct Observation {
+  uint64_t visible = 0;
+  uint64_t positive = 0;
+  uint64_t negative = 0;
+  friend bool operator==(const Observation&, const Observation&) = default;
+  uint64_t Hash() const;
+};
+
+/// The 20-dimensional object state of the paper: position (3), quaternion (4), sizes (3),
+/// face odds (8), moveability, status.
+using ObjectVector20 = std::array<double, 20>;
+
+/// Action kinds: kind 0 moves to a configuration (x, y, yaw, lift, pan, tilt); kind 1 + 3i
+/// declares object i the target, 2 + 3i declares it an obstacle, 3 + 3i removes it.
+inline constexpr int kMoveKind = 0;
+inline int DeclareTargetKind(int object) { return 1 + 3 * object; }
+inline int DeclareObstacleKind(int object) { return 2 + 3 * object; }
+inline int RemoveKind(int object) { return 3 + 3 * object; }
+/// The object a discrete kind refers to, and the offset (0 declare target, 1 declare obstacle,
+/// 2 remove).
+inline int KindObject(int kind) { return (kind - 1) / 3; }
+inline int KindOffset(int kind) { return (kind - 1) % 3; }
+
+/// Rollout policies of the object-search model.
+enum class SearchRollout {
+  kRandom,  ///< Uniformly random legal kind and configuration (paper's Rollout_Random).
+  kGreedy,  ///< Take a legal declare/remove when the odds allow it, else a random move.
+};
+
+/// The generative object-search model over a World (held by shared pointer; the owner may
+/// replace the World between planning calls, never during one).
+class ObjectSearchModel {
+ public:
+  using State = object_search::State;
+  using Action = HybridAction;
+  using Observation = object_search::Observation;
+
+  explicit ObjectSearchModel(std::shared_ptr<const World> world,
+                             SearchRollout rollout = SearchRollout::kGreedy);
+
+  /// Installs a new World (after a real step).
+  void SetWorld(std::shared_ptr<const World> world);
+  const World& world() const { return *world_; }
+
+  State SampleInitialState(Rng& rng) const;
+  StepResult<State, Observation> Step(const State& s, const Action& a, Rng& rng) const;
+  double Discount() const { return world_->params.discount; }
+  bool IsTerminal(const State& s) const { return s.terminal; }
+  void ActionKinds(const State& s, std::vector<int>* out) const;
+  const BoxSpace& KindSpace(int kind) const { return kind == kMoveKind ? move_space_ : point_; }
+  /// Reasonability check: the base must stand in a base region without collision; discrete
+  /// actions must refer to an existing object whose status allows them.
+  bool IsFeasible(const State& s, const Action& a) const;
+  /// 1 when `o` is what `sp` produces after `a` (observations are deterministic given s').
+  double ObservationLikelihood(const Action& a, const State& sp, const Observation& o) const;
+  Action RolloutAction(const State& s, Rng& rng) const;
+  double MinReward() const { return world_->params.r_ill; }
+  double MaxReward() const { return world_->params.r_max; }
+
+  /// The box of object i in state s (object 0: the guessed target cube at s.target).
+  Box ObjectBox(const State& s, int i) const;
+  /// Which objects the camera sees from `config` in state s (bit i: object i), and for each the
+  /// 4 face grids nearest to the camera.
+  uint64_t VisibleObjects(const State& s, const RobotConfig& config,
+                          std::array<std::array<int, 4>, 64>* nearest) const;
+  /// The observation key of a real step, from the objects detected (their indices in the world)
+  /// and the odds before the update, by the same rule as the simulated observations.
+  Observation RealObservationKey(const std::vector<int>& detected) const;
+  /// Decodes the continuous part of a move action.
+  static RobotConfig ConfigOf(const ActionVec& x);
+  /// Encodes a configuration as the continuous part of a move action.
+  static ActionVec VecOf(const RobotConfig& c);
+  /// The paper's 20-dimensional vector of object i in state s.
+  ObjectVector20 ObjectVector(const State& s, int i) const;
+  /// Number of face grids past +threshold (positive) or -threshold (negative).
+  int CountPast(const std::array<float, 8>& odds, bool positive) const;
+
+ private:
+  void Observe(State* s, Rng& rng, Observation* o) const;
+
+  std::shared_ptr<const World> world_;
+  SearchRollout rollout_;
+  BoxSpace move_space_;
+  BoxSpace point_;
+};
+
+}  // namespace npfkct::object_search

@@ -1,0 +1,173 @@
+// What the robot knows between real steps (the problem configuration alpha(P) and the belief
+// summary the planner samples from): map, workspaces, grid world, detected objects and their face
+// odds; and the real-step update of that knowledge (paper appendix A and B).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "npfkct/solver/object_search/geometry.h"
+#include "npfkct/solver/object_search/grid_world.h"
+#include "npfkct/solver/status.h"
+
+namespace npfkct::object_search {
+
+/// Object status (paper footnote 2).
+enum ObjectStatus : int8_t {
+  kRemoved = -2,
+  kUpdating = -1,
+  kDeclaredObstacle = 0,
+  kDeclaredTarget = 1,
+};
+
+/// Parameters of the object-search POMDP (paper section 3 and appendix J).
+struct SearchParams {
+  double r_max = 1e5;    ///< Removing the declared target (terminal).
+  double r_ct = 5e4;     ///< Correctly declaring the target.
+  double r_co = 1e4;     ///< Correctly declaring an obstacle.
+  double r_min = -1.0;   ///< Every action (a removal costs 2 r_min).
+  double r_ill = -1e3;   ///< Illegal actions.
+  double discount = 0.9;
+  /// Face-grid update in the belief tree: +-c_o + eta, eta ~ N(0, eta_std^2).
+  double c_o = 0.5;
+  double eta_std = 0.1;
+  /// Mean log-odds thresholds deciding the direction of simulated updates.
+  double nu_p = 0.1;
+  double nu_n = -0.1;
+  /// Declaring needs n_odds face grids past +-declare_threshold.
+  int n_odds = 6;
+  double declare_threshold = 0.6;
+  /// Face odds of the guessed target, re-initialised after every real step.
+  double guess_odds = 0.2;
+  /// Size of the guessed target cube (m).
+  double guess_size = 0.1;
+  /// Moveability of the guessed target.
+  double guess_moveability = 1.0;
+  /// Real-step grid-world update for free (seen, empty) cells, and the clamp.
+  double grid_free_delta = -1.0;
+  double grid_min = -6.0;
+  double grid_max = 6.0;
+  /// Real-step face-odds update from a detection score p: log(p / (1 - p)), clamped to this.
+  double detection_max_step = 2.0;
+  /// Face odds are clamped to +-face_odds_limit.
+  double face_odds_limit = 8.0;
+  /// Episode length limit (success within this many steps).
+  int max_steps = 50;
+
+  /// Checks every field; the message names the offending one.
+  Status Validate() const;
+};
+
+/// A 2-D occupancy map of the floor; the base may not stand where its footprint touches an
+/// occupied cell.
+class OccupancyMap {
+ public:
+  OccupancyMap() = default;
+  /// A free map of [min, max] with square cells of `resolution`.
+  OccupancyMap(Vec2 min, Vec2 max, double resolution);
+  /// Marks the footprint of an upright box (inflated by `margin`) occupied.
+  void AddBox(const Box& box, double margin = 0.0);
+  /// Whether a disc of `radius` at (x, y) is free and inside the map.
+  bool DiscFree(double x, double y, double radius) const;
+  bool Occupied(int ix, int iy) const { return occupied_[iy * nx_ + ix] != 0; }
+  int nx() const { return nx_; }
+  int ny() const { return ny_; }
+  const Vec2& min() const { return min_; }
+  const Vec2& max() const { return max_; }
+  double resolution() const { return resolution_; }
+  const std::vector<uint8_t>& cells() const { return occupied_; }
+  /// Replaces the cells (sizes must match).
+  Status SetCells(const std::vector<uint8_t>& cells);
+
+ private:
+  Vec2 min_ = Vec2::Zero(), max_ = Vec2::Zero();
+  double resolution_ = 0.05;
+  int nx_ = 0, ny_ = 0;
+  std::vector<uint8_t> occupied_;
+};
+
+/// A rectangle of the floor where the base may be placed.
+struct BaseRegion {
+  Vec2 min = Vec2::Zero();
+  Vec2 max = Vec2::Zero();
+  bool Contains(double x, double y) const {
+    return x >= min.x() && x <= max.x() && y >= min.y() && y <= max.y();
+  }
+};
+
+/// What is known of one object (object 0 is the guessed target and has no fixed box).
+struct ObjectKnowledge {
+  std::string key;       ///< Caller's identifier (perception cluster id, simulator name).
+  Box box;               ///< Estimated oriented bounding box.
+  double moveability = 1.0;  ///< Probability that the robot can remove it.
+  std::array<float, 8> odds{};  ///< Face-grid log-odds (the box's 8 corners).
+  int8_t status = kUpdating;
+};
+
+/// One face-grid detection of a real observation: corner index 0..7 and the probability that
+/// the object is the target as seen on that part.
+struct FaceDetection {
+  int corner = 0;
+  double score = 0.5;
+};
+
+/// One object seen in a real step.
+struct ObjectDetection {
+  std::string key;  ///< Stable identifier across steps (association done by the caller).
+  Box box;
+  double moveability = 1.0;
+  std::vector<FaceDetection> faces;
+};
+
+/// What the robot learnt in one real step.
+struct RealObservation {
+  RobotConfig achieved;  ///< The configuration the robot actually reached.
+  std::vector<ObjectDetection> objects;
+};
+
+/// The robot's knowledge: everything the planner's model samples from.
+struct World {
+  RobotPreset robot = RobotPreset::Fetch();
+  CameraModel camera;
+  SearchParams params;
+  std::vector<Box> furniture;        ///< Static occluders of the prior map.
+  OccupancyMap occupancy;            ///< Where the base may not stand.
+  std::vector<BaseRegion> base_regions;  ///< Candidate base rectangles (A_c's base part).
+  /// Manually chosen base poses (x, y, yaw) of the discrete baselines (POMCP, GPOMCP).
+  std::vector<RobotConfig> discrete_poses;
+  GridWorld grid;                    ///< Odds of the target's position.
+  std::vector<ObjectKnowledge> objects;  ///< objects[0] is the guessed target.
+  RobotConfig robot_config;          ///< The robot's current configuration.
+  int steps = 0;                     ///< Real steps taken.
+
+  /// A world with the given map parts, object 0 (the guessed target) only, and the robot at
+  /// `start`. The grid world's sampler is built.
+  static World Make(RobotPreset robot, SearchParams params, std::vector<Box> furniture,
+                    OccupancyMap occupancy, std::vector<BaseRegion> base_regions, GridWorld grid,
+                    RobotConfig start);
+
+  /// Checks the parts; the message names the offending one.
+  Status Validate() const;
+  /// Occluding boxes: furniture and every object not removed (object 0 excluded).
+  std::vector<Box> Occluders() const;
+  /// Whether the base may stand at (x, y): inside a base region and free in the occupancy map.
+  bool BaseFeasible(double x, double y) const;
+  /// Index of the object with this key, or -1.
+  int FindObject(const std::string& key) const;
+  /// The paper's manual discrete configuration set: every discrete pose x 3 lifts x 9 head
+  /// orientations (3 pans x 3 tilts). Poses default to each base region's center facing the
+  /// nearest workspace.
+  std::vector<RobotConfig> ManualConfigurations() const;
+};
+
+/// Applies the outcome of a declare/remove action executed for real (`success` says whether the
+/// robot managed it). Status changes follow the paper: declared target 1, obstacle 0, removed -2.
+Status ApplyDiscreteOutcome(World* world, int object, int kind_offset, bool success);
+
+/// The real-step update (paper appendix A): the robot's configuration, detected objects (new ones
+/// appended), face odds from detection scores, and the grid world from the camera's view.
+Status ApplyRealObservation(World* world, const RealObservation& observation);
+
+}  // namespace npfkct::object_search

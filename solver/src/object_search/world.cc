@@ -1,0 +1,304 @@
+#include "npfkct/solver/object_search/world.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace npfkct::object_search {
+namespace {
+
+bool Finite(const Box& b) {
+  return b.center.allFinite() && std::isfinite(b.yaw) && b.size.allFinite();
+}
+
+Status CheckBox(const Box& b, const std::string& field) {
+  if (!Finite(b)) return InvalidArgumentError(field + ": not finite");
+  if (!(b.size.minCoeff() > 0.0)) return InvalidArgumentError(field + ".size: must be > 0");
+  if (b.size.maxCoeff() > 100.0) return InvalidArgumentError(field + ".size: larger than 100 m");
+  return OkStatus();
+}
+
+}  // namespace
+
+Status SearchParams::Validate() const {
+  auto finite = [](double v) { return std::isfinite(v); };
+  if (!finite(r_max) || !finite(r_ct) || !finite(r_co) || !finite(r_min) || !finite(r_ill)) {
+    return InvalidArgumentError("rewards must be finite");
+  }
+  if (!(r_max > r_ct && r_ct > r_co && r_co > 0.0 && r_min < 0.0)) {
+    return InvalidArgumentError("rewards must satisfy r_max > r_ct > r_co > 0 > r_min");
+  }
+  if (!(r_ill < 0.0)) return InvalidArgumentError("r_ill must be < 0");
+  if (!(discount > 0.0 && discount < 1.0)) return InvalidArgumentError("discount must be in (0, 1)");
+  if (!(c_o > 0.0) || !finite(c_o)) return InvalidArgumentError("c_o must be > 0");
+  if (!(eta_std >= 0.0) || !finite(eta_std)) return InvalidArgumentError("eta_std must be >= 0");
+  if (!(nu_n <= nu_p) || !finite(nu_n) || !finite(nu_p)) {
+    return InvalidArgumentError("nu_n must be <= nu_p");
+  }
+  if (n_odds < 1 || n_odds > 8) return InvalidArgumentError("n_odds must be in [1, 8]");
+  if (!(declare_threshold > 0.0) || !finite(declare_threshold)) {
+    return InvalidArgumentError("declare_threshold must be > 0");
+  }
+  if (!finite(guess_odds)) return InvalidArgumentError("guess_odds must be finite");
+  if (!(guess_size > 0.0) || !finite(guess_size)) return InvalidArgumentError("guess_size must be > 0");
+  if (!(guess_moveability >= 0.0 && guess_moveability <= 1.0)) {
+    return InvalidArgumentError("guess_moveability must be in [0, 1]");
+  }
+  if (!(grid_free_delta <= 0.0) || !finite(grid_free_delta)) {
+    return InvalidArgumentError("grid_free_delta must be <= 0");
+  }
+  if (!(grid_min < grid_max) || !finite(grid_min) || !finite(grid_max)) {
+    return InvalidArgumentError("grid_min must be < grid_max");
+  }
+  if (!(detection_max_step > 0.0) || !finite(detection_max_step)) {
+    return InvalidArgumentError("detection_max_step must be > 0");
+  }
+  if (!(face_odds_limit > 0.0) || !finite(face_odds_limit)) {
+    return InvalidArgumentError("face_odds_limit must be > 0");
+  }
+  if (max_steps < 1) return InvalidArgumentError("max_steps must be >= 1");
+  return OkStatus();
+}
+
+OccupancyMap::OccupancyMap(Vec2 min, Vec2 max, double resolution)
+    : min_(min), max_(max), resolution_(resolution) {
+  nx_ = std::max(1, static_cast<int>(std::ceil((max.x() - min.x()) / resolution)));
+  ny_ = std::max(1, static_cast<int>(std::ceil((max.y() - min.y()) / resolution)));
+  occupied_.assign(static_cast<size_t>(nx_) * ny_, 0);
+}
+
+void OccupancyMap::AddBox(const Box& box, double margin) {
+  for (int iy = 0; iy < ny_; ++iy) {
+    for (int ix = 0; ix < nx_; ++ix) {
+      const Vec3 p(min_.x() + (ix + 0.5) * resolution_, min_.y() + (iy + 0.5) * resolution_,
+                   box.center.z());
+      const Vec3 l = box.ToLocal(p);
+      if (std::abs(l.x()) <= 0.5 * box.size.x() + margin &&
+          std::abs(l.y()) <= 0.5 * box.size.y() + margin) {
+        occupied_[iy * nx_ + ix] = 1;
+      }
+    }
+  }
+}
+
+bool OccupancyMap::DiscFree(double x, double y, double radius) const {
+  if (occupied_.empty()) return true;
+  if (x - radius < min_.x() || y - radius < min_.y() || x + radius > max_.x() ||
+      y + radius > max_.y()) {
+    return false;
+  }
+  const int x0 = static_cast<int>((x - radius - min_.x()) / resolution_);
+  const int x1 = static_cast<int>((x + radius - min_.x()) / resolution_);
+  const int y0 = static_cast<int>((y - radius - min_.y()) / resolution_);
+  const int y1 = static_cast<int>((y + radius - min_.y()) / resolution_);
+  for (int iy = std::max(0, y0); iy <= std::min(ny_ - 1, y1); ++iy) {
+    for (int ix = std::max(0, x0); ix <= std::min(nx_ - 1, x1); ++ix) {
+      if (!occupied_[iy * nx_ + ix]) continue;
+      // Distance from the disc center to the cell square.
+      const double cx = std::clamp(x, min_.x() + ix * resolution_, min_.x() + (ix + 1) * resolution_);
+      const double cy = std::clamp(y, min_.y() + iy * resolution_, min_.y() + (iy + 1) * resolution_);
+      if ((cx - x) * (cx - x) + (cy - y) * (cy - y) < radius * radius) return false;
+    }
+  }
+  return true;
+}
+
+Status OccupancyMap::SetCells(const std::vector<uint8_t>& cells) {
+  if (cells.size() != occupied_.size()) {
+    return InvalidArgumentError("occupancy: expected " + std::to_string(occupied_.size()) +
+                                " cells, got " + std::to_string(cells.size()));
+  }
+  occupied_ = cells;
+  return OkStatus();
+}
+
+World World::Make(RobotPreset robot, SearchParams params, std::vector<Box> furniture,
+                  OccupancyMap occupancy, std::vector<BaseRegion> base_regions, GridWorld grid,
+                  RobotConfig start) {
+  World w;
+  w.robot = std::move(robot);
+  w.params = params;
+  w.furniture = std::move(furniture);
+  w.occupancy = std::move(occupancy);
+  w.base_regions = std::move(base_regions);
+  w.grid = std::move(grid);
+  w.robot_config = start;
+  ObjectKnowledge guess;
+  guess.key = "guessed-target";
+  guess.box.size = Vec3::Constant(params.guess_size);
+  guess.moveability = params.guess_moveability;
+  guess.odds.fill(static_cast<float>(params.guess_odds));
+  w.objects.push_back(guess);
+  w.grid.RebuildSampler();
+  return w;
+}
+
+Status World::Validate() const {
+  if (Status s = params.Validate(); !s.ok()) return Status(s.code(), "params." + s.message());
+  if (Status s = grid.Validate(); !s.ok()) return Status(s.code(), "workspaces: " + s.message());
+  if (base_regions.empty()) return InvalidArgumentError("base_regions: at least one is needed");
+  for (size_t i = 0; i < base_regions.size(); ++i) {
+    const auto& r = base_regions[i];
+    if (!r.min.allFinite() || !r.max.allFinite() || !(r.min.x() < r.max.x()) ||
+        !(r.min.y() < r.max.y())) {
+      return InvalidArgumentError("base_regions[" + std::to_string(i) +
+                                  "]: min must be below max and finite");
+    }
+  }
+  for (size_t i = 0; i < furniture.size(); ++i) {
+    if (Status s = CheckBox(furniture[i], "furniture[" + std::to_string(i) + "]"); !s.ok()) {
+      return s;
+    }
+  }
+  if (objects.empty()) return InternalError("objects: the guessed target is missing");
+  for (size_t i = 1; i < objects.size(); ++i) {
+    if (Status s = CheckBox(objects[i].box, "objects[" + std::to_string(i) + "].box"); !s.ok()) {
+      return s;
+    }
+  }
+  if (objects.size() > 64) return InvalidArgumentError("objects: at most 63 objects are supported");
+  return OkStatus();
+}
+
+std::vector<Box> World::Occluders() const {
+  std::vector<Box> out = furniture;
+  for (size_t i = 1; i < objects.size(); ++i) {
+    if (objects[i].status != kRemoved) out.push_back(objects[i].box);
+  }
+  return out;
+}
+
+bool World::BaseFeasible(double x, double y) const {
+  bool in_region = false;
+  for (const BaseRegion& r : base_regions) in_region |= r.Contains(x, y);
+  return in_region && occupancy.DiscFree(x, y, robot.footprint_radius);
+}
+
+int World::FindObject(const std::string& key) const {
+  for (size_t i = 1; i < objects.size(); ++i) {
+    if (objects[i].key == key) return static_cast<int>(i);
+  }
+  return -1;
+}
+
+std::vector<RobotConfig> World::ManualConfigurations() const {
+  std::vector<RobotConfig> poses = discrete_poses;
+  if (poses.empty()) {
+    for (const BaseRegion& r : base_regions) {
+      RobotConfig c;
+      c.x = 0.5 * (r.min.x() + r.max.x());
+      c.y = 0.5 * (r.min.y() + r.max.y());
+      double best = 1e18;
+      for (const Workspace& w : grid.workspaces()) {
+        const double d = (w.center - Vec2(c.x, c.y)).squaredNorm();
+        if (d < best) {
+          best = d;
+          c.yaw = std::atan2(w.center.y() - c.y, w.center.x() - c.x);
+        }
+      }
+      poses.push_back(c);
+    }
+  }
+  std::vector<RobotConfig> out;
+  const double lifts[3] = {robot.lift_min, 0.5 * (robot.lift_min + robot.lift_max),
+                           robot.lift_max};
+  const double pans[3] = {robot.pan_min, 0.5 * (robot.pan_min + robot.pan_max), robot.pan_max};
+  const double tilts[3] = {0.0, 0.5 * robot.tilt_max, robot.tilt_max};
+  for (const RobotConfig& pose : poses) {
+    for (double lift : lifts) {
+      for (double pan : pans) {
+        for (double tilt : tilts) {
+          RobotConfig c = pose;
+          c.lift = lift;
+          c.pan = pan;
+          c.tilt = tilt;
+          out.push_back(c);
+        }
+      }
+    }
+  }
+  return out;
+}
+
+Status ApplyDiscreteOutcome(World* world, int object, int kind_offset, bool success) {
+  if (object <= 0 || object >= static_cast<int>(world->objects.size())) {
+    return InvalidArgumentError("object " + std::to_string(object) + " does not exist");
+  }
+  if (!success) return OkStatus();
+  ObjectKnowledge& o = world->objects[object];
+  switch (kind_offset) {
+    case 0:
+      o.status = kDeclaredTarget;
+      break;
+    case 1:
+      o.status = kDeclaredObstacle;
+      break;
+    case 2:
+      o.status = kRemoved;
+      break;
+    default:
+      return InvalidArgumentError("unknown discrete action offset " + std::to_string(kind_offset));
+  }
+  return OkStatus();
+}
+
+Status ApplyRealObservation(World* world, const RealObservation& observation) {
+  const SearchParams& p = world->params;
+  const RobotConfig& c = observation.achieved;
+  if (!std::isfinite(c.x) || !std::isfinite(c.y) || !std::isfinite(c.yaw) ||
+      !std::isfinite(c.lift) || !std::isfinite(c.pan) || !std::isfinite(c.tilt)) {
+    return InvalidArgumentError("robot state: not finite");
+  }
+  for (size_t i = 0; i < observation.objects.size(); ++i) {
+    const ObjectDetection& d = observation.objects[i];
+    const std::string field = "objects[" + std::to_string(i) + "]";
+    if (d.key.empty()) return InvalidArgumentError(field + ".id: empty");
+    if (Status s = CheckBox(d.box, field); !s.ok()) return s;
+    if (!(d.moveability >= 0.0 && d.moveability <= 1.0)) {
+      return InvalidArgumentError(field + ".moveability: must be in [0, 1]");
+    }
+    for (size_t k = 0; k < d.faces.size(); ++k) {
+      const FaceDetection& f = d.faces[k];
+      if (f.corner < 0 || f.corner > 7) {
+        return InvalidArgumentError(field + ".faces[" + std::to_string(k) +
+                                    "].corner: must be in [0, 7]");
+      }
+      if (!(f.score >= 0.0 && f.score <= 1.0)) {
+        return InvalidArgumentError(field + ".faces[" + std::to_string(k) +
+                                    "].score: must be in [0, 1]");
+      }
+    }
+    if (world->FindObject(d.key) < 0 && world->objects.size() >= 64) {
+      return ResourceExhaustedError(field + ": at most 63 objects are supported");
+    }
+  }
+  // Everything is valid: apply.
+  world->robot_config = c;
+  world->robot_config.yaw = WrapAngle(c.yaw);
+  for (const ObjectDetection& d : observation.objects) {
+    int index = world->FindObject(d.key);
+    if (index < 0) {
+      ObjectKnowledge o;
+      o.key = d.key;
+      world->objects.push_back(o);
+      index = static_cast<int>(world->objects.size()) - 1;
+    }
+    ObjectKnowledge& o = world->objects[index];
+    o.box = d.box;
+    o.moveability = d.moveability;
+    for (const FaceDetection& f : d.faces) {
+      const double q = std::clamp(f.score, 1e-6, 1.0 - 1e-6);
+      const double step =
+          std::clamp(std::log(q / (1.0 - q)), -p.detection_max_step, p.detection_max_step);
+      o.odds[f.corner] = static_cast<float>(
+          std::clamp(o.odds[f.corner] + step, -p.face_odds_limit, p.face_odds_limit));
+    }
+  }
+  const CameraPose pose = CameraPoseFor(world->robot, world->robot_config);
+  world->grid.UpdateFromView(world->camera, pose, world->Occluders(), 0.5 * p.guess_size,
+                             static_cast<float>(p.grid_free_delta),
+                             static_cast<float>(p.grid_min), static_cast<float>(p.grid_max));
+  ++world->steps;
+  return OkStatus();
+}
+
+}  // namespace npfkct::object_search

@@ -1,0 +1,323 @@
+// Hand-computed checks of the object-search model: frustum, occlusion, face-grid updates,
+// rewards, illegal actions and the grid-world update.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <memory>
+
+#include "npfkct/solver/kct.h"
+#include "npfkct/solver/object_search/discrete.h"
+#include "npfkct/solver/object_search/model.h"
+#include "npfkct/solver/pomcp.h"
+
+namespace npfkct::object_search {
+namespace {
+
+// A 1 m x 1 m table top at height 0.75 centered at (1.2, 0); the robot stands left of it.
+World TestWorld() {
+  SearchParams params;
+  params.eta_std = 0.0;
+  Box table;
+  table.center = Vec3(1.2, 0.0, 0.375);
+  table.size = Vec3(1.0, 1.0, 0.75);
+  OccupancyMap map(Vec2(-2, -2), Vec2(3, 2), 0.05);
+  map.AddBox(table);
+  Workspace top;
+  top.name = "table";
+  top.center = Vec2(1.2, 0.0);
+  top.length = 1.0;
+  top.width = 1.0;
+  top.height = 0.75;
+  BaseRegion region;
+  region.min = Vec2(-0.5, -0.6);
+  region.max = Vec2(0.4, 0.6);
+  return World::Make(RobotPreset::Fetch(), params, {table}, map, {region}, GridWorld({top}, 0.02),
+                     RobotConfig{});
+}
+
+ObjectKnowledge Object(const std::string& key, Vec3 center, Vec3 size, float odds) {
+  ObjectKnowledge o;
+  o.key = key;
+  o.box.center = center;
+  o.box.size = size;
+  o.odds.fill(odds);
+  return o;
+}
+
+TEST(GeometryTest, FrustumMatchesHandComputedLimits) {
+  const RobotPreset fetch = RobotPreset::Fetch();
+  const CameraModel cam;
+  const CameraPose pose = CameraPoseFor(fetch, RobotConfig{});
+  EXPECT_TRUE(pose.position.isApprox(Vec3(0.15, 0.0, 1.08)));
+  const double z = 1.08;
+  EXPECT_TRUE(InFrustum(cam, pose, Vec3(1.0, 0.0, z)));
+  EXPECT_FALSE(InFrustum(cam, pose, Vec3(0.6, 0.0, z)));   // depth 0.45 < near 0.5
+  EXPECT_FALSE(InFrustum(cam, pose, Vec3(1.9, 0.0, z)));   // depth 1.75 > far 1.7
+  // At depth 1: |lateral| <= tan 30 deg = 0.577, |vertical| <= 0.8 tan 30 deg = 0.462.
+  EXPECT_TRUE(InFrustum(cam, pose, Vec3(1.15, 0.57, z)));
+  EXPECT_FALSE(InFrustum(cam, pose, Vec3(1.15, 0.59, z)));
+  EXPECT_TRUE(InFrustum(cam, pose, Vec3(1.15, 0.0, z - 0.45)));
+  EXPECT_FALSE(InFrustum(cam, pose, Vec3(1.15, 0.0, z - 0.47)));
+  // Positive tilt looks down: the optical axis pitches by the tilt angle.
+  RobotConfig down;
+  down.tilt = 0.5;
+  const CameraPose tilted = CameraPoseFor(fetch, down);
+  EXPECT_TRUE(tilted.forward.isApprox(Vec3(std::cos(0.5), 0.0, -std::sin(0.5))));
+  // Yaw and pan add up; the lift raises Fetch's camera but not Stretch's.
+  RobotConfig turned;
+  turned.yaw = 0.3;
+  turned.pan = 0.2;
+  turned.lift = 0.4;
+  const CameraPose t = CameraPoseFor(fetch, turned);
+  EXPECT_NEAR(std::atan2(t.forward.y(), t.forward.x()), 0.5, 1e-12);
+  EXPECT_NEAR(t.position.z(), 1.48, 1e-12);
+  EXPECT_NEAR(CameraPoseFor(RobotPreset::Stretch(), turned).position.z(), 1.29, 1e-12);
+}
+
+TEST(GeometryTest, BoxesBlockSegmentsThatCrossThem) {
+  Box occluder;
+  occluder.center = Vec3(0.8, 0.0, 0.9);
+  occluder.size = Vec3(0.1, 0.3, 0.3);
+  const Vec3 camera(0.15, 0.0, 1.08);
+  // At x = 0.8 the segment to (1.2, 0, 0.8) is at z = 1.08 - 0.28 * 0.65 / 1.05 = 0.907.
+  EXPECT_TRUE(occluder.BlocksSegment(camera, Vec3(1.2, 0.0, 0.8)));
+  EXPECT_FALSE(occluder.BlocksSegment(camera, Vec3(1.2, 0.4, 0.8)));  // passes beside it
+  EXPECT_FALSE(occluder.BlocksSegment(camera, Vec3(0.6, 0.0, 0.9)));  // ends before it
+  // Rotated by 45 degrees, the box's long side (0.3 along its y) runs along (-1, 1) / sqrt(2):
+  // the offset (-0.1, 0.1) is at local (0, 0.141), inside; unrotated it is outside.
+  Box rotated = occluder;
+  rotated.yaw = std::acos(-1.0) / 4;
+  EXPECT_TRUE(rotated.Contains(Vec3(0.8 - 0.1, 0.1, 0.9)));
+  EXPECT_FALSE(occluder.Contains(Vec3(0.8 - 0.1, 0.1, 0.9)));
+  const auto corners = occluder.Corners();
+  EXPECT_TRUE(corners[7].isApprox(Vec3(0.85, 0.15, 1.05)));
+  EXPECT_TRUE(corners[0].isApprox(Vec3(0.75, -0.15, 0.75)));
+}
+
+TEST(ObjectSearchModelTest, ObservationUpdatesTheFourNearestGridsByTheMeanOdds) {
+  World w = TestWorld();
+  // Object 1: a box on the table believed to be the target; object 2: believed an obstacle;
+  // object 3: undecided.
+  w.objects.push_back(Object("a", Vec3(1.0, 0.2, 0.8), Vec3(0.1, 0.1, 0.1), 0.3f));
+  w.objects.push_back(Object("b", Vec3(1.0, -0.2, 0.8), Vec3(0.1, 0.1, 0.1), -0.3f));
+  w.objects.push_back(Object("c", Vec3(1.0, 0.0, 0.8), Vec3(0.1, 0.1, 0.1), 0.0f));
+  ObjectSearchModel model(std::make_shared<World>(w));
+  Rng rng(1);
+  State s = model.SampleInitialState(rng);
+  s.target = Vec3(1.6, 0.4, 0.8);  // behind the view's far corner? (depth 1.45, lateral 0.4)
+  HybridAction look;
+  look.kind = kMoveKind;
+  RobotConfig c;
+  c.tilt = 0.3;
+  look.x = ObjectSearchModel::VecOf(c);
+  auto r = model.Step(s, look, rng);
+  EXPECT_EQ(r.reward, -1.0);
+  EXPECT_EQ(r.observation.visible & 0b1110u, 0b1110u);
+  EXPECT_EQ(r.observation.positive & 0b1110u, 0b0010u);
+  EXPECT_EQ(r.observation.negative & 0b1110u, 0b0100u);
+  // The 4 grids facing the robot (the -x side: corners with bit 0 clear) move by +-c_o = 0.5.
+  for (int k = 0; k < 8; ++k) {
+    const bool near = !(k & 1);
+    EXPECT_FLOAT_EQ(r.state.objects[1].odds[k], near ? 0.8f : 0.3f) << k;
+    EXPECT_FLOAT_EQ(r.state.objects[2].odds[k], near ? -0.8f : -0.3f) << k;
+    EXPECT_FLOAT_EQ(r.state.objects[3].odds[k], 0.0f) << k;
+  }
+}
+
+TEST(ObjectSearchModelTest, OccludedAndOutOfViewObjectsAreNotObserved) {
+  World w = TestWorld();
+  // Object 1 hides object 2 (same line of sight, closer); object 3 is behind the robot.
+  w.objects.push_back(Object("front", Vec3(0.85, 0.0, 0.9), Vec3(0.1, 0.4, 0.3), 0.0f));
+  w.objects.push_back(Object("hidden", Vec3(1.3, 0.0, 0.8), Vec3(0.1, 0.1, 0.1), 0.3f));
+  w.objects.push_back(Object("behind", Vec3(-1.0, 0.0, 0.8), Vec3(0.1, 0.1, 0.1), 0.3f));
+  ObjectSearchModel model(std::make_shared<World>(w));
+  Rng rng(2);
+  State s = model.SampleInitialState(rng);
+  s.target = Vec3(1.3, 0.3, 0.8);  // also behind the front box (the ray passes y = 0.18 there)
+  RobotConfig c;
+  c.tilt = 0.3;
+  std::array<std::array<int, 4>, 64> nearest;
+  const uint64_t visible = model.VisibleObjects(s, c, &nearest);
+  EXPECT_EQ(visible, 0b0010u);
+  // Once the front box is removed both become visible.
+  s.objects[1].status = kRemoved;
+  EXPECT_EQ(model.VisibleObjects(s, c, &nearest), 0b0101u);
+  // A guessed target inside a real box (a covered target) is never seen.
+  s.target = Vec3(-1.0, 0.0, 0.8);
+  EXPECT_EQ(model.VisibleObjects(s, c, &nearest) & 1u, 0u);
+}
+
+TEST(ObjectSearchModelTest, RewardTableAndIllegalActions) {
+  World w = TestWorld();
+  w.objects.push_back(Object("t", Vec3(1.0, 0.2, 0.8), Vec3(0.1, 0.1, 0.1), 0.0f));
+  w.objects.push_back(Object("o", Vec3(1.0, -0.2, 0.8), Vec3(0.1, 0.1, 0.1), 0.0f));
+  ObjectSearchModel model(std::make_shared<World>(w));
+  Rng rng(3);
+  State s = model.SampleInitialState(rng);
+  for (auto& p : s.objects) p.moveable = true;
+  // Five grids past the threshold are not enough to declare (n_odds = 6): illegal.
+  s.objects[1].odds = {1, 1, 1, 1, 1, 0, 0, 0};
+  auto r = model.Step(s, HybridAction{DeclareTargetKind(1), {}}, rng);
+  EXPECT_EQ(r.reward, -1000.0);
+  EXPECT_EQ(r.state.objects[1].status, kUpdating);
+  s.objects[1].odds = {1, 1, 1, 1, 1, 1, 0, 0};
+  r = model.Step(s, HybridAction{DeclareTargetKind(1), {}}, rng);
+  EXPECT_EQ(r.reward, 5e4);
+  EXPECT_EQ(r.state.objects[1].status, kDeclaredTarget);
+  // Declaring it again, or as an obstacle, is illegal.
+  EXPECT_EQ(model.Step(r.state, HybridAction{DeclareTargetKind(1), {}}, rng).reward, -1000.0);
+  EXPECT_EQ(model.Step(r.state, HybridAction{DeclareObstacleKind(1), {}}, rng).reward, -1000.0);
+  // Removing the declared target ends the episode with R_max.
+  auto done = model.Step(r.state, HybridAction{RemoveKind(1), {}}, rng);
+  EXPECT_EQ(done.reward, 1e5);
+  EXPECT_TRUE(done.terminal);
+  // Obstacles: declare (R_co), remove (2 R_min), re-removal illegal.
+  s.objects[2].odds.fill(-1.0f);
+  auto ob = model.Step(s, HybridAction{DeclareObstacleKind(2), {}}, rng);
+  EXPECT_EQ(ob.reward, 1e4);
+  auto removed = model.Step(ob.state, HybridAction{RemoveKind(2), {}}, rng);
+  EXPECT_EQ(removed.reward, -2.0);
+  EXPECT_EQ(removed.state.objects[2].status, kRemoved);
+  EXPECT_FALSE(removed.terminal);
+  EXPECT_EQ(model.Step(removed.state, HybridAction{RemoveKind(2), {}}, rng).reward, -1000.0);
+  // Removing an undeclared object, or one this particle cannot move, is illegal.
+  EXPECT_EQ(model.Step(s, HybridAction{RemoveKind(1), {}}, rng).reward, -1000.0);
+  State stuck = ob.state;
+  stuck.objects[2].moveable = false;
+  EXPECT_EQ(model.Step(stuck, HybridAction{RemoveKind(2), {}}, rng).reward, -1000.0);
+  // A base pose inside the table (occupied) is illegal and the robot stays.
+  RobotConfig inside;
+  inside.x = 1.2;
+  auto bump = model.Step(s, HybridAction{kMoveKind, ObjectSearchModel::VecOf(inside)}, rng);
+  EXPECT_EQ(bump.reward, -1000.0);
+  EXPECT_EQ(bump.state.robot, s.robot);
+  EXPECT_FALSE(model.IsFeasible(s, HybridAction{kMoveKind, ObjectSearchModel::VecOf(inside)}));
+  // Nonexistent objects and the guessed target are not feasible for real execution.
+  EXPECT_EQ(model.Step(s, HybridAction{DeclareTargetKind(9), {}}, rng).reward, -1000.0);
+  EXPECT_FALSE(model.IsFeasible(s, HybridAction{DeclareTargetKind(0), {}}));
+  EXPECT_TRUE(model.IsFeasible(s, HybridAction{DeclareTargetKind(1), {}}));
+}
+
+TEST(ObjectSearchModelTest, InitialStatesSampleTheGuessedTargetFromTheGrid) {
+  World w = TestWorld();
+  // Make only the table's far half likely.
+  for (int c = 0; c < w.grid.num_cells(); ++c) {
+    w.grid.set_log_odds(c, w.grid.CellCenter(c).x() > 1.2 ? 4.0f : -6.0f);
+  }
+  w.grid.RebuildSampler();
+  ObjectSearchModel model(std::make_shared<World>(w));
+  Rng rng(4);
+  int far = 0;
+  for (int i = 0; i < 2000; ++i) {
+    State s = model.SampleInitialState(rng);
+    EXPECT_NEAR(s.target.z(), 0.75 + 0.05, 1e-12);
+    EXPECT_EQ(s.objects[0].odds[3], 0.2f);
+    far += s.target.x() > 1.2;
+  }
+  // sigmoid(4) / (sigmoid(4) + sigmoid(-6)) = 0.9975
+  EXPECT_GT(far, 1980);
+}
+
+TEST(GridWorldTest, ViewLowersVisibleCellsOnly) {
+  World w = TestWorld();
+  RobotConfig c;
+  c.tilt = 0.45;
+  const CameraPose pose = CameraPoseFor(w.robot, c);
+  Box blocker;
+  blocker.center = Vec3(1.0, 0.0, 0.9);
+  blocker.size = Vec3(0.1, 0.2, 0.3);
+  GridWorld grid = w.grid;
+  const int updated = grid.UpdateFromView(w.camera, pose, {blocker}, 0.05, -1.0f, -6.0f, 6.0f);
+  EXPECT_GT(updated, 100);
+  int lowered = 0, kept_in_view = 0;
+  for (int cell = 0; cell < grid.num_cells(); ++cell) {
+    const Vec3 p = grid.CellCenter(cell, 0.05);
+    const bool in_view = InFrustum(w.camera, pose, p);
+    const bool hidden = blocker.Contains(p) || blocker.BlocksSegment(pose.position, p);
+    if (grid.log_odds(cell) < 0) ++lowered;
+    if (!in_view || hidden) {
+      EXPECT_EQ(grid.log_odds(cell), 0.0f);
+    } else {
+      EXPECT_EQ(grid.log_odds(cell), -1.0f);
+    }
+    if (in_view && hidden) ++kept_in_view;
+  }
+  EXPECT_EQ(lowered, updated);
+  EXPECT_GT(kept_in_view, 10);  // the shadow behind the blocker keeps its odds
+  // The sampler follows: the remaining mass sits outside the seen area.
+  Rng rng(5);
+  int in_seen = 0;
+  for (int i = 0; i < 1000; ++i) {
+    const Vec3 p = grid.Sample(rng, 0.05);
+    const bool seen = InFrustum(w.camera, pose, p) && !blocker.Contains(p) &&
+                      !blocker.BlocksSegment(pose.position, p);
+    in_seen += seen;
+  }
+  // Seen cells weigh sigmoid(-1) = 0.269 against sigmoid(0) = 0.5 for the others.
+  const double f = static_cast<double>(updated) / grid.num_cells();
+  const double expected = f * 0.2689 / (f * 0.2689 + (1 - f) * 0.5);
+  EXPECT_NEAR(in_seen / 1000.0, expected, 0.05);
+}
+
+TEST(WorldTest, RealObservationAppendsObjectsAndUpdatesOdds) {
+  World w = TestWorld();
+  RealObservation obs;
+  obs.achieved.tilt = 0.4;
+  ObjectDetection d;
+  d.key = "cluster-7";
+  d.box.center = Vec3(1.1, 0.1, 0.8);
+  d.box.size = Vec3(0.1, 0.1, 0.1);
+  d.faces = {{0, 0.8}, {2, 0.95}, {4, 0.5}};
+  obs.objects.push_back(d);
+  ASSERT_TRUE(ApplyRealObservation(&w, obs).ok());
+  ASSERT_EQ(w.objects.size(), 2u);
+  EXPECT_NEAR(w.objects[1].odds[0], std::log(4.0), 1e-6);
+  EXPECT_NEAR(w.objects[1].odds[2], 2.0, 1e-6);  // log(19) clamped to detection_max_step
+  EXPECT_NEAR(w.objects[1].odds[4], 0.0, 1e-6);
+  EXPECT_EQ(w.objects[1].odds[1], 0.0f);
+  EXPECT_EQ(w.steps, 1);
+  // The same key updates the same object.
+  ASSERT_TRUE(ApplyRealObservation(&w, obs).ok());
+  EXPECT_EQ(w.objects.size(), 2u);
+  EXPECT_NEAR(w.objects[1].odds[0], 2 * std::log(4.0), 1e-6);
+  // Bad input names the field and changes nothing.
+  RealObservation bad = obs;
+  bad.objects[0].faces[1].corner = 9;
+  const World before = w;
+  Status s = ApplyRealObservation(&w, bad);
+  EXPECT_EQ(s.code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(s.message().find("objects[0].faces[1].corner"), std::string::npos);
+  EXPECT_EQ(w.objects.size(), before.objects.size());
+  EXPECT_EQ(w.steps, before.steps);
+  bad = obs;
+  bad.achieved.x = std::nan("");
+  EXPECT_NE(ApplyRealObservation(&w, bad).message().find("robot state"), std::string::npos);
+}
+
+TEST(ObjectSearchModelTest, PlannersDeclareAndRemoveAConfirmedTarget) {
+  World w = TestWorld();
+  w.objects.push_back(Object("t", Vec3(1.0, 0.2, 0.8), Vec3(0.1, 0.1, 0.1), 2.0f));
+  auto world = std::make_shared<World>(w);
+  ObjectSearchModel model(world);
+  Rng rng(6);
+  KctOptions ko;
+  ko.observations.enabled = false;
+  ko.search.num_particles = 200;
+  KCenterTree<ObjectSearchModel> kct(model, ko);
+  kct.Reset(rng);
+  auto d = kct.Plan(Budget::Simulations(2000), rng);
+  ASSERT_TRUE(d.status.ok()) << d.status.ToString();
+  EXPECT_EQ(d.action.kind, DeclareTargetKind(1));
+  DiscreteObjectSearch discrete(model);
+  PomcpOptions po;
+  po.search.num_particles = 200;
+  Pomcp<DiscreteObjectSearch> pomcp(discrete, po);
+  pomcp.Reset(rng);
+  auto pd = pomcp.Plan(Budget::Simulations(2000), rng);
+  ASSERT_TRUE(pd.status.ok());
+  EXPECT_EQ(discrete.ToHybrid(pd.action).kind, DeclareTargetKind(1));
+  EXPECT_EQ(discrete.num_configs(), 1 * 3 * 9);
+}
+
+}  // namespace
+}  // namespace npfkct::object_search
