@@ -198,6 +198,7 @@ const std::map<std::string, Setter<KctOptions>, std::less<>>& KctTable() {
         {"num_candidates", Int(&KctOptions::num_candidates)},
         {"max_initial_clusters", Int(&KctOptions::max_initial_clusters)},
         {"max_feasibility_tries", Int(&KctOptions::max_feasibility_tries)},
+        {"tree_feasibility_tries", Int(&KctOptions::tree_feasibility_tries)},
         {"backup",
          [](KctOptions* o, double v) {
            if (v != 0.0 && v != 1.0) return InvalidArgumentError("0 (Monte Carlo) or 1 (Bellman)");

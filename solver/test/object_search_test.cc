@@ -17,6 +17,7 @@ namespace {
 World TestWorld() {
   SearchParams params;
   params.eta_std = 0.0;
+  params.c_o = 0.5;
   Box table;
   table.center = Vec3(1.2, 0.0, 0.375);
   table.size = Vec3(1.0, 1.0, 0.75);

@@ -64,6 +64,9 @@ struct KctOptions {
   FinalAction final_action = FinalAction::kUniformInSphere;
   /// Draws tried by Action_sam before it falls back to the center.
   int max_feasibility_tries = 100;
+  /// Draws tried inside the tree to find a point of a sphere that passes the model's
+  /// reasonability check (1: no check in the tree, the paper's behaviour).
+  int tree_feasibility_tries = 8;
   /// Observation branching.
   ObservationWidening observations;
 
@@ -87,6 +90,9 @@ struct KctOptions {
     }
     if (max_feasibility_tries < 1) {
       return InvalidArgumentError("max_feasibility_tries must be >= 1");
+    }
+    if (tree_feasibility_tries < 1) {
+      return InvalidArgumentError("tree_feasibility_tries must be >= 1");
     }
     return Prefixed("observations", observations.Validate());
   }
@@ -349,22 +355,34 @@ class KCenterTree {
     const BoxSpace& box = model_.KindSpace(kind);
     std::vector<Hypersphere>& out = spheres_[kind];
     if (box.dim() == 0) return OkStatus();
+    // Candidates that fail the reasonability check are dropped; a few rounds top them up.
     std::vector<ActionVec> points;
     const auto t0 = Clock::now();
-    Status s = sampler_->Sample(belief_, kind, box, options_.num_candidates, rng, &points,
-                                &candidate_stats_);
+    for (int round = 0; round < 4 && static_cast<int>(points.size()) < options_.num_candidates;
+         ++round) {
+      std::vector<ActionVec> batch;
+      Status s = sampler_->Sample(belief_, kind, box, options_.num_candidates, rng, &batch,
+                                  &candidate_stats_);
+      if (!s.ok()) {
+        candidate_stats_.elapsed_ms += MillisSince(t0);
+        return s;
+      }
+      for (const ActionVec& p : batch) {
+        if (!box.Contains(p)) {
+          return InternalError("candidate sampler returned a point outside the action box");
+        }
+        if (IsFeasibleAction(model_, belief_.Sample(rng), HybridAction{kind, p})) {
+          points.push_back(p);
+        }
+      }
+      if (batch.empty()) break;
+    }
     candidate_stats_.elapsed_ms += MillisSince(t0);
-    if (!s.ok()) return s;
     if (points.empty()) {
-      // The filter kept nothing: fall back to one sphere around the whole box.
+      // Nothing usable: fall back to one sphere around the whole box.
       out.push_back({kind, box.Clamp((box.lower() + box.upper()) / 2.0),
                      std::max(box.Diameter() / 2.0, options_.d_lim)});
       return OkStatus();
-    }
-    for (const ActionVec& p : points) {
-      if (!box.Contains(p)) {
-        return InternalError("candidate sampler returned a point outside the action box");
-      }
     }
     for (const Cluster& c : ClusterByElbow(box, points, options_.max_initial_clusters, rng)) {
       out.push_back({kind, c.center, std::max(c.radius, options_.d_lim)});
@@ -466,6 +484,18 @@ class KCenterTree {
     return a;
   }
 
+  // A point of the sphere that passes the reasonability check in state s (a few draws; the last
+  // draw when none passes, so that the model's penalty teaches the tree to avoid the sphere).
+  HybridAction SampleFeasibleInSphere(int ai, const State& s, Rng& rng) const {
+    HybridAction a = SampleInSphere(ai, rng);
+    if (model_.KindSpace(a.kind).dim() == 0) return a;
+    for (int tries = 1; tries < options_.tree_feasibility_tries && !IsFeasibleAction(model_, s, a);
+         ++tries) {
+      a = SampleInSphere(ai, rng);
+    }
+    return a;
+  }
+
   // Episode_simulation (algorithm 2). Returns the discounted return of the episode from `node`.
   double Simulate(const State& s, int node, int depth, uint32_t episode, Rng& rng,
                   Status* status) {
@@ -483,7 +513,7 @@ class KCenterTree {
     }
     const int ai = Select(node);
     Refine(node, ai, rng);
-    const HybridAction executed = SampleInSphere(ai, rng);
+    const HybridAction executed = SampleFeasibleInSphere(ai, s, rng);
     auto t = tree_.Descend(model_, ai, executed, s, options_.observations, episode, rng);
     const double gamma = model_.Discount();
     double total = t.reward;

@@ -31,7 +31,7 @@ struct SearchParams {
   double r_ill = -1e3;   ///< Illegal actions.
   double discount = 0.9;
   /// Face-grid update in the belief tree: +-c_o + eta, eta ~ N(0, eta_std^2).
-  double c_o = 0.5;
+  double c_o = 0.8;
   double eta_std = 0.1;
   /// Mean log-odds thresholds deciding the direction of simulated updates.
   double nu_p = 0.1;
