@@ -108,9 +108,10 @@ void PrintJson(const Config& c, const RunSummary& s, int max_steps) {
   }
   std::printf(
       ", \"mean_steps\": %.3f, \"ci95_steps\": %.3f, \"median_sims_per_step\": %.1f, "
-      "\"median_sims_per_second\": %.1f, \"wall_seconds\": %.2f, \"failed_episodes\": %d",
+      "\"median_sims_per_second\": %.1f, \"median_first_step_sims_per_second\": %.1f, "
+      "\"wall_seconds\": %.2f, \"failed_episodes\": %d",
       s.mean_steps, s.ci95_steps, s.median_sims_per_step, s.median_sims_per_second,
-      s.wall_seconds, s.failed_episodes);
+      s.median_first_step_sims_per_second, s.wall_seconds, s.failed_episodes);
   if (!s.first_error.empty()) std::printf(", \"error\": \"%s\"", JsonEscape(s.first_error).c_str());
   std::printf("}\n");
   std::fflush(stdout);

@@ -43,6 +43,7 @@ struct RunSummary {
   std::optional<double> success_rate;
   double median_sims_per_step = 0.0;
   double median_sims_per_second = 0.0;
+  double median_first_step_sims_per_second = 0.0;  ///< Over episodes, the first step only.
   double wall_seconds = 0.0;
   int failed_episodes = 0;
   std::string first_error;
@@ -94,7 +95,7 @@ inline RunSummary RunEpisodes(int episodes, int threads, bool success_defined,
   RunSummary s;
   s.episodes = episodes;
   s.wall_seconds = MillisSince(start) / 1000.0;
-  std::vector<double> sims, rate;
+  std::vector<double> sims, rate, first_rate;
   double sum = 0, sum2 = 0, steps = 0, steps2 = 0;
   int successes = 0;
   for (const auto& r : results) {
@@ -107,6 +108,9 @@ inline RunSummary RunEpisodes(int episodes, int threads, bool success_defined,
     steps += r.steps;
     steps2 += static_cast<double>(r.steps) * r.steps;
     successes += r.success;
+    if (!r.sims_per_step.empty() && r.ms_per_step[0] > 0) {
+      first_rate.push_back(r.sims_per_step[0] / (r.ms_per_step[0] / 1000.0));
+    }
     for (size_t k = 0; k < r.sims_per_step.size(); ++k) {
       sims.push_back(static_cast<double>(r.sims_per_step[k]));
       if (r.ms_per_step[k] > 0) rate.push_back(r.sims_per_step[k] / (r.ms_per_step[k] / 1000.0));
@@ -124,6 +128,7 @@ inline RunSummary RunEpisodes(int episodes, int threads, bool success_defined,
   if (success_defined) s.success_rate = successes / n;
   s.median_sims_per_step = Median(sims);
   s.median_sims_per_second = Median(rate);
+  s.median_first_step_sims_per_second = Median(first_rate);
   return s;
 }
 

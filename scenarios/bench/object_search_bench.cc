@@ -205,12 +205,14 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
           "\"sims\": %lld, \"robot\": \"%s\", \"seed\": %llu, \"threads\": %d, "
           "\"mean_discounted_reward\": %.1f, \"ci95\": %.1f, \"mean_steps\": %.2f, "
           "\"ci95_steps\": %.2f, \"success_rate\": %.3f, \"median_sims_per_step\": %.1f, "
-          "\"median_sims_per_second\": %.1f, \"wall_seconds\": %.1f, \"failed_trials\": %d%s%s%s}\n",
+          "\"median_sims_per_second\": %.1f, \"median_first_step_sims_per_second\": %.1f, "
+          "\"wall_seconds\": %.1f, \"failed_trials\": %d%s%s%s}\n",
           JsonEscape(scenario.name).c_str(), planner.c_str(), config.trials, config.time_ms,
           static_cast<long long>(config.sims), scenario.robot.c_str(),
           static_cast<unsigned long long>(config.seed), config.threads, s.mean_return,
           s.ci95_return, s.mean_steps, s.ci95_steps, s.success_rate.value_or(0.0),
-          s.median_sims_per_step, s.median_sims_per_second, s.wall_seconds, s.failed_episodes,
+          s.median_sims_per_step, s.median_sims_per_second, s.median_first_step_sims_per_second,
+          s.wall_seconds, s.failed_episodes,
           s.first_error.empty() ? "" : ", \"error\": \"",
           JsonEscape(s.first_error).c_str(), s.first_error.empty() ? "" : "\"");
       std::fflush(stdout);
