@@ -1,5 +1,7 @@
 #include "npfkct/sim/scenario.h"
 
+#include "npfkct/sim/json_read.h"
+
 #include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -10,86 +12,7 @@ namespace npfkct::sim {
 namespace {
 
 using nlohmann::json;
-
-Status Err(const std::string& path, const std::string& what) {
-  return InvalidArgumentError(path + ": " + what);
-}
-
-Status ReadNumber(const json& parent, const std::string& key, const std::string& path, double* out,
-                  bool required) {
-  if (!parent.contains(key)) return required ? Err(path + key, "missing") : OkStatus();
-  const json& v = parent.at(key);
-  if (!v.is_number()) return Err(path + key, "expected a number");
-  const double d = v.get<double>();
-  if (!std::isfinite(d)) return Err(path + key, "not finite");
-  *out = d;
-  return OkStatus();
-}
-
-Status ReadBool(const json& parent, const std::string& key, const std::string& path, bool* out) {
-  if (!parent.contains(key)) return OkStatus();
-  if (!parent.at(key).is_boolean()) return Err(path + key, "expected true or false");
-  *out = parent.at(key).get<bool>();
-  return OkStatus();
-}
-
-Status ReadString(const json& parent, const std::string& key, const std::string& path,
-                  std::string* out, bool required) {
-  if (!parent.contains(key)) return required ? Err(path + key, "missing") : OkStatus();
-  if (!parent.at(key).is_string()) return Err(path + key, "expected a string");
-  *out = parent.at(key).get<std::string>();
-  return OkStatus();
-}
-
-template <int N>
-Status ReadVector(const json& parent, const std::string& key, const std::string& path,
-                  Eigen::Matrix<double, N, 1>* out, bool required) {
-  if (!parent.contains(key)) return required ? Err(path + key, "missing") : OkStatus();
-  const json& v = parent.at(key);
-  if (!v.is_array() || v.size() != N) {
-    return Err(path + key, "expected " + std::to_string(N) + " numbers");
-  }
-  for (int i = 0; i < N; ++i) {
-    if (!v[i].is_number() || !std::isfinite(v[i].get<double>())) {
-      return Err(path + key + "[" + std::to_string(i) + "]", "expected a finite number");
-    }
-    (*out)[i] = v[i].get<double>();
-  }
-  return OkStatus();
-}
-
-Status ReadColor(const json& parent, const std::string& key, const std::string& path, Color* out) {
-  if (!parent.contains(key)) return OkStatus();
-  const json& v = parent.at(key);
-  if (!v.is_array() || v.size() != 3) return Err(path + key, "expected [r, g, b]");
-  for (int i = 0; i < 3; ++i) {
-    if (!v[i].is_number_integer() || v[i].get<int64_t>() < 0 || v[i].get<int64_t>() > 255) {
-      return Err(path + key + "[" + std::to_string(i) + "]", "expected an integer in [0, 255]");
-    }
-    (*out)[i] = static_cast<uint8_t>(v[i].get<int>());
-  }
-  return OkStatus();
-}
-
-Status ReadConfig(const json& j, const std::string& path, RobotConfig* c) {
-  if (!j.is_object()) return Err(path.substr(0, path.size() - 1), "expected an object");
-  for (auto [key, field] : {std::pair<const char*, double*>{"x", &c->x},
-                            {"y", &c->y},
-                            {"yaw", &c->yaw},
-                            {"lift", &c->lift},
-                            {"pan", &c->pan},
-                            {"tilt", &c->tilt}}) {
-    if (Status s = ReadNumber(j, key, path, field, false); !s.ok()) return s;
-  }
-  return OkStatus();
-}
-
-Status CheckKeys(const json& j, const std::string& path, const std::set<std::string>& known) {
-  for (auto it = j.begin(); it != j.end(); ++it) {
-    if (!known.count(it.key())) return Err(path + it.key(), "unknown field");
-  }
-  return OkStatus();
-}
+using namespace json_read;  // NOLINT: the field readers
 
 #define NPFKCT_RETURN_IF_ERROR(expr) \
   do {                               \
@@ -132,6 +55,15 @@ Status ParseParams(const json& j, object_search::SearchParams* p) {
 
 Status Scenario::Validate() const {
   if (name.empty()) return Err("name", "must not be empty");
+  NPFKCT_RETURN_IF_ERROR(ValidateWorld());
+  int targets = 0;
+  for (const SceneObject& o : objects) targets += o.target;
+  if (targets != 1) return Err("objects", "exactly one object must be the target");
+  if (objects.size() > 60) return Err("objects", "at most 60 objects are supported");
+  return OkStatus();
+}
+
+Status Scenario::ValidateWorld() const {
   if (!(room_min.x() < room_max.x() && room_min.y() < room_max.y())) {
     return Err("room", "min must be below max");
   }
@@ -146,10 +78,6 @@ Status Scenario::Validate() const {
     return Err("furniture", "at least one piece must be a workspace");
   }
   if (base_regions.empty()) return Err("baseRegions", "at least one region is needed");
-  int targets = 0;
-  for (const SceneObject& o : objects) targets += o.target;
-  if (targets != 1) return Err("objects", "exactly one object must be the target");
-  if (objects.size() > 60) return Err("objects", "at most 60 objects are supported");
   return OkStatus();
 }
 
@@ -169,16 +97,27 @@ std::vector<object_search::Workspace> Scenario::Workspaces() const {
   return out;
 }
 
-StatusOr<Scenario> ParseScenario(const std::string& json_text) {
-  const json j = json::parse(json_text, nullptr, /*allow_exceptions=*/false);
-  if (j.is_discarded()) return InvalidArgumentError("scenario: not valid JSON");
+namespace {
+
+// Parses a scenario, or with `world_only` its prior-map part (no objects, no noise, no name).
+StatusOr<Scenario> ParseScenarioJson(const json& j, bool world_only) {
   if (!j.is_object()) return InvalidArgumentError("scenario: expected a JSON object");
-  NPFKCT_RETURN_IF_ERROR(CheckKeys(j, "",
-                                   {"name", "description", "robot", "room", "mapResolution",
-                                    "furniture", "baseRegions", "discretePoses", "objects",
-                                    "start", "noise", "params"}));
+  if (world_only) {
+    NPFKCT_RETURN_IF_ERROR(CheckKeys(j, "",
+                                     {"robot", "room", "mapResolution", "furniture", "baseRegions",
+                                      "discretePoses", "start", "params"}));
+  } else {
+    NPFKCT_RETURN_IF_ERROR(CheckKeys(j, "",
+                                     {"name", "description", "robot", "room", "mapResolution",
+                                      "furniture", "baseRegions", "discretePoses", "objects",
+                                      "start", "noise", "params"}));
+  }
   Scenario sc;
-  NPFKCT_RETURN_IF_ERROR(ReadString(j, "name", "", &sc.name, true));
+  if (world_only) {
+    sc.name = "world";
+  } else {
+    NPFKCT_RETURN_IF_ERROR(ReadString(j, "name", "", &sc.name, true));
+  }
   NPFKCT_RETURN_IF_ERROR(ReadString(j, "description", "", &sc.description, false));
   NPFKCT_RETURN_IF_ERROR(ReadString(j, "robot", "", &sc.robot, false));
   if (Status s = object_search::RobotPreset::ByName(sc.robot).status(); !s.ok()) {
@@ -248,10 +187,10 @@ StatusOr<Scenario> ParseScenario(const std::string& json_text) {
     }
   }
 
-  if (!j.contains("objects") || !j.at("objects").is_array()) {
+  if (!world_only && (!j.contains("objects") || !j.at("objects").is_array())) {
     return Err("objects", "expected an array");
   }
-  for (size_t i = 0; i < j.at("objects").size(); ++i) {
+  for (size_t i = 0; !world_only && i < j.at("objects").size(); ++i) {
     const json& o = j.at("objects")[i];
     const std::string path = "objects[" + std::to_string(i) + "].";
     if (!o.is_object()) return Err(path.substr(0, path.size() - 1), "expected an object");
@@ -326,8 +265,30 @@ StatusOr<Scenario> ParseScenario(const std::string& json_text) {
     if (sc.noise.false_detection > 0.5) return Err("noise.falseDetection", "must be <= 0.5");
   }
   if (j.contains("params")) NPFKCT_RETURN_IF_ERROR(ParseParams(j.at("params"), &sc.params));
-  NPFKCT_RETURN_IF_ERROR(sc.Validate());
+  if (world_only) {
+    NPFKCT_RETURN_IF_ERROR(sc.ValidateWorld());
+  } else {
+    NPFKCT_RETURN_IF_ERROR(sc.Validate());
+  }
   return sc;
+}
+
+}  // namespace
+
+StatusOr<Scenario> ParseScenario(const std::string& json_text) {
+  const json j = json::parse(json_text, nullptr, /*allow_exceptions=*/false);
+  if (j.is_discarded()) return InvalidArgumentError("scenario: not valid JSON");
+  return ParseScenarioJson(j, /*world_only=*/false);
+}
+
+StatusOr<Scenario> ParseWorldSpec(const nlohmann::json& j, const std::string& prefix) {
+  StatusOr<Scenario> s = ParseScenarioJson(j, /*world_only=*/true);
+  if (!s.ok()) {
+    const std::string& m = s.status().message();
+    return Status(s.status().code(), m.rfind("scenario: ", 0) == 0 ? prefix + m.substr(8)
+                                                                   : prefix + "." + m);
+  }
+  return s;
 }
 
 StatusOr<Scenario> LoadScenario(const std::string& path) {

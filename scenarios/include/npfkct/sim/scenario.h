@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json_fwd.hpp>
+
 #include "npfkct/solver/object_search/world.h"
 #include "npfkct/solver/status.h"
 
@@ -67,6 +69,8 @@ struct Scenario {
 
   /// Checks the scenario; the message names the offending field.
   Status Validate() const;
+  /// Checks the prior-map part only (no objects).
+  Status ValidateWorld() const;
   /// The workspaces (furniture tops) as grid-world surfaces.
   std::vector<object_search::Workspace> Workspaces() const;
 };
@@ -74,6 +78,11 @@ struct Scenario {
 /// Parses a scenario from JSON text. Errors are INVALID_ARGUMENT naming the field path, e.g.
 /// "objects[2].size: expected 3 numbers".
 StatusOr<Scenario> ParseScenario(const std::string& json_text);
+
+/// Parses the prior-map part of a scenario (robot, room, mapResolution, furniture, baseRegions,
+/// discretePoses, start, params) from a JSON object; error messages start with `prefix` (e.g.
+/// "world.furniture[0].size: ...").
+StatusOr<Scenario> ParseWorldSpec(const nlohmann::json& j, const std::string& prefix);
 
 /// Reads and parses a scenario file.
 StatusOr<Scenario> LoadScenario(const std::string& path);

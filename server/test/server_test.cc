@@ -1,0 +1,334 @@
+// The real server on a loopback port, driven by an HTTP client.
+#include "npfkct/server/server.h"
+
+#include <gtest/gtest.h>
+#include <httplib.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <thread>
+
+namespace npfkct::server {
+namespace {
+
+json WorldOf(const std::string& scenario) {
+  std::ifstream in(std::string(NPFKCT_SCENARIO_DIR) + "/" + scenario + ".json");
+  std::stringstream buffer;
+  buffer << in.rdbuf();
+  json s = json::parse(buffer.str());
+  json world;
+  for (const char* key : {"robot", "room", "mapResolution", "furniture", "baseRegions",
+                          "discretePoses", "start"}) {
+    if (s.contains(key)) world[key] = s[key];
+  }
+  return world;
+}
+
+struct Reply {
+  int status = 0;
+  json body;
+  std::string raw;
+};
+
+class ServerTest : public ::testing::Test {
+ protected:
+  void Start(ServerOptions o = {}) {
+    o.port = 0;
+    server_ = std::make_unique<Server>(o);
+    ASSERT_TRUE(server_->Start().ok());
+    client_ = std::make_unique<httplib::Client>("127.0.0.1", server_->port());
+    client_->set_read_timeout(60, 0);
+  }
+  void TearDown() override {
+    if (server_) server_->Stop();
+  }
+  static Reply Wrap(const httplib::Result& r) {
+    Reply out;
+    if (!r) return out;
+    out.status = r->status;
+    out.raw = r->body;
+    out.body = json::parse(r->body, nullptr, false);
+    return out;
+  }
+  Reply Post(const std::string& path, const json& body, const httplib::Headers& h = {}) {
+    return Wrap(client_->Post(path.c_str(), h, body.dump(), "application/json"));
+  }
+  Reply PostRaw(const std::string& path, const std::string& body) {
+    return Wrap(client_->Post(path.c_str(), body, "application/json"));
+  }
+  Reply Get(const std::string& path, const httplib::Headers& h = {}) {
+    return Wrap(client_->Get(path.c_str(), h));
+  }
+  Reply Delete(const std::string& path) { return Wrap(client_->Delete(path.c_str())); }
+
+  std::string Create(json extra = json::object()) {
+    json body = {{"world", WorldOf("loose1")},
+                 {"seed", 7},
+                 {"planner", {{"name", "npfkct"}, {"particles", 100}}}};
+    body.update(extra);
+    Reply r = Post("/v1/sessions", body);
+    EXPECT_EQ(r.status, 200) << r.raw;
+    return r.body.value("id", "");
+  }
+
+  std::unique_ptr<Server> server_;
+  std::unique_ptr<httplib::Client> client_;
+};
+
+// An observation that reports what the robot saw after a move: one box with two faces.
+json Observation(const std::string& action_id, double tilt = 0.4) {
+  return {{"actionId", action_id},
+          {"robotState", {{"x", 0.3}, {"y", 0.0}, {"yaw", 0.0}, {"lift", 0.2}, {"pan", 0.0},
+                          {"tilt", tilt}}},
+          {"detections",
+           {{{"id", "box-1"},
+             {"box", {{"center", {1.4, 0.1, 0.82}}, {"size", {0.12, 0.12, 0.14}}}},
+             {"moveability", 0.9},
+             {"faces", {{{"corner", 0}, {"score", 0.2}}, {{"corner", 2}, {"score", 0.15}}}}}}}};
+}
+
+TEST_F(ServerTest, HealthAndMetrics) {
+  Start();
+  EXPECT_EQ(Get("/healthz").body["status"], "SERVING");
+  Create();
+  Reply m = Get("/metrics");
+  EXPECT_EQ(m.status, 200);
+  EXPECT_NE(m.raw.find("npfkct_sessions 1"), std::string::npos);
+  EXPECT_NE(m.raw.find("npfkct_http_requests_total{method=\"POST\",route=\"/v1/sessions\","
+                       "code=\"200\"} 1"),
+            std::string::npos);
+  EXPECT_NE(m.raw.find("# TYPE npfkct_plan_overhead_seconds histogram"), std::string::npos);
+}
+
+TEST_F(ServerTest, PlanObserveCycleWithPreconditions) {
+  Start();
+  const std::string id = Create();
+  ASSERT_EQ(id.size(), 32u);
+  const std::string base = "/v1/sessions/" + id;
+  Reply s = Get(base);
+  EXPECT_EQ(s.body["name"], "sessions/" + id);
+  EXPECT_EQ(s.body["state"], "READY");
+
+  // Observing before planning is a failed precondition.
+  Reply early = Post(base + ":observe", Observation("a0-000000"));
+  EXPECT_EQ(early.status, 400);
+  EXPECT_EQ(early.body["error"]["status"], "FAILED_PRECONDITION");
+
+  Reply plan = Post(base + ":plan", {{"budget", {{"simulations", 400}}}});
+  ASSERT_EQ(plan.status, 200) << plan.raw;
+  const std::string action_id = plan.body["actionId"];
+  EXPECT_EQ(plan.body["stats"]["simulations"], 400);
+  EXPECT_EQ(plan.body["action"]["type"], "MOVE");
+  EXPECT_TRUE(plan.body["action"]["configuration"].contains("tilt"));
+  EXPECT_EQ(plan.body["session"]["state"], "ACTION_PENDING");
+
+  // Planning again while the action is pending, and a stale id, are failed preconditions.
+  Reply again = Post(base + ":plan", {{"budget", {{"simulations", 10}}}});
+  EXPECT_EQ(again.status, 400);
+  EXPECT_EQ(again.body["error"]["status"], "FAILED_PRECONDITION");
+  Reply stale = Post(base + ":observe", Observation("a9-ffffff"));
+  EXPECT_EQ(stale.body["error"]["status"], "FAILED_PRECONDITION");
+  EXPECT_NE(stale.body["error"]["message"].get<std::string>().find(action_id), std::string::npos);
+
+  // A bad observation changes nothing: the action stays pending.
+  json bad = Observation(action_id);
+  bad["detections"][0]["faces"][0]["corner"] = 11;
+  Reply rejected = Post(base + ":observe", bad);
+  EXPECT_EQ(rejected.status, 400);
+  EXPECT_EQ(rejected.body["error"]["details"][0]["fieldViolations"][0]["field"],
+            "detections[0].faces[0].corner");
+  EXPECT_EQ(Get(base).body["state"], "ACTION_PENDING");
+
+  Reply obs = Post(base + ":observe", Observation(action_id));
+  ASSERT_EQ(obs.status, 200) << obs.raw;
+  EXPECT_EQ(obs.body["done"], false);
+  EXPECT_EQ(obs.body["session"]["state"], "READY");
+  EXPECT_EQ(obs.body["session"]["objectCount"], 1);
+  EXPECT_EQ(obs.body["session"]["step"], 1);
+  // The same observation again is rejected (double observation).
+  Reply twice = Post(base + ":observe", Observation(action_id));
+  EXPECT_EQ(twice.body["error"]["status"], "FAILED_PRECONDITION");
+  EXPECT_NE(twice.body["error"]["message"].get<std::string>().find("already observed"),
+            std::string::npos);
+
+  Reply belief = Get(base + "/belief");
+  ASSERT_EQ(belief.status, 200);
+  EXPECT_EQ(belief.body["objects"][0]["id"], "box-1");
+  EXPECT_LT(belief.body["objects"][0]["faceLogOdds"][0].get<double>(), -1.0);
+  EXPECT_EQ(belief.body["grid"]["workspaces"].size(), 1u);
+  auto png = client_->Get((base + "/belief?format=png").c_str());
+  ASSERT_TRUE(png);
+  EXPECT_EQ(png->get_header_value("Content-Type"), "image/png");
+  EXPECT_EQ(png->body.substr(1, 3), "PNG");
+
+  Reply list = Get("/v1/sessions");
+  EXPECT_EQ(list.body["sessions"].size(), 1u);
+  EXPECT_EQ(Delete(base).status, 200);
+  EXPECT_EQ(Get(base).status, 404);
+  EXPECT_EQ(Delete(base).status, 404);
+}
+
+TEST_F(ServerTest, BadInputGetsClearErrorsNamingTheField) {
+  Start();
+  struct Case {
+    json body;
+    std::string field;
+  };
+  json world = WorldOf("loose1");
+  json broken_world = world;
+  broken_world["furniture"][0]["size"] = json::array({1, 2});
+  const std::vector<Case> cases = {
+      {{{"world", broken_world}}, "world.furniture[0].size"},
+      {{{"world", world}, {"planner", {{"name", "magic"}}}}, "planner.name"},
+      {{{"world", world}, {"planner", {{"options", {{"k", 1}}}}}}, "planner.options"},
+      {{{"world", world}, {"planner", {{"options", {{"notAnOption", 1}}}}}}, "planner.options"},
+      {{{"world", world}, {"planner", {{"particles", 0}}}}, "planner.particles"},
+      {{{"world", world}, {"seed", -3}}, "seed"},
+      {{{"world", world}, {"ttlSeconds", 1e12}}, "ttlSeconds"},
+      {{{"world", world}, {"colour", "red"}}, "colour"},
+      {json::object(), "world"},
+  };
+  for (const Case& c : cases) {
+    Reply r = Post("/v1/sessions", c.body);
+    EXPECT_EQ(r.status, 400) << c.body.dump();
+    EXPECT_EQ(r.body["error"]["status"], "INVALID_ARGUMENT");
+    const std::string message = r.body["error"]["message"];
+    EXPECT_EQ(message.rfind(c.field, 0), 0u) << message;
+  }
+  const std::string id = Create();
+  const std::string base = "/v1/sessions/" + id;
+  Reply budget = Post(base + ":plan", {{"budget", {{"timeMs", -5}}}});
+  EXPECT_EQ(budget.body["error"]["details"][0]["fieldViolations"][0]["field"], "budget.timeMs");
+  EXPECT_EQ(Post(base + ":plan", {{"budget", {{"timeMs", 1e9}}}}).status, 400);
+  EXPECT_EQ(Post(base + ":plan", {{"budget", {{"simulations", 1.5}}}}).status, 400);
+  EXPECT_EQ(PostRaw(base + ":plan", "{\"budget\": ").body["error"]["message"], "body: not valid JSON");
+  EXPECT_EQ(PostRaw(base + ":plan", std::string(200, '[') + std::string(200, ']')).status, 400);
+  EXPECT_EQ(PostRaw(base + ":plan", "[1, 2]").status, 400);
+  EXPECT_EQ(Post("/v1/sessions/0123456789abcdef0123456789abcdef:plan", json::object()).status,
+            404);
+  EXPECT_EQ(Post("/v1/sessions/../etc:plan", json::object()).status, 404);
+  Reply unknown_route = Get("/v2/whatever");
+  EXPECT_EQ(unknown_route.status, 404);
+  EXPECT_EQ(unknown_route.body["error"]["status"], "NOT_FOUND");
+  // The session is intact after all that.
+  EXPECT_EQ(Post(base + ":plan", {{"budget", {{"simulations", 50}}}}).status, 200);
+}
+
+TEST_F(ServerTest, OversizedBodiesAreRejectedAsJson) {
+  ServerOptions o;
+  o.max_body_bytes = 4096;
+  Start(o);
+  Reply r = PostRaw("/v1/sessions", "{\"displayName\": \"" + std::string(10000, 'x') + "\"}");
+  EXPECT_EQ(r.status, 413);
+  EXPECT_EQ(r.body["error"]["status"], "RESOURCE_EXHAUSTED");
+}
+
+TEST_F(ServerTest, BearerAuthentication) {
+  ServerOptions o;
+  o.api_key = "s3cret";
+  Start(o);
+  Reply anonymous = Post("/v1/sessions", {{"world", WorldOf("loose1")}});
+  EXPECT_EQ(anonymous.status, 401);
+  EXPECT_EQ(anonymous.body["error"]["status"], "UNAUTHENTICATED");
+  EXPECT_EQ(Get("/v1/sessions", {{"Authorization", "Bearer wrong"}}).status, 401);
+  Reply ok = Post("/v1/sessions", {{"world", WorldOf("loose1")}},
+                  {{"Authorization", "Bearer s3cret"}});
+  EXPECT_EQ(ok.status, 200);
+  EXPECT_EQ(Get("/healthz").status, 200);  // health checks stay open
+}
+
+TEST_F(ServerTest, IdleSessionsExpire) {
+  Start();
+  const std::string id = Create({{"ttlSeconds", 0.5}});
+  EXPECT_EQ(Get("/v1/sessions/" + id).status, 200);
+  std::this_thread::sleep_for(std::chrono::milliseconds(2500));
+  EXPECT_EQ(Get("/v1/sessions/" + id).status, 404);
+  EXPECT_NE(Get("/metrics").raw.find("npfkct_sessions_expired_total 1"), std::string::npos);
+}
+
+TEST_F(ServerTest, SessionsSurviveARestartWithTheSameBelief) {
+  const std::string dir =
+      (std::filesystem::temp_directory_path() / ("npfkct-state-" + std::to_string(getpid())))
+          .string();
+  std::filesystem::remove_all(dir);
+  ServerOptions o;
+  o.state_dir = dir;
+  Start(o);
+  const std::string id = Create();
+  const std::string base = "/v1/sessions/" + id;
+  Reply plan = Post(base + ":plan", {{"budget", {{"simulations", 200}}}});
+  ASSERT_EQ(plan.status, 200);
+  ASSERT_EQ(Post(base + ":observe", Observation(plan.body["actionId"])).status, 200);
+  Reply plan2 = Post(base + ":plan", {{"budget", {{"simulations", 200}}}});
+  ASSERT_EQ(plan2.status, 200);
+  const json belief = Get(base + "/belief").body;
+  server_->Stop();
+
+  Start(o);
+  EXPECT_EQ(server_->restored_sessions(), 1);
+  EXPECT_EQ(Get(base + "/belief").body, belief);
+  Reply s = Get(base);
+  EXPECT_EQ(s.body["state"], "ACTION_PENDING");
+  EXPECT_EQ(s.body["pendingAction"]["actionId"], plan2.body["actionId"]);
+  // The pending action can be observed after the restart, and planning goes on.
+  ASSERT_EQ(Post(base + ":observe", Observation(plan2.body["actionId"], 0.3)).status, 200);
+  EXPECT_EQ(Post(base + ":plan", {{"budget", {{"simulations", 100}}}}).status, 200);
+  EXPECT_EQ(Delete(base).status, 200);
+  EXPECT_FALSE(std::filesystem::exists(dir + "/" + id + ".json"));
+  std::filesystem::remove_all(dir);
+}
+
+TEST_F(ServerTest, SessionsPlanInParallelAndDeletesDoNotCorruptThem) {
+  ServerOptions o;
+  o.threads = 6;
+  Start(o);
+  std::vector<std::string> ids;
+  for (int i = 0; i < 3; ++i) ids.push_back(Create());
+  // Three plans of 600 ms on three sessions overlap in time.
+  std::vector<std::pair<double, double>> spans(3);
+  std::vector<std::thread> threads;
+  const auto t0 = std::chrono::steady_clock::now();
+  for (int i = 0; i < 3; ++i) {
+    threads.emplace_back([&, i] {
+      httplib::Client c("127.0.0.1", server_->port());
+      c.set_read_timeout(30, 0);
+      const double begin =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      auto r = c.Post(("/v1/sessions/" + ids[i] + ":plan").c_str(),
+                      json{{"budget", {{"timeMs", 600}}}}.dump(), "application/json");
+      const double end =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      EXPECT_TRUE(r && r->status == 200);
+      spans[i] = {begin, end};
+    });
+  }
+  for (auto& t : threads) t.join();
+  double latest_start = 0, earliest_end = 1e9;
+  for (const auto& [b, e] : spans) {
+    latest_start = std::max(latest_start, b);
+    earliest_end = std::min(earliest_end, e);
+  }
+  EXPECT_LT(latest_start, earliest_end);  // all three were planning at the same time
+
+  // Deleting a session while it plans: the plan is aborted, the delete succeeds.
+  const std::string victim = Create();
+  std::thread planner([&] {
+    httplib::Client c("127.0.0.1", server_->port());
+    c.set_read_timeout(30, 0);
+    auto r = c.Post(("/v1/sessions/" + victim + ":plan").c_str(),
+                    json{{"budget", {{"timeMs", 800}}}}.dump(), "application/json");
+    ASSERT_TRUE(r);
+    EXPECT_EQ(r->status, 409);
+    EXPECT_EQ(json::parse(r->body)["error"]["status"], "ABORTED");
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  EXPECT_EQ(Delete("/v1/sessions/" + victim).status, 200);
+  planner.join();
+  EXPECT_EQ(Get("/v1/sessions/" + victim).status, 404);
+  for (const auto& id : ids) EXPECT_EQ(Get("/v1/sessions/" + id).body["state"], "ACTION_PENDING");
+}
+
+}  // namespace
+}  // namespace npfkct::server
