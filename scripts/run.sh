@@ -1,18 +1,26 @@
 #!/usr/bin/env bash
-# The main job: builds npfkct and runs a short benchmark of every planner on the classic
-# problems, one JSON line per run. Usage: scripts/run.sh [build-dir]
+# The main job: builds npfkct, starts the planning server and drives the simulated Fetch robot
+# through the Loose1 scenario over HTTP, printing each step and the outcome.
+# Usage: scripts/run.sh [scenario.json] [planner]
 set -euo pipefail
 NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 source "$NPFKCT_ROOT/scripts/deps.sh"
 npfkct_install_deps
-BUILD_DIR="${1:-$NPFKCT_ROOT/build}"
+BUILD_DIR="${BUILD_DIR:-$NPFKCT_ROOT/build}"
 npfkct_build "$BUILD_DIR" >/dev/null
-BENCH="$BUILD_DIR/scenarios/npfkct-bench"
-THREADS="$(nproc)"
-"$BENCH" --problem tiger --planner pomcp --episodes 50 --time-ms 0 --sims 5000 --threads "$THREADS"
-"$BENCH" --problem rocksample --planner pomcp --episodes 20 --time-ms 100 --threads "$THREADS"
-"$BENCH" --problem lightdark --planner pomcp --episodes 50 --time-ms 50 --threads "$THREADS"
-"$BENCH" --problem lightdark --planner pomcpow --episodes 50 --time-ms 50 --threads "$THREADS"
-for planner in pomcpow vomcpow advt kct; do
-  "$BENCH" --problem vdptag --planner "$planner" --episodes 20 --time-ms 50 --threads "$THREADS"
+SCENARIO="${1:-$NPFKCT_ROOT/scenarios/data/loose1.json}"
+PLANNER="${2:-npfkct}"
+
+LOG="$(mktemp)"
+"$BUILD_DIR/server/npfkct-server" --port 0 >"$LOG" 2>&1 &
+SERVER=$!
+trap 'kill "$SERVER" 2>/dev/null || true; rm -f "$LOG"' EXIT
+for _ in $(seq 100); do
+  grep -q "^listening on" "$LOG" && break
+  sleep 0.1
 done
+PORT="$(sed -n 's/^listening on .*:\([0-9]*\)$/\1/p' "$LOG")"
+[ -n "$PORT" ] || { cat "$LOG"; echo "the server did not start" >&2; exit 1; }
+echo "npfkct-server on port $PORT; driving $(basename "$SCENARIO") with $PLANNER"
+"$BUILD_DIR/scenarios/npfkct-drive" --server "http://127.0.0.1:$PORT" --scenario "$SCENARIO" \
+  --planner "$PLANNER" --budget-ms 1000

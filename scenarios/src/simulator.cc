@@ -105,7 +105,30 @@ std::vector<Box> Simulator::Occluders(int except) const {
 
 ExecutionOutcome Simulator::Execute(const HybridAction& action, const object_search::World& world,
                                     Rng& rng) {
-  const object_search::SearchParams& p = world.params;
+  if (action.kind == kMoveKind) {
+    if (action.x.size() != 6 || !action.x.allFinite()) {
+      ExecutionOutcome out;
+      out.reward = world.params.r_ill;
+      out.illegal = true;
+      out.detail = "malformed move";
+      return out;
+    }
+    return ExecuteMove(ObjectSearchModel::ConfigOf(action.x), world.params, rng);
+  }
+  const int i = KindObject(action.kind);
+  if (action.kind < 1 || i < 1 || i >= static_cast<int>(world.objects.size())) {
+    ExecutionOutcome out;
+    out.reward = world.params.r_ill;
+    out.illegal = true;
+    out.detail = "no such object";
+    return out;
+  }
+  return ExecuteOnObject(KindOffset(action.kind), world.objects[i].key, world.objects[i].status,
+                         world.params);
+}
+
+ExecutionOutcome Simulator::ExecuteMove(const RobotConfig& config,
+                                        const object_search::SearchParams& p, Rng& rng) {
   ExecutionOutcome out;
   auto illegal = [&](const std::string& why) {
     out.reward = p.r_ill;
@@ -113,38 +136,42 @@ ExecutionOutcome Simulator::Execute(const HybridAction& action, const object_sea
     out.detail = why;
     return out;
   };
-  if (action.kind == kMoveKind) {
-    if (action.x.size() != 6 || !action.x.allFinite()) return illegal("malformed move");
-    RobotConfig c = ObjectSearchModel::ConfigOf(action.x);
-    if (c.lift < preset_.lift_min - 1e-9 || c.lift > preset_.lift_max + 1e-9 ||
-        c.pan < preset_.pan_min - 1e-9 || c.pan > preset_.pan_max + 1e-9 ||
-        c.tilt < preset_.tilt_min - 1e-9 || c.tilt > preset_.tilt_max + 1e-9) {
-      return illegal("joint limits exceeded");
-    }
-    if (!occupancy_.DiscFree(c.x, c.y, preset_.footprint_radius)) {
-      return illegal("base pose collides with the map");
-    }
-    c.x += scenario_.noise.pose_xy * rng.Normal();
-    c.y += scenario_.noise.pose_xy * rng.Normal();
-    c.yaw = object_search::WrapAngle(c.yaw + scenario_.noise.pose_yaw * rng.Normal());
-    if (occupancy_.DiscFree(c.x, c.y, preset_.footprint_radius)) robot_ = c;
-    out.reward = p.r_min;
-    out.success = true;
-    out.detail = "moved";
+  RobotConfig c = config;
+  c.yaw = object_search::WrapAngle(c.yaw);
+  if (c.lift < preset_.lift_min - 1e-9 || c.lift > preset_.lift_max + 1e-9 ||
+      c.pan < preset_.pan_min - 1e-9 || c.pan > preset_.pan_max + 1e-9 ||
+      c.tilt < preset_.tilt_min - 1e-9 || c.tilt > preset_.tilt_max + 1e-9) {
+    return illegal("joint limits exceeded");
+  }
+  if (!occupancy_.DiscFree(c.x, c.y, preset_.footprint_radius)) {
+    return illegal("base pose collides with the map");
+  }
+  c.x += scenario_.noise.pose_xy * rng.Normal();
+  c.y += scenario_.noise.pose_xy * rng.Normal();
+  c.yaw = object_search::WrapAngle(c.yaw + scenario_.noise.pose_yaw * rng.Normal());
+  if (occupancy_.DiscFree(c.x, c.y, preset_.footprint_radius)) robot_ = c;
+  out.reward = p.r_min;
+  out.success = true;
+  out.detail = "moved";
+  return out;
+}
+
+ExecutionOutcome Simulator::ExecuteOnObject(int offset, const std::string& key, int8_t status,
+                                            const object_search::SearchParams& p) {
+  ExecutionOutcome out;
+  auto illegal = [&](const std::string& why) {
+    out.reward = p.r_ill;
+    out.illegal = true;
+    out.detail = why;
     return out;
-  }
-  const int i = KindObject(action.kind);
-  if (action.kind < 1 || i < 1 || i >= static_cast<int>(world.objects.size())) {
-    return illegal("no such object");
-  }
-  const std::string& key = world.objects[i].key;
+  };
   int scene = -1;
   for (size_t k = 0; k < objects_.size(); ++k) {
     if (objects_[k].name == key) scene = static_cast<int>(k);
   }
   if (scene < 0 || removed_[scene]) return illegal("object '" + key + "' is not in the scene");
   const SceneObject& o = objects_[scene];
-  switch (KindOffset(action.kind)) {
+  switch (offset) {
     case 0:
       if (!o.target) return illegal("declared " + key + " the target wrongly");
       out.reward = p.r_ct;
@@ -159,7 +186,7 @@ ExecutionOutcome Simulator::Execute(const HybridAction& action, const object_sea
       return out;
     default:
       if (!o.moveable) return illegal(key + " cannot be moved");
-      if (world.objects[i].status == kDeclaredTarget && o.target) {
+      if (status == kDeclaredTarget && o.target) {
         removed_[scene] = true;
         out.reward = p.r_max;
         out.terminal = true;
@@ -167,7 +194,7 @@ ExecutionOutcome Simulator::Execute(const HybridAction& action, const object_sea
         out.detail = "removed the target " + key;
         return out;
       }
-      if (world.objects[i].status == kDeclaredObstacle && !o.target) {
+      if (status == kDeclaredObstacle && !o.target) {
         removed_[scene] = true;
         out.reward = 2.0 * p.r_min;
         out.success = true;

@@ -1,6 +1,7 @@
 #include "npfkct/server/server.h"
 
 #include <fcntl.h>
+#include <sched.h>
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
@@ -87,6 +88,28 @@ Status CheckTopKeys(const json& j, const std::set<std::string>& known) {
   }
   return OkStatus();
 }
+
+// Runs the search loop under SCHED_BATCH: planners keep their fair share of the CPU, but threads
+// that wake up to parse a request or send a reply (SCHED_OTHER) preempt them, so that many sessions
+// planning on few cores delay each other's responses less. The policy is restored on scope exit
+// (an unprivileged thread may switch back to SCHED_OTHER).
+class BatchScheduling {
+ public:
+  BatchScheduling() {
+    sched_param p{};
+    active_ = sched_setscheduler(0, SCHED_BATCH, &p) == 0;
+  }
+  ~BatchScheduling() {
+    if (!active_) return;
+    sched_param p{};
+    sched_setscheduler(0, SCHED_OTHER, &p);
+  }
+  BatchScheduling(const BatchScheduling&) = delete;
+  BatchScheduling& operator=(const BatchScheduling&) = delete;
+
+ private:
+  bool active_ = false;
+};
 
 // Fsyncs a file or directory; false on failure.
 bool Fsync(const std::string& path, bool directory) {
@@ -414,6 +437,9 @@ Status Server::Start() {
   const int threads = options_.threads;
   http.new_task_queue = [threads] { return new httplib::ThreadPool(threads); };
   http.set_payload_max_length(options_.max_body_bytes);
+  // Responses go out as header and body writes: without TCP_NODELAY, Nagle's algorithm holds the
+  // body until the client's delayed ACK (40 ms).
+  http.set_tcp_nodelay(true);
   http.set_read_timeout(30, 0);
   http.set_write_timeout(30, 0);
 
@@ -556,7 +582,11 @@ Status Server::Start() {
                    if (!s) return;
                    std::lock_guard<std::mutex> lock(s->mutex());
                    s->Touch();
-                   auto out = s->Plan(*budget);
+                   StatusOr<json> out = Status(StatusCode::kInternal, "not planned");
+                   {
+                     BatchScheduling batch;
+                     out = s->Plan(*budget);
+                   }
                    if (!out.ok()) return fail(res, ApiError::From(out.status()));
                    if (!im.StillLive(s->id(), s.get())) {
                      return fail(res, ApiError{Status(StatusCode::kAborted,

@@ -59,6 +59,13 @@ class Simulator {
   /// truth.
   ExecutionOutcome Execute(const HybridAction& action, const object_search::World& world,
                            Rng& rng);
+  /// Executes a move to `config` (pose noise added; collisions and joint limits are illegal).
+  ExecutionOutcome ExecuteMove(const RobotConfig& config, const object_search::SearchParams& p,
+                               Rng& rng);
+  /// Executes a declare/remove on the scene object named `name`: `offset` 0 declares it the
+  /// target, 1 an obstacle, 2 removes it; `status` is what the robot has declared it so far.
+  ExecutionOutcome ExecuteOnObject(int offset, const std::string& name, int8_t status,
+                                   const object_search::SearchParams& p);
 
   /// The geometric observation from the robot's current configuration: every scene object whose
   /// center the camera sees unoccluded, with its estimated box and, for each of its 4 face grids

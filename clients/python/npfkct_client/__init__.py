@@ -1,0 +1,27 @@
+"""Typed client for the npfkct planning server (see schemas/openapi.yaml)."""
+
+from npfkct_client.client import (
+    Action,
+    ApiError,
+    Box,
+    Detection,
+    Face,
+    NpfkctClient,
+    Observation,
+    Plan,
+    RobotConfig,
+    Session,
+)
+
+__all__ = [
+    "Action",
+    "ApiError",
+    "Box",
+    "Detection",
+    "Face",
+    "NpfkctClient",
+    "Observation",
+    "Plan",
+    "RobotConfig",
+    "Session",
+]

@@ -1,0 +1,5 @@
+import sys
+
+from npfkct_client.cli import main
+
+sys.exit(main())

@@ -1,0 +1,93 @@
+"""npfkct: command-line client of the npfkct planning server.
+
+  npfkct --server URL create --scenario FILE [--planner NAME] [--seed N]
+  npfkct --server URL plan ID [--time-ms MS] [--simulations N]
+  npfkct --server URL observe ID --action-id A --body FILE   (an :observe body as JSON)
+  npfkct --server URL get ID | belief ID [--png OUT] | list | delete ID | health
+"""
+
+import argparse
+import json
+import sys
+
+from npfkct_client.client import ApiError, NpfkctClient
+
+WORLD_KEYS = ("robot", "room", "mapResolution", "furniture", "baseRegions", "discretePoses",
+              "start", "params")
+
+
+def world_of_scenario(path: str):
+    """The prior-map part of a scenario file."""
+    with open(path, encoding="utf-8") as f:
+        scenario = json.load(f)
+    return {k: scenario[k] for k in WORLD_KEYS if k in scenario}
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="npfkct", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--server", default="http://127.0.0.1:8080")
+    parser.add_argument("--api-key")
+    sub = parser.add_subparsers(dest="command", required=True)
+    create = sub.add_parser("create", help="create a session from a scenario's prior map")
+    create.add_argument("--scenario", required=True)
+    create.add_argument("--planner", default="npfkct")
+    create.add_argument("--seed", type=int)
+    plan = sub.add_parser("plan", help="plan the next action")
+    plan.add_argument("id")
+    plan.add_argument("--time-ms", type=float)
+    plan.add_argument("--simulations", type=int)
+    observe = sub.add_parser("observe", help="report the outcome of the pending action")
+    observe.add_argument("id")
+    observe.add_argument("--action-id", required=True)
+    observe.add_argument("--body", required=True, help="JSON file with the :observe body")
+    for name in ("get", "delete"):
+        p = sub.add_parser(name)
+        p.add_argument("id")
+    belief = sub.add_parser("belief")
+    belief.add_argument("id")
+    belief.add_argument("--png", help="write the rendered belief to this file")
+    sub.add_parser("list")
+    sub.add_parser("health")
+    args = parser.parse_args(argv)
+
+    client = NpfkctClient(args.server, api_key=args.api_key)
+    try:
+        if args.command == "create":
+            out = client.create_session(world_of_scenario(args.scenario), planner=args.planner,
+                                        seed=args.seed).raw
+        elif args.command == "plan":
+            p = client.plan(args.id, time_ms=args.time_ms, simulations=args.simulations)
+            out = {"actionId": p.action_id, "action": p.action.to_json(),
+                   "expectedValue": p.expected_value, "stats": p.stats}
+        elif args.command == "observe":
+            with open(args.body, encoding="utf-8") as f:
+                body = json.load(f)
+            o = client.observe(args.id, args.action_id, body=body)
+            out = {"done": o.done, "reward": o.reward, "session": o.session.raw}
+        elif args.command == "get":
+            out = client.get_session(args.id).raw
+        elif args.command == "delete":
+            client.delete_session(args.id)
+            out = {}
+        elif args.command == "belief":
+            if args.png:
+                with open(args.png, "wb") as f:
+                    f.write(client.belief_png(args.id))
+                out = {"written": args.png}
+            else:
+                out = client.belief(args.id)
+        elif args.command == "list":
+            out = {"sessions": [s.raw for s in client.list_sessions()]}
+        else:
+            out = client.health()
+    except ApiError as e:
+        print(json.dumps({"error": {"status": e.status, "message": e.message,
+                                    "field": e.field}}), file=sys.stderr)
+        return 1
+    print(json.dumps(out, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,271 @@
+"""The npfkct HTTP/JSON API as typed Python calls."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from typing import Any, Dict, List, Optional
+
+import requests
+
+
+class ApiError(Exception):
+    """An error response: HTTP status, canonical status name, message and offending field."""
+
+    def __init__(self, http_status: int, status: str, message: str, field: str = ""):
+        super().__init__(f"{status} ({http_status}): {message}")
+        self.http_status = http_status
+        self.status = status
+        self.message = message
+        self.field = field
+
+
+@dataclasses.dataclass
+class RobotConfig:
+    """Base pose (x, y, yaw), lift height, head pan and tilt (positive tilt looks down)."""
+
+    x: float = 0.0
+    y: float = 0.0
+    yaw: float = 0.0
+    lift: float = 0.0
+    pan: float = 0.0
+    tilt: float = 0.0
+
+    @classmethod
+    def from_json(cls, j: Dict[str, Any]) -> "RobotConfig":
+        return cls(**{k: float(j.get(k, 0.0)) for k in ("x", "y", "yaw", "lift", "pan", "tilt")})
+
+    def to_json(self) -> Dict[str, float]:
+        return dataclasses.asdict(self)
+
+
+@dataclasses.dataclass
+class Box:
+    """An upright oriented box: center, yaw about z, full extents."""
+
+    center: List[float]
+    size: List[float]
+    yaw: float = 0.0
+
+    def to_json(self) -> Dict[str, Any]:
+        return {"center": list(self.center), "yaw": self.yaw, "size": list(self.size)}
+
+
+@dataclasses.dataclass
+class Face:
+    """Detection of one face grid (box corner 0..7): probability it shows the target."""
+
+    corner: int
+    score: float
+
+
+@dataclasses.dataclass
+class Detection:
+    """An object the robot saw, with a stable id across steps."""
+
+    id: str
+    box: Box
+    moveability: float = 1.0
+    faces: List[Face] = dataclasses.field(default_factory=list)
+
+    def to_json(self) -> Dict[str, Any]:
+        return {
+            "id": self.id,
+            "box": self.box.to_json(),
+            "moveability": self.moveability,
+            "faces": [dataclasses.asdict(f) for f in self.faces],
+        }
+
+
+@dataclasses.dataclass
+class Action:
+    """MOVE to a configuration, or DECLARE_TARGET / DECLARE_OBSTACLE / REMOVE an object."""
+
+    type: str
+    configuration: Optional[RobotConfig] = None
+    object_id: Optional[str] = None
+
+    @classmethod
+    def from_json(cls, j: Dict[str, Any]) -> "Action":
+        if j["type"] == "MOVE":
+            return cls("MOVE", configuration=RobotConfig.from_json(j["configuration"]))
+        return cls(j["type"], object_id=j["objectId"])
+
+    def to_json(self) -> Dict[str, Any]:
+        if self.type == "MOVE":
+            return {"type": "MOVE", "configuration": self.configuration.to_json()}
+        return {"type": self.type, "objectId": self.object_id}
+
+
+@dataclasses.dataclass
+class Session:
+    """A session resource."""
+
+    id: str
+    name: str
+    state: str
+    step: int
+    robot: RobotConfig
+    object_count: int
+    pending_action_id: Optional[str]
+    raw: Dict[str, Any]
+
+    @classmethod
+    def from_json(cls, j: Dict[str, Any]) -> "Session":
+        pending = j.get("pendingAction")
+        return cls(
+            id=j["id"],
+            name=j["name"],
+            state=j["state"],
+            step=j["step"],
+            robot=RobotConfig.from_json(j["robot"]),
+            object_count=j["objectCount"],
+            pending_action_id=pending["actionId"] if pending else None,
+            raw=j,
+        )
+
+
+@dataclasses.dataclass
+class Plan:
+    """The answer of :plan."""
+
+    action_id: str
+    action: Action
+    expected_value: float
+    stats: Dict[str, Any]
+    session: Session
+
+    @classmethod
+    def from_json(cls, j: Dict[str, Any]) -> "Plan":
+        return cls(
+            action_id=j["actionId"],
+            action=Action.from_json(j["action"]),
+            expected_value=j["expectedValue"],
+            stats=j["stats"],
+            session=Session.from_json(j["session"]),
+        )
+
+
+@dataclasses.dataclass
+class Observation:
+    """The answer of :observe."""
+
+    done: bool
+    reward: float
+    session: Session
+
+
+class NpfkctClient:
+    """Client of one npfkct server. Every call raises ApiError on an error response."""
+
+    def __init__(self, base_url: str, api_key: Optional[str] = None, timeout: float = 120.0):
+        self.base_url = base_url.rstrip("/")
+        self.timeout = timeout
+        self._http = requests.Session()
+        if api_key:
+            self._http.headers["Authorization"] = f"Bearer {api_key}"
+
+    # -- transport --
+
+    def _call(self, method: str, path: str, body: Optional[Dict[str, Any]] = None,
+              params: Optional[Dict[str, Any]] = None, raw: bool = False):
+        response = self._http.request(
+            method, self.base_url + path, params=params, timeout=self.timeout,
+            data=None if body is None else json.dumps(body),
+            headers={"Content-Type": "application/json"} if body is not None else None)
+        if response.status_code >= 400:
+            try:
+                err = response.json()["error"]
+            except (ValueError, KeyError, TypeError):
+                raise ApiError(response.status_code, "UNKNOWN", response.text) from None
+            field = ""
+            for detail in err.get("details", []):
+                for violation in detail.get("fieldViolations", []):
+                    field = violation.get("field", field)
+            raise ApiError(response.status_code, err.get("status", "UNKNOWN"),
+                           err.get("message", ""), field)
+        if raw:
+            return response
+        return response.json()
+
+    # -- API --
+
+    def health(self) -> Dict[str, Any]:
+        return self._call("GET", "/healthz")
+
+    def metrics(self) -> str:
+        return self._call("GET", "/metrics", raw=True).text
+
+    def create_session(self, world: Dict[str, Any], planner: str = "npfkct",
+                       particles: Optional[int] = None,
+                       options: Optional[Dict[str, Any]] = None, seed: Optional[int] = None,
+                       display_name: Optional[str] = None,
+                       ttl_seconds: Optional[float] = None,
+                       target_description: Optional[str] = None) -> Session:
+        body: Dict[str, Any] = {"world": world, "planner": {"name": planner}}
+        if particles is not None:
+            body["planner"]["particles"] = particles
+        if options:
+            body["planner"]["options"] = options
+        if seed is not None:
+            body["seed"] = seed
+        if display_name:
+            body["displayName"] = display_name
+        if ttl_seconds is not None:
+            body["ttlSeconds"] = ttl_seconds
+        if target_description:
+            body["target"] = {"description": target_description}
+        return Session.from_json(self._call("POST", "/v1/sessions", body))
+
+    def get_session(self, session_id: str) -> Session:
+        return Session.from_json(self._call("GET", f"/v1/sessions/{session_id}"))
+
+    def list_sessions(self, page_size: int = 50) -> List[Session]:
+        sessions: List[Session] = []
+        token = ""
+        while True:
+            params: Dict[str, Any] = {"pageSize": page_size}
+            if token:
+                params["pageToken"] = token
+            page = self._call("GET", "/v1/sessions", params=params)
+            sessions += [Session.from_json(s) for s in page["sessions"]]
+            token = page.get("nextPageToken", "")
+            if not token:
+                return sessions
+
+    def delete_session(self, session_id: str) -> None:
+        self._call("DELETE", f"/v1/sessions/{session_id}")
+
+    def plan(self, session_id: str, time_ms: Optional[float] = None,
+             simulations: Optional[int] = None) -> Plan:
+        budget: Dict[str, Any] = {}
+        if time_ms is not None:
+            budget["timeMs"] = time_ms
+        if simulations is not None:
+            budget["simulations"] = simulations
+        body = {"budget": budget} if budget else {}
+        return Plan.from_json(self._call("POST", f"/v1/sessions/{session_id}:plan", body))
+
+    def observe(self, session_id: str, action_id: str,
+                robot_state: Optional[RobotConfig] = None,
+                detections: Optional[List[Detection]] = None, succeeded: bool = True,
+                body: Optional[Dict[str, Any]] = None) -> Observation:
+        """Reports the outcome of `action_id`. `body` may carry a ready :observe body (as the
+        simulated robot produces); the typed arguments are used otherwise."""
+        if body is None:
+            body = {"succeeded": succeeded}
+            if robot_state is not None:
+                body["robotState"] = robot_state.to_json()
+            if detections is not None:
+                body["detections"] = [d.to_json() for d in detections]
+        body = dict(body, actionId=action_id)
+        j = self._call("POST", f"/v1/sessions/{session_id}:observe", body)
+        return Observation(done=j["done"], reward=j["reward"],
+                           session=Session.from_json(j["session"]))
+
+    def belief(self, session_id: str) -> Dict[str, Any]:
+        return self._call("GET", f"/v1/sessions/{session_id}/belief")
+
+    def belief_png(self, session_id: str) -> bytes:
+        return self._call("GET", f"/v1/sessions/{session_id}/belief", params={"format": "png"},
+                          raw=True).content

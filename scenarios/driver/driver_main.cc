@@ -1,0 +1,121 @@
+// npfkct-drive: a simulated robot that plays a scenario against a running npfkct-server over HTTP.
+// The simulator executes the server's actions and posts back what the robot saw.
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+
+#include "npfkct/client/client.h"
+#include "npfkct/sim/api_robot.h"
+#include "npfkct/sim/scenario.h"
+
+namespace {
+
+using nlohmann::json;
+
+struct Options {
+  std::string server = "http://127.0.0.1:8080";
+  std::string scenario;
+  std::string planner = "npfkct";
+  std::string api_key;
+  double budget_ms = 1000;
+  int64_t simulations = 0;
+  uint64_t seed = 1;
+  int max_steps = 0;
+  bool keep = false;
+  bool quiet = false;
+};
+
+std::string Describe(const json& action) {
+  const std::string type = action.value("type", "?");
+  if (type != "MOVE") return type + " " + action.value("objectId", "?");
+  const json& c = action["configuration"];
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "MOVE x=%.2f y=%.2f yaw=%.2f lift=%.2f pan=%.2f tilt=%.2f",
+                c.value("x", 0.0), c.value("y", 0.0), c.value("yaw", 0.0), c.value("lift", 0.0),
+                c.value("pan", 0.0), c.value("tilt", 0.0));
+  return buf;
+}
+
+int Fail(const std::string& what, const npfkct::Status& status) {
+  std::cerr << "npfkct-drive: " << what << ": " << status.ToString() << "\n";
+  return 1;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options o;
+  CLI::App app{"npfkct-drive: plays a scenario's simulated robot against npfkct-server"};
+  app.add_option("--server", o.server, "server URL");
+  app.add_option("--scenario", o.scenario, "scenario file")->required();
+  app.add_option("--planner", o.planner, "planner of the session");
+  app.add_option("--api-key", o.api_key, "bearer token");
+  app.add_option("--budget-ms", o.budget_ms, "planning time per step");
+  app.add_option("--simulations", o.simulations, "simulations per step (0: time only)");
+  app.add_option("--seed", o.seed, "seed of the simulated world and of the session");
+  app.add_option("--max-steps", o.max_steps, "step limit (default: the scenario's)");
+  app.add_flag("--keep", o.keep, "keep the session on the server at the end");
+  app.add_flag("--quiet", o.quiet, "print only the outcome");
+  CLI11_PARSE(app, argc, argv);
+
+  auto scenario = npfkct::sim::LoadScenario(o.scenario);
+  if (!scenario.ok()) {
+    std::cerr << "npfkct-drive: " << scenario.status().message() << "\n";
+    return 2;
+  }
+  std::ifstream in(o.scenario);
+  std::stringstream text;
+  text << in.rdbuf();
+  const json scenario_json = json::parse(text.str());
+  npfkct::sim::ApiRobot robot(*scenario, o.seed);
+  const int max_steps = o.max_steps > 0 ? o.max_steps : scenario->params.max_steps;
+
+  npfkct::client::Client api(o.server, o.api_key);
+  auto session = api.CreateSession({{"displayName", "npfkct-drive " + scenario->name},
+                                    {"world", npfkct::sim::WorldJsonOf(scenario_json)},
+                                    {"planner", {{"name", o.planner}}},
+                                    {"seed", o.seed}});
+  if (!session.ok()) return Fail("creating the session", session.status());
+  const std::string id = (*session)["id"];
+  if (!o.quiet) {
+    std::printf("session %s (%s) on %s\n", id.c_str(), o.planner.c_str(), scenario->name.c_str());
+  }
+
+  double discounted = 0.0, discount = 1.0;
+  bool success = false;
+  int steps = 0;
+  for (int t = 0; t < max_steps; ++t) {
+    auto planned = api.Plan(id, o.budget_ms, o.simulations);
+    if (!planned.ok()) return Fail("planning", planned.status());
+    const json& plan = *planned;
+    const json& action = plan["action"];
+    const npfkct::sim::ExecutionOutcome outcome = robot.Execute(action);
+    discounted += discount * outcome.reward;
+    discount *= scenario->params.discount;
+    ++steps;
+    json observation = robot.Observe(!outcome.illegal);
+    observation["actionId"] = plan["actionId"];
+    auto observed = api.Observe(id, observation);
+    if (!observed.ok()) return Fail("observing", observed.status());
+    if (!o.quiet) {
+      std::printf("step %2d: %-62s %-34s sims %8lld  value %9.1f\n", t + 1,
+                  Describe(action).c_str(), outcome.detail.c_str(),
+                  static_cast<long long>(plan["stats"]["simulations"].get<int64_t>()),
+                  plan["expectedValue"].get<double>());
+      std::fflush(stdout);
+    }
+    if (outcome.terminal) {
+      success = true;
+      break;
+    }
+  }
+  std::printf("outcome: %s after %d steps, discounted reward %.1f\n",
+              success ? "target removed" : "target not removed", steps, discounted);
+  if (!o.keep) (void)api.DeleteSession(id);
+  return success ? 0 : 3;
+}

@@ -1,0 +1,42 @@
+// The simulated robot speaking the server API's JSON: it executes API actions and reports its
+// observations as :observe bodies. Shared by npfkct-drive and npfkct-sim-robot.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "npfkct/sim/simulator.h"
+
+namespace npfkct::sim {
+
+/// A simulator plus what the robot has declared so far (removals depend on it).
+class ApiRobot {
+ public:
+  ApiRobot(Scenario scenario, uint64_t seed);
+
+  /// Executes an action in the API's form ({"type": "MOVE", "configuration": {...}} or
+  /// {"type": "DECLARE_TARGET" | "DECLARE_OBSTACLE" | "REMOVE", "objectId": "..."}; "LOOK" only
+  /// observes). A malformed action is reported as illegal.
+  ExecutionOutcome Execute(const nlohmann::json& action);
+  /// The observation after the last action, as an :observe body without the actionId.
+  nlohmann::json Observe(bool succeeded);
+
+  const Simulator& simulator() const { return sim_; }
+  const Scenario& scenario() const { return sim_.scenario(); }
+
+ private:
+  Simulator sim_;
+  Rng rng_;
+  std::map<std::string, int8_t> declared_;
+};
+
+/// {"x", "y", "yaw", "lift", "pan", "tilt"}.
+nlohmann::json RobotConfigJson(const RobotConfig& c);
+/// The detections of a real observation in the API's form.
+nlohmann::json DetectionsJson(const object_search::RealObservation& obs);
+/// The prior-map part of a scenario file (what the robot is told at session creation).
+nlohmann::json WorldJsonOf(const nlohmann::json& scenario_file);
+
+}  // namespace npfkct::sim

@@ -1,0 +1,91 @@
+"""Shared fixtures: the real npfkct-server on a loopback port, the simulated robot, paths."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+BUILD = os.environ.get("NPFKCT_BUILD_DIR", os.path.join(ROOT, "build"))
+SERVER_BIN = os.environ.get("NPFKCT_SERVER_BIN", os.path.join(BUILD, "server", "npfkct-server"))
+ROBOT_BIN = os.path.join(BUILD, "scenarios", "npfkct-sim-robot")
+SCENARIOS = os.path.join(ROOT, "scenarios", "data")
+sys.path.insert(0, os.path.join(ROOT, "clients", "python"))
+
+
+def scenario_path(name):
+    return os.path.join(SCENARIOS, name + ".json")
+
+
+def world_of(name):
+    """The prior-map part of a scenario file: what a robot tells the server."""
+    from npfkct_client.cli import world_of_scenario
+    return world_of_scenario(scenario_path(name))
+
+
+class ServerProcess:
+    """npfkct-server started on a free port; stop() ends it (SIGTERM, or SIGKILL with kill())."""
+
+    def __init__(self, *args, binary=SERVER_BIN):
+        self.proc = subprocess.Popen([binary, "--port", "0", "--log-level", "warn", *args],
+                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        line = self.proc.stdout.readline()
+        if not line.startswith("listening on"):
+            self.proc.kill()
+            raise RuntimeError("server did not start: " + line + self.proc.stderr.read())
+        self.port = int(line.strip().rsplit(":", 1)[1])
+        self.url = f"http://127.0.0.1:{self.port}"
+
+    def alive(self):
+        return self.proc.poll() is None
+
+    def stop(self):
+        if self.alive():
+            self.proc.send_signal(signal.SIGTERM)
+            try:
+                self.proc.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+
+    def kill(self):
+        self.proc.kill()
+        self.proc.wait()
+
+
+class SimRobot:
+    """npfkct-sim-robot: executes API actions and returns :observe bodies."""
+
+    def __init__(self, scenario, seed=1):
+        self.proc = subprocess.Popen([ROBOT_BIN, "--scenario", scenario_path(scenario),
+                                      "--seed", str(seed)],
+                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+
+    def execute(self, action):
+        self.proc.stdin.write(json.dumps(action) + "\n")
+        self.proc.stdin.flush()
+        return json.loads(self.proc.stdout.readline())
+
+    def close(self):
+        self.proc.stdin.close()
+        self.proc.wait(timeout=10)
+
+
+@pytest.fixture
+def server():
+    s = ServerProcess()
+    yield s
+    s.stop()
+
+
+def wait_for(predicate, timeout=10.0, interval=0.05):
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        if predicate():
+            return True
+        time.sleep(interval)
+    return False

@@ -1,0 +1,70 @@
+"""Full episodes through the Python client against the real server."""
+
+import pytest
+
+from conftest import SimRobot, world_of
+from npfkct_client import ApiError, Detection, Box, Face, NpfkctClient, RobotConfig
+
+
+def run_episode(client, scenario, planner="npfkct", time_ms=250, max_steps=50):
+    session = client.create_session(world_of(scenario), planner=planner, seed=3)
+    robot = SimRobot(scenario, seed=3)
+    try:
+        for step in range(1, max_steps + 1):
+            plan = client.plan(session.id, time_ms=time_ms)
+            assert plan.session.state == "ACTION_PENDING"
+            reply = robot.execute(plan.action.to_json())
+            observed = client.observe(session.id, plan.action_id, body=reply["observation"])
+            assert observed.done == reply["outcome"]["terminal"]
+            if observed.done:
+                assert observed.session.state == "DONE"
+                return step
+        return None
+    finally:
+        robot.close()
+        client.delete_session(session.id)
+
+
+def test_full_episode_loose1(server):
+    client = NpfkctClient(server.url)
+    assert client.health()["status"] == "SERVING"
+    steps = run_episode(client, "loose1")
+    assert steps is not None and steps <= 50
+    assert "npfkct_plans_total" in client.metrics()
+
+
+@pytest.mark.parametrize("planner", ["gpomcp", "pomcpow"])
+def test_other_planners_serve_episodes(server, planner):
+    client = NpfkctClient(server.url)
+    assert run_episode(client, "loose1", planner=planner) is not None
+
+
+def test_typed_calls_and_errors(server):
+    client = NpfkctClient(server.url)
+    session = client.create_session(world_of("covered1"), planner="kct", particles=50,
+                                    options={"k": 4, "search.maxDepth": 8}, seed=5,
+                                    display_name="typed", target_description="blue snack box")
+    assert session.state == "READY"
+    assert session.raw["planner"]["options"] == {"k": 4, "search.maxDepth": 8}
+    assert [s.id for s in client.list_sessions(page_size=1)] == [session.id]
+    plan = client.plan(session.id, simulations=300)
+    assert plan.stats["simulations"] == 300
+    with pytest.raises(ApiError) as e:
+        client.plan(session.id, simulations=10)
+    assert e.value.status == "FAILED_PRECONDITION"
+    detection = Detection("box-1", Box([1.4, 0.1, 0.82], [0.12, 0.12, 0.14]), 0.9,
+                          [Face(0, 0.2), Face(2, 0.1)])
+    observed = client.observe(session.id, plan.action_id, robot_state=RobotConfig(x=0.3, tilt=0.4),
+                              detections=[detection])
+    assert observed.session.object_count == 1
+    belief = client.belief(session.id)
+    assert belief["objects"][0]["id"] == "box-1"
+    assert client.belief_png(session.id)[:4] == b"\x89PNG"
+    with pytest.raises(ApiError) as e:
+        client.create_session({"furniture": [], "baseRegions": []})
+    assert e.value.http_status == 400 and e.value.field.startswith("world")
+    with pytest.raises(ApiError) as e:
+        client.get_session("0" * 32)
+    assert e.value.status == "NOT_FOUND"
+    client.delete_session(session.id)
+    assert client.list_sessions() == []

@@ -1,0 +1,112 @@
+"""JSON Schemas (draft 2020-12) and the OpenAPI document: examples and real responses validate."""
+
+import json
+import os
+
+import jsonschema
+import pytest
+import requests
+import yaml
+
+from conftest import ROOT, SimRobot, world_of
+
+SCHEMAS = os.path.join(ROOT, "schemas")
+BASE = "https://npfkct.dev/schemas/"
+
+
+def load(name):
+    with open(os.path.join(SCHEMAS, name), encoding="utf-8") as f:
+        return json.load(f)
+
+
+def store():
+    return {BASE + f: load(f) for f in os.listdir(SCHEMAS) if f.endswith(".schema.json")}
+
+
+def validator(message):
+    schema = load(message + ".schema.json")
+    resolver = jsonschema.RefResolver(base_uri=schema["$id"], referrer=schema, store=store())
+    cls = jsonschema.validators.validator_for(schema)
+    cls.check_schema(schema)
+    return cls(schema, resolver=resolver, format_checker=jsonschema.FormatChecker())
+
+
+def test_every_schema_is_valid_draft_2020_12():
+    for name in os.listdir(SCHEMAS):
+        if name.endswith(".schema.json"):
+            schema = load(name)
+            assert schema["$schema"] == "https://json-schema.org/draft/2020-12/schema"
+            jsonschema.Draft202012Validator.check_schema(schema)
+
+
+def test_examples_validate():
+    examples = os.listdir(os.path.join(SCHEMAS, "examples"))
+    assert len(examples) >= 11
+    for name in examples:
+        message = name[: -len(".json")]
+        with open(os.path.join(SCHEMAS, "examples", name), encoding="utf-8") as f:
+            validator(message).validate(json.load(f))
+
+
+def test_schemas_reject_what_the_server_rejects():
+    with pytest.raises(jsonschema.ValidationError):
+        validator("observe_request").validate(
+            {"actionId": "a1", "detections": [{"id": "x", "box": {"center": [0, 0], "size": [1, 1, 1]}}]})
+    with pytest.raises(jsonschema.ValidationError):
+        validator("plan_request").validate({"budget": {"timeMs": -1}})
+    with pytest.raises(jsonschema.ValidationError):
+        validator("create_session_request").validate({"world": {"furniture": []}})
+
+
+def test_openapi_document_references_resolve():
+    with open(os.path.join(SCHEMAS, "openapi.yaml"), encoding="utf-8") as f:
+        doc = yaml.safe_load(f)
+    assert doc["openapi"].startswith("3.1")
+    assert {"/v1/sessions", "/v1/sessions/{id}", "/v1/sessions/{id}:plan",
+            "/v1/sessions/{id}:observe", "/v1/sessions/{id}/belief", "/healthz",
+            "/metrics"} <= set(doc["paths"])
+    refs = []
+
+    def walk(node):
+        if isinstance(node, dict):
+            if "$ref" in node and not node["$ref"].startswith("#"):
+                refs.append(node["$ref"])
+            for v in node.values():
+                walk(v)
+        elif isinstance(node, list):
+            for v in node:
+                walk(v)
+    walk(doc)
+    assert refs
+    for ref in refs:
+        assert os.path.exists(os.path.join(SCHEMAS, ref)), ref
+
+
+def test_real_responses_validate(server):
+    url = server.url
+    v = lambda m, body: validator(m).validate(body)  # noqa: E731
+    v("health", requests.get(url + "/healthz").json())
+    create = {"world": world_of("hidden1"), "seed": 9, "planner": {"name": "npfkct"}}
+    v("create_session_request", create)
+    session = requests.post(url + "/v1/sessions", json=create).json()
+    v("session", session)
+    robot = SimRobot("hidden1", seed=9)
+    for _ in range(3):
+        plan = requests.post(url + f"/v1/sessions/{session['id']}:plan",
+                             json={"budget": {"timeMs": 100}}).json()
+        v("plan_response", plan)
+        body = dict(robot.execute(plan["action"])["observation"], actionId=plan["actionId"])
+        v("observe_request", body)
+        observed = requests.post(url + f"/v1/sessions/{session['id']}:observe", json=body).json()
+        v("observe_response", observed)
+        if observed["done"]:
+            break
+    robot.close()
+    v("belief", requests.get(url + f"/v1/sessions/{session['id']}/belief").json())
+    v("list_sessions_response", requests.get(url + "/v1/sessions").json())
+    for bad in [("post", f"/v1/sessions/{session['id']}:plan", {"budget": {"simulations": -1}}),
+                ("get", "/v1/sessions/" + "f" * 32, None), ("post", "/v1/sessions", {"x": 1})]:
+        r = getattr(requests, bad[0])(url + bad[1], json=bad[2])
+        assert r.status_code >= 400
+        v("error", r.json())
+    v("empty", requests.delete(url + f"/v1/sessions/{session['id']}").json())
