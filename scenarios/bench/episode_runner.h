@@ -56,32 +56,23 @@ inline double Median(std::vector<double> v) {
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
-/// Runs `episodes` episodes of `run_episode(index)` on `threads` threads and summarises them.
-/// Episode i is seeded from i alone, so results do not depend on the thread count.
-inline RunSummary RunEpisodes(int episodes, int threads, bool success_defined,
-                              const std::function<EpisodeResult(int)>& run_episode,
-                              const std::string& label) {
-  std::vector<EpisodeResult> results(episodes);
+/// Runs `jobs` jobs `run(index)` on `threads` threads (each job is one episode) and returns their
+/// results by index; a progress line goes to stderr when it is a terminal.
+inline std::vector<EpisodeResult> RunJobs(int jobs, int threads,
+                                          const std::function<EpisodeResult(int)>& run,
+                                          const std::string& label) {
+  std::vector<EpisodeResult> results(jobs);
   std::atomic<int> next{0}, done{0};
   std::mutex print_mutex;
   const bool tty = isatty(STDERR_FILENO);
   const auto start = Clock::now();
   auto worker = [&] {
-    for (int i = next++; i < episodes; i = next++) {
-      results[i] = run_episode(i);
+    for (int i = next++; i < jobs; i = next++) {
+      results[i] = run(i);
       const int finished = ++done;
       if (tty) {
         std::lock_guard<std::mutex> lock(print_mutex);
-        double sum = 0.0;
-        int counted = 0;
-        for (const auto& r : results) {
-          if (!r.sims_per_step.empty() || !r.error.empty()) {
-            sum += r.discounted_return;
-            ++counted;
-          }
-        }
-        std::fprintf(stderr, "\r%s: %d/%d episodes, mean return %.2f, %.0f s   ", label.c_str(),
-                     finished, episodes, counted ? sum / counted : 0.0,
+        std::fprintf(stderr, "\r%s: %d/%d episodes, %.0f s   ", label.c_str(), finished, jobs,
                      MillisSince(start) / 1000.0);
         std::fflush(stderr);
       }
@@ -91,10 +82,16 @@ inline RunSummary RunEpisodes(int episodes, int threads, bool success_defined,
   for (int t = 0; t < std::max(1, threads); ++t) pool.emplace_back(worker);
   for (auto& t : pool) t.join();
   if (tty) std::fprintf(stderr, "\n");
+  return results;
+}
 
+/// Aggregates episode results.
+inline RunSummary Summarize(const std::vector<EpisodeResult>& results, bool success_defined,
+                            double wall_seconds) {
   RunSummary s;
+  const int episodes = static_cast<int>(results.size());
   s.episodes = episodes;
-  s.wall_seconds = MillisSince(start) / 1000.0;
+  s.wall_seconds = wall_seconds;
   std::vector<double> sims, rate, first_rate;
   double sum = 0, sum2 = 0, steps = 0, steps2 = 0;
   int successes = 0;
@@ -130,6 +127,16 @@ inline RunSummary RunEpisodes(int episodes, int threads, bool success_defined,
   s.median_sims_per_second = Median(rate);
   s.median_first_step_sims_per_second = Median(first_rate);
   return s;
+}
+
+/// Runs `episodes` episodes of `run_episode(index)` on `threads` threads and summarises them.
+/// Episode i is seeded from i alone, so results do not depend on the thread count.
+inline RunSummary RunEpisodes(int episodes, int threads, bool success_defined,
+                              const std::function<EpisodeResult(int)>& run_episode,
+                              const std::string& label) {
+  const auto start = Clock::now();
+  const std::vector<EpisodeResult> results = RunJobs(episodes, threads, run_episode, label);
+  return Summarize(results, success_defined, MillisSince(start) / 1000.0);
 }
 
 /// Minimal JSON string escaping.

@@ -158,7 +158,7 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
   }
   std::map<std::string, std::map<std::string, RunSummary>> table;
   std::vector<std::string> scenario_names;
-  int failures = 0;
+  std::vector<sim::Scenario> scenarios;
   for (const std::string& path : config.scenarios) {
     auto loaded = sim::LoadScenario(path);
     if (!loaded.ok()) {
@@ -167,37 +167,64 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
     }
     sim::Scenario scenario = *loaded;
     if (!config.robot.empty()) scenario.robot = config.robot;
-    scenario_names.push_back(scenario.name);
+    // Validate the map, the planner names and the options once before spending time.
+    auto world = sim::InitialWorld(scenario);
+    if (!world.ok()) {
+      std::cerr << "npfkct-bench: " << world.status().message() << "\n";
+      return 2;
+    }
+    ObjectSearchModel probe(std::make_shared<World>(*world));
     for (const std::string& planner : planners) {
-      // Validate the planner name and options once before spending time.
-      {
-        auto world = sim::InitialWorld(scenario);
-        if (!world.ok()) {
-          std::cerr << "npfkct-bench: " << world.status().message() << "\n";
-          return 2;
-        }
-        ObjectSearchModel probe(std::make_shared<World>(*world));
-        auto made = object_search::MakeSearchPlanner(planner, probe, options);
-        if (!made.ok()) {
-          std::cerr << "npfkct-bench: " << made.status().message() << "\n";
-          return 2;
-        }
+      auto made = object_search::MakeSearchPlanner(planner, probe, options);
+      if (!made.ok()) {
+        std::cerr << "npfkct-bench: " << made.status().message() << "\n";
+        return 2;
       }
-      std::string render_prefix;
-      if (!config.render_dir.empty()) {
-        std::filesystem::create_directories(config.render_dir);
-        render_prefix = config.render_dir + "/" + scenario.name + "-" + planner;
+    }
+    scenario_names.push_back(scenario.name);
+    scenarios.push_back(std::move(scenario));
+  }
+  if (!config.render_dir.empty()) std::filesystem::create_directories(config.render_dir);
+  // Trials run trial-major (trial 0 of every scenario and planner, then trial 1, ...), so that
+  // whatever else the machine does spreads evenly over the planners compared.
+  const int per_trial = static_cast<int>(scenarios.size() * planners.size());
+  const int jobs = config.trials * per_trial;
+  auto job = [&](int j, int* scenario, int* planner, int* trial) {
+    *trial = j / per_trial;
+    *scenario = (j % per_trial) / static_cast<int>(planners.size());
+    *planner = j % static_cast<int>(planners.size());
+  };
+  const auto start = Clock::now();
+  const std::vector<EpisodeResult> results = RunJobs(
+      jobs, config.threads,
+      [&](int j) {
+        int sc, pl, trial;
+        job(j, &sc, &pl, &trial);
+        const sim::Scenario& scenario = scenarios[sc];
+        const int max_steps =
+            config.max_steps > 0 ? config.max_steps : scenario.params.max_steps;
+        std::string render_prefix;
+        if (!config.render_dir.empty() && trial == 0) {
+          render_prefix = config.render_dir + "/" + scenario.name + "-" + planners[pl];
+        }
+        TrialContext ctx{&scenario, planners[pl], options, budget, max_steps,
+                         config.seed * 1000003ULL + static_cast<uint64_t>(trial), render_prefix};
+        return RunTrial(ctx);
+      },
+      "object search");
+  const double wall = MillisSince(start) / 1000.0;
+  int failures = 0;
+  for (size_t sc = 0; sc < scenarios.size(); ++sc) {
+    for (size_t pl = 0; pl < planners.size(); ++pl) {
+      std::vector<EpisodeResult> mine;
+      for (int j = 0; j < jobs; ++j) {
+        int s_idx, p_idx, trial;
+        job(j, &s_idx, &p_idx, &trial);
+        if (s_idx == static_cast<int>(sc) && p_idx == static_cast<int>(pl)) mine.push_back(results[j]);
       }
-      const int max_steps = config.max_steps > 0 ? config.max_steps : scenario.params.max_steps;
-      RunSummary s = RunEpisodes(
-          config.trials, config.threads, true,
-          [&](int i) {
-            TrialContext ctx{&scenario, planner, options, budget, max_steps,
-                             config.seed * 1000003ULL + static_cast<uint64_t>(i),
-                             i == 0 ? render_prefix : std::string()};
-            return RunTrial(ctx);
-          },
-          scenario.name + "/" + planner);
+      const RunSummary s = Summarize(mine, true, wall);
+      const std::string& planner = planners[pl];
+      const sim::Scenario& scenario = scenarios[sc];
       table[planner][scenario.name] = s;
       failures += s.failed_episodes;
       std::printf(
@@ -212,12 +239,11 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
           static_cast<unsigned long long>(config.seed), config.threads, s.mean_return,
           s.ci95_return, s.mean_steps, s.ci95_steps, s.success_rate.value_or(0.0),
           s.median_sims_per_step, s.median_sims_per_second, s.median_first_step_sims_per_second,
-          s.wall_seconds, s.failed_episodes,
-          s.first_error.empty() ? "" : ", \"error\": \"",
+          s.wall_seconds, s.failed_episodes, s.first_error.empty() ? "" : ", \"error\": \"",
           JsonEscape(s.first_error).c_str(), s.first_error.empty() ? "" : "\"");
-      std::fflush(stdout);
     }
   }
+  std::fflush(stdout);
   if (!config.table_path.empty()) {
     std::ostringstream md;
     md << "| Planner |";
