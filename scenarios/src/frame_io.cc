@@ -131,6 +131,27 @@ cv::Mat RenderStep(const object_search::World& world, const Frame& view,
   return canvas;
 }
 
+std::vector<cv::Mat> ObjectPhotos(const SceneObject& object, int pixels) {
+  std::vector<cv::Mat> photos;
+  for (int face = 0; face < 4; ++face) {
+    // Face axes as the renderer maps them: a = (axis + 1) % 3, b = (axis + 2) % 3.
+    const int axis = face / 2, a = (axis + 1) % 3, b = (axis + 2) % 3;
+    const double aspect = object.box.size[b] / object.box.size[a];
+    const int w = pixels, h = std::max(8, static_cast<int>(pixels * aspect));
+    cv::Mat img(h, w, CV_8UC3);
+    for (int y = 0; y < h; ++y) {
+      for (int x = 0; x < w; ++x) {
+        const Color c = object.texture_seed != 0
+                            ? PatternColor(object.texture_seed, face, (x + 0.5) / w, 1.0 - (y + 0.5) / h)
+                            : object.color;
+        img.at<cv::Vec3b>(y, x) = cv::Vec3b(c[2], c[1], c[0]);
+      }
+    }
+    photos.push_back(img);
+  }
+  return photos;
+}
+
 Status WritePng(const std::string& path, const cv::Mat& image) {
   try {
     if (!cv::imwrite(path, image)) return InternalError("cannot write PNG '" + path + "'");

@@ -58,23 +58,42 @@ Vec3 FaceNormalWorld(const Box& b, int face) {
   return Vec3(c * n.x() - s * n.y(), s * n.x() + c * n.y(), n.z());
 }
 
-// A printed pattern: 6 x 6 coloured blocks per face with small dots, seeded per object and face,
-// so that feature matching (SIFT) finds corners on the target's faces.
-Color Pattern(uint32_t seed, int face, double u, double v) {
-  const int bu = std::clamp(static_cast<int>(u * 6.0), 0, 5);
-  const int bv = std::clamp(static_cast<int>(v * 6.0), 0, 5);
-  uint64_t h = HashMix(static_cast<uint64_t>(seed) * 1315423911ULL + face * 97 + bu * 7 + bv);
-  Color c = {static_cast<uint8_t>(40 + h % 200), static_cast<uint8_t>(40 + (h >> 8) % 200),
-             static_cast<uint8_t>(40 + (h >> 16) % 200)};
-  // A dark dot inside some blocks.
-  const double fu = u * 6.0 - bu, fv = v * 6.0 - bv;
-  if ((h >> 24) % 3 == 0 && std::abs(fu - 0.5) < 0.2 && std::abs(fv - 0.5) < 0.2) {
-    c = {20, 20, 20};
-  }
+}  // namespace
+
+// A printed pattern: three octaves of value noise in a palette drawn from the seed, with dark
+// contour lines, so that feature matching (SIFT) finds distinctive corners and blobs everywhere on
+// the face, and another seed prints a different picture.
+Color PatternColor(uint32_t seed, int face, double u, double v) {
+  auto hash = [&](uint64_t a, uint64_t b, uint64_t c) {
+    return HashMix(static_cast<uint64_t>(seed) * 0x9e3779b97f4a7c15ULL + face * 1000003ULL +
+                   a * 7919ULL + b * 104729ULL + c);
+  };
+  auto noise = [&](int cells) {
+    const double gx = u * cells, gy = v * cells;
+    const int ix = static_cast<int>(std::floor(gx)), iy = static_cast<int>(std::floor(gy));
+    double fx = gx - ix, fy = gy - iy;
+    fx = fx * fx * (3 - 2 * fx);
+    fy = fy * fy * (3 - 2 * fy);
+    auto corner = [&](int x, int y) {
+      return (hash(cells, static_cast<uint64_t>(x + 64), static_cast<uint64_t>(y + 64)) & 0xffff) /
+             65535.0;
+    };
+    const double a = corner(ix, iy) + fx * (corner(ix + 1, iy) - corner(ix, iy));
+    const double b = corner(ix, iy + 1) + fx * (corner(ix + 1, iy + 1) - corner(ix, iy + 1));
+    return a + fy * (b - a);
+  };
+  const double value = 0.5 * noise(4) + 0.3 * noise(9) + 0.2 * noise(19);
+  if (std::fmod(value * 7.0, 1.0) < 0.12) return {25, 25, 30};  // contour lines
+  const uint64_t p = hash(0, 0, 0);
+  const Color lo = {static_cast<uint8_t>(p % 200), static_cast<uint8_t>((p >> 8) % 200),
+                    static_cast<uint8_t>((p >> 16) % 200)};
+  const Color hi = {static_cast<uint8_t>(55 + (p >> 24) % 200),
+                    static_cast<uint8_t>(55 + (p >> 32) % 200),
+                    static_cast<uint8_t>(55 + (p >> 40) % 200)};
+  Color c;
+  for (int k = 0; k < 3; ++k) c[k] = static_cast<uint8_t>(lo[k] + value * (hi[k] - lo[k]));
   return c;
 }
-
-}  // namespace
 
 Simulator::Simulator(Scenario scenario, uint64_t seed) : scenario_(std::move(scenario)) {
   preset_ = object_search::RobotPreset::ByName(scenario_.robot).value();
@@ -317,7 +336,7 @@ Frame Simulator::Render(int width, int height) const {
           const int a = (face / 2 + 1) % 3, b = (face / 2 + 2) % 3;
           const double fu = local[a] / item.box.size[a] + 0.5;
           const double fv = local[b] / item.box.size[b] + 0.5;
-          color = Pattern(item.texture, face, fu, fv);
+          color = PatternColor(item.texture, face, fu, fv);
         }
       }
       const double depth = best_t * unit.dot(f.pose.forward);

@@ -31,6 +31,10 @@ cv::Mat RenderGridWorld(const object_search::World& world, int pixels_per_metre 
 cv::Mat RenderStep(const object_search::World& world, const Frame& view,
                    const std::string& caption);
 
+/// Photos of an object's printed sides (faces 0-3), as the robot would be given of its target:
+/// each face flat, `pixels` wide, in BGR.
+std::vector<cv::Mat> ObjectPhotos(const SceneObject& object, int pixels = 240);
+
 /// Writes a PNG; the status names the path on failure.
 Status WritePng(const std::string& path, const cv::Mat& image);
 

@@ -37,6 +37,10 @@ struct Frame {
   std::vector<int16_t> ids;
 };
 
+/// The colour of the printed pattern of an object with texture `seed` on box face `face` (0/1:
+/// -x/+x, 2/3: -y/+y, 4/5: -z/+z) at face coordinates (u, v) in [0, 1].
+Color PatternColor(uint32_t seed, int face, double u, double v);
+
 /// The simulated world of a scenario.
 class Simulator {
  public:

@@ -1,0 +1,84 @@
+// npfkct-perception-bench: time per stage of the perception pipeline on 640x480 RGB-D frames
+// rendered by the simulator, on one core (OpenCV threads off; PCL here is single-threaded).
+// Prints one JSON object with the median milliseconds of each stage.
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <cstdio>
+#include <numbers>
+#include <opencv2/core.hpp>
+#include <vector>
+
+#include "npfkct/perception/perception.h"
+#include "npfkct/sim/frame_io.h"
+#include "npfkct/sim/simulator.h"
+
+namespace {
+
+double Median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0.0 : v[v.size() / 2];
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::vector<std::string> scenarios = {"loose1", "hidden1", "complex1"};
+  int repeats = 3;
+  CLI::App app{"npfkct-perception-bench: per-stage time of the perception pipeline"};
+  app.add_option("--scenario", scenarios, "scenario names in scenarios/data")->delimiter(',');
+  app.add_option("--repeats", repeats, "passes over the frames");
+  CLI11_PARSE(app, argc, argv);
+  cv::setNumThreads(1);
+  std::vector<double> reg, seg, assoc, det, total;
+  int frames = 0;
+  for (const std::string& name : scenarios) {
+    auto scenario =
+        npfkct::sim::LoadScenario(std::string(NPFKCT_SCENARIO_DIR) + "/" + name + ".json");
+    if (!scenario.ok()) {
+      std::fprintf(stderr, "%s\n", scenario.status().ToString().c_str());
+      return 2;
+    }
+    npfkct::sim::Simulator sim(*scenario, 1);
+    const auto world = sim.InitialWorld().value();
+    npfkct::Rng rng(3);
+    // Views from the center of every base region, facing the nearest workspace.
+    std::vector<npfkct::sim::Frame> views;
+    for (const auto& pose : world.ManualConfigurations()) {
+      if (pose.lift != world.robot.lift_max * 0.5 || pose.pan != 0.0 ||
+          pose.tilt != 0.5 * world.robot.tilt_max) {
+        continue;
+      }
+      if (sim.ExecuteMove(pose, world.params, rng).illegal) continue;
+      views.push_back(sim.Render(640, 480));
+    }
+    for (int r = 0; r < repeats; ++r) {
+      npfkct::perception::Perception p(
+          world, {npfkct::sim::ObjectPhotos(sim.objects()[sim.target_index()])}, {});
+      for (const auto& f : views) {
+        npfkct::perception::SensorFrame frame;
+        frame.cloud = npfkct::sim::FrameCloud(f, false);
+        frame.image = npfkct::sim::FrameBgr(f);
+        frame.intrinsics = {f.width, f.height, f.fx, f.fy, f.cx, f.cy};
+        // The camera pose of the rendered frame, as the robot reports it.
+        frame.reported = sim.robot();
+        auto result = p.Process(frame);
+        if (!result.ok()) {
+          std::fprintf(stderr, "%s\n", result.status().ToString().c_str());
+          return 1;
+        }
+        reg.push_back(result->timings.registration);
+        seg.push_back(result->timings.segmentation);
+        assoc.push_back(result->timings.association);
+        det.push_back(result->timings.detection);
+        total.push_back(result->timings.total);
+        ++frames;
+      }
+    }
+  }
+  std::printf(
+      "{\"frames\": %d, \"resolution\": \"640x480\", \"threads\": 1, "
+      "\"median_ms\": {\"registration\": %.2f, \"segmentation\": %.2f, \"association\": %.2f, "
+      "\"detection\": %.2f, \"total\": %.2f}}\n",
+      frames, Median(reg), Median(seg), Median(assoc), Median(det), Median(total));
+  return 0;
+}

@@ -1,0 +1,146 @@
+// Perception (paper appendix B): raw RGB-D frames to the object-search model's observations.
+//
+//   1. registration of the frame to the prior point-cloud map (PCL ICP from the reported pose;
+//      RANSAC on FPFH features first when ICP alone fits badly), giving a corrected pose;
+//   2. removal of map points and of points off the workspaces; objects by Euclidean cluster
+//      extraction, oriented boxes by PCA;
+//   3. association of clusters across frames (Mahalanobis distance of centroids and mean point
+//      distance), so object ids stay stable;
+//   4. target detection: each cluster reprojected into the image gives a sub-image, matched
+//      against the target photos with SIFT (ratio of matched features), colour matching as a
+//      fallback, an optional semantic score; the visible face grids get the detection;
+//   5. moveability from size and reach.
+#pragma once
+
+#include <opencv2/core.hpp>
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
+
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "npfkct/solver/object_search/world.h"
+#include "npfkct/solver/status.h"
+
+namespace npfkct::perception {
+
+using Cloud = pcl::PointCloud<pcl::PointXYZRGB>;
+
+/// Pinhole intrinsics of the depth/colour camera (registered, same size).
+struct CameraIntrinsics {
+  int width = 640;
+  int height = 480;
+  double fx = 554.3, fy = 519.6, cx = 320.0, cy = 240.0;
+  Status Validate() const;
+};
+
+/// One sensor frame as the robot reports it.
+struct SensorFrame {
+  /// Points in the camera's optical frame (x right, y down, z forward), or in the map frame.
+  Cloud::ConstPtr cloud;
+  bool cloud_in_map_frame = false;
+  /// The colour image (BGR, intrinsics.width x intrinsics.height); may be empty.
+  cv::Mat image;
+  CameraIntrinsics intrinsics;
+  /// The robot's configuration as its localization reports it.
+  object_search::RobotConfig reported;
+  /// Optional semantic score per object id from an external detector (YOLO-like), averaged with
+  /// the feature-matching score.
+  std::map<std::string, double> semantic_scores;
+};
+
+/// Settings of the pipeline; defaults suit the Fetch head camera at 0.5-4 m.
+struct PerceptionOptions {
+  double voxel = 0.01;                 ///< Downsampling leaf (m).
+  double icp_max_distance = 0.15;      ///< ICP correspondence distance (m).
+  int icp_iterations = 80;
+  double icp_good_fitness = 2.5e-4;    ///< Mean squared distance (m^2) below which ICP is trusted.
+  double ransac_voxel = 0.03;          ///< Leaf for the RANSAC fallback.
+  double max_correction = 0.5;         ///< Larger pose corrections are rejected (m).
+  /// Registration runs only when the visible structure constrains the pose: the smallest
+  /// eigenvalue of the point-to-plane system must exceed this fraction of the largest.
+  double min_structure = 1e-5;
+  double map_distance = 0.015;         ///< Points this close to the map are the map's (m).
+  double workspace_margin = 0.02;      ///< Objects must stand on a workspace, within this (m).
+  double max_object_height = 0.6;      ///< Points higher above a surface are ignored (m).
+  double cluster_tolerance = 0.02;     ///< Euclidean clustering distance (m).
+  int min_cluster_points = 40;
+  int max_cluster_points = 200000;
+  double association_gate = 3.0;       ///< Mahalanobis gate for matching a cluster to a track.
+  double association_distance = 0.03;  ///< Gate on the mean distance of points to a track's box (m).
+  double sift_ratio = 0.75;            ///< Lowe's ratio test.
+  int min_features = 12;               ///< Fewer keypoints than this: colour matching instead.
+  double match_threshold = 0.08;       ///< Ratio of matched features that means "target".
+  double gripper_max = 0.25;           ///< Largest graspable horizontal extent (m).
+
+  Status Validate() const;
+};
+
+/// Time spent per stage of one frame (ms).
+struct StageTimings {
+  double registration = 0, segmentation = 0, association = 0, detection = 0, total = 0;
+};
+
+/// What one frame gave.
+struct PerceptionResult {
+  object_search::RealObservation observation;  ///< Corrected pose and detections.
+  Eigen::Matrix4d correction = Eigen::Matrix4d::Identity();  ///< Map-frame pose correction.
+  bool used_ransac = false;
+  /// ICP mean squared distance after registration; NaN when the view did not constrain the pose
+  /// and the reported one was kept.
+  double fitness = 0.0;
+  int clusters = 0;
+  StageTimings timings;
+};
+
+/// The target as the robot knows it: photos (BGR) and, optionally, its colour.
+struct TargetModel {
+  std::vector<cv::Mat> photos;
+};
+
+/// The pipeline of one session: holds the map cloud and the object tracks across frames.
+class Perception {
+ public:
+  /// Builds the prior point-cloud map from the world's furniture and floor.
+  Perception(const object_search::World& world, TargetModel target, PerceptionOptions options);
+  ~Perception();
+
+  /// Processes one frame. Input errors (empty cloud, NaN points, wrong frame, image of the wrong
+  /// size) are INVALID_ARGUMENT naming the field; the tracks are unchanged on error.
+  StatusOr<PerceptionResult> Process(const SensorFrame& frame);
+
+  /// Number of object tracks so far.
+  int tracks() const;
+  /// The prior map cloud (for tests and visualisation).
+  Cloud::ConstPtr map() const;
+
+  /// Detection score of an image region against the target (SIFT ratio mapped to [0, 1], colour
+  /// fallback); exposed for tests.
+  double TargetScore(const cv::Mat& region, bool* used_colour = nullptr) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+/// The camera-to-map transform for a robot configuration (optical frame: x right, y down,
+/// z forward).
+Eigen::Matrix4d CameraToMap(const object_search::RobotPreset& robot,
+                            const object_search::RobotConfig& config);
+
+/// Decodes a base64 float32 point buffer ("xyz": 3 floats per point; "xyzrgb": 4, the fourth
+/// packing 0x00RRGGBB as in PCL). The status names `field` on error.
+StatusOr<Cloud::Ptr> DecodeCloud(const std::string& base64, const std::string& fields,
+                                 const std::string& field);
+/// Encodes a cloud for the API ("xyzrgb").
+std::string EncodeCloud(const Cloud& cloud);
+/// Decodes a base64 PNG or JPEG image; the status names `field` on error.
+StatusOr<cv::Mat> DecodeImage(const std::string& base64, const std::string& field);
+
+/// Base64 (RFC 4648) encoding and decoding.
+std::string Base64Encode(const std::string& bytes);
+StatusOr<std::string> Base64Decode(const std::string& text);
+
+}  // namespace npfkct::perception

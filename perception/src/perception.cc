@@ -1,0 +1,806 @@
+#include "npfkct/perception/perception.h"
+
+#include <pcl/common/transforms.h>
+#include <Eigen/Eigenvalues>
+#include <pcl/features/fpfh.h>
+#include <pcl/features/normal_3d.h>
+#include <pcl/filters/voxel_grid.h>
+#include <pcl/kdtree/kdtree_flann.h>
+#include <pcl/registration/icp.h>
+#include <pcl/registration/sample_consensus_prerejective.h>
+#include <pcl/search/kdtree.h>
+#include <pcl/segmentation/extract_clusters.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <numbers>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/features2d.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+namespace npfkct::perception {
+namespace {
+
+using object_search::Box;
+using object_search::Vec3;
+using PointXYZ = pcl::PointXYZ;
+using CloudXYZ = pcl::PointCloud<PointXYZ>;
+using PointNormal = pcl::PointNormal;
+using NormalCloud = pcl::PointCloud<PointNormal>;
+using Clock = std::chrono::steady_clock;
+
+double Ms(Clock::time_point since) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - since).count();
+}
+
+CloudXYZ::Ptr Downsample(const CloudXYZ::ConstPtr& in, double leaf) {
+  auto out = pcl::make_shared<CloudXYZ>();
+  pcl::VoxelGrid<PointXYZ> grid;
+  grid.setInputCloud(in);
+  const float f = static_cast<float>(leaf);
+  grid.setLeafSize(f, f, f);
+  grid.filter(*out);
+  return out;
+}
+
+// Points with surface normals estimated from neighbours within `radius`.
+NormalCloud::Ptr WithNormals(const CloudXYZ::Ptr& in, double radius) {
+  auto normals = pcl::make_shared<pcl::PointCloud<pcl::Normal>>();
+  pcl::NormalEstimation<PointXYZ, pcl::Normal> ne;
+  ne.setInputCloud(in);
+  ne.setRadiusSearch(radius);
+  ne.compute(*normals);
+  auto out = pcl::make_shared<NormalCloud>();
+  for (size_t i = 0; i < in->size(); ++i) {
+    const auto& n = (*normals)[i];
+    if (!std::isfinite(n.normal_x)) continue;
+    PointNormal p;
+    p.x = (*in)[i].x;
+    p.y = (*in)[i].y;
+    p.z = (*in)[i].z;
+    p.normal_x = n.normal_x;
+    p.normal_y = n.normal_y;
+    p.normal_z = n.normal_z;
+    p.curvature = n.curvature;
+    out->push_back(p);
+  }
+  return out;
+}
+
+CloudXYZ::Ptr ToXYZ(const Cloud& in) {
+  auto out = pcl::make_shared<CloudXYZ>();
+  out->reserve(in.size());
+  for (const auto& p : in) out->push_back(PointXYZ(p.x, p.y, p.z));
+  return out;
+}
+
+// Samples the surface of an upright box (top and four sides) on a grid of `step`.
+void SampleBox(const Box& b, double step, CloudXYZ* out) {
+  const double c = std::cos(b.yaw), s = std::sin(b.yaw);
+  auto emit = [&](double lx, double ly, double lz) {
+    out->push_back(PointXYZ(static_cast<float>(b.center.x() + c * lx - s * ly),
+                            static_cast<float>(b.center.y() + s * lx + c * ly),
+                            static_cast<float>(b.center.z() + lz)));
+  };
+  const Vec3 h = 0.5 * b.size;
+  for (double u = -h.x(); u <= h.x() + 1e-9; u += step) {
+    for (double v = -h.y(); v <= h.y() + 1e-9; v += step) emit(u, v, h.z());
+    for (double w = -h.z(); w <= h.z() + 1e-9; w += step) {
+      emit(u, -h.y(), w);
+      emit(u, h.y(), w);
+    }
+  }
+  for (double v = -h.y(); v <= h.y() + 1e-9; v += step) {
+    for (double w = -h.z(); w <= h.z() + 1e-9; w += step) {
+      emit(-h.x(), v, w);
+      emit(h.x(), v, w);
+    }
+  }
+}
+
+// A tracked object: its points (map frame, voxelised) and their statistics.
+struct Track {
+  std::string id;
+  CloudXYZ::Ptr points = pcl::make_shared<CloudXYZ>();
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
+  int surface = -1;  // workspace it stands on
+  Box box;           // fitted to all its points so far
+
+  void Refresh(double voxel) {
+    points = Downsample(points, voxel);
+    centroid.setZero();
+    for (const auto& p : *points) centroid += p.getVector3fMap().cast<double>();
+    centroid /= std::max<size_t>(points->size(), 1);
+    covariance.setZero();
+    for (const auto& p : *points) {
+      const Eigen::Vector3d d = p.getVector3fMap().cast<double>() - centroid;
+      covariance += d * d.transpose();
+    }
+    covariance /= std::max<size_t>(points->size(), 1);
+  }
+};
+
+// The extents of `points` along the horizontal axes at angle `yaw`: (min u, max u, min v, max v).
+Eigen::Vector4d Extents(const CloudXYZ& points, const Eigen::Vector2d& origin, double yaw) {
+  const double c = std::cos(yaw), s = std::sin(yaw);
+  Eigen::Vector4d e(1e9, -1e9, 1e9, -1e9);
+  for (const auto& p : points) {
+    const Eigen::Vector2d d = Eigen::Vector2d(p.x, p.y) - origin;
+    const double u = c * d.x() + s * d.y(), v = -s * d.x() + c * d.y();
+    e[0] = std::min(e[0], u);
+    e[1] = std::max(e[1], u);
+    e[2] = std::min(e[2], v);
+    e[3] = std::max(e[3], v);
+  }
+  return e;
+}
+
+// The upright box of a set of points standing on a surface at `surface_height`. The yaw comes
+// from PCA of the horizontal spread, and is replaced by the minimum-area rectangle's when that
+// fits tighter (PCA is undetermined for square footprints and biased by partial views); the
+// extents follow the chosen axes; the bottom is the surface.
+Box FitBox(const CloudXYZ& points, double surface_height) {
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  double top = -1e9;
+  std::vector<cv::Point2f> xy;
+  xy.reserve(points.size());
+  for (const auto& p : points) {
+    mean += Eigen::Vector2d(p.x, p.y);
+    top = std::max(top, static_cast<double>(p.z));
+    xy.emplace_back(p.x, p.y);
+  }
+  mean /= static_cast<double>(points.size());
+  Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
+  for (const auto& p : points) {
+    const Eigen::Vector2d d = Eigen::Vector2d(p.x, p.y) - mean;
+    cov += d * d.transpose();
+  }
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(cov);
+  const Eigen::Vector2d axis = eig.eigenvectors().col(1);  // largest eigenvalue
+  double yaw = std::atan2(axis.y(), axis.x());
+  Eigen::Vector4d e = Extents(points, mean, yaw);
+  const cv::RotatedRect rect = cv::minAreaRect(xy);
+  const double rect_yaw = rect.angle * std::numbers::pi / 180.0;
+  const Eigen::Vector4d re = Extents(points, mean, rect_yaw);
+  if ((re[1] - re[0]) * (re[3] - re[2]) < (e[1] - e[0]) * (e[3] - e[2])) {
+    yaw = rect_yaw;
+    e = re;
+  }
+  const double c = std::cos(yaw), s = std::sin(yaw);
+  const double mu = 0.5 * (e[0] + e[1]), mv = 0.5 * (e[2] + e[3]);
+  Box b;
+  b.yaw = yaw;
+  b.center = Vec3(mean.x() + c * mu - s * mv, mean.y() + s * mu + c * mv,
+                  0.5 * (surface_height + top));
+  b.size = Vec3(std::max(e[1] - e[0], 0.01), std::max(e[3] - e[2], 0.01),
+                std::max(top - surface_height, 0.01));
+  return b;
+}
+
+// Distance from a point to a box (0 inside).
+double DistanceToBox(const Box& b, const PointXYZ& p) {
+  const Vec3 l = b.ToLocal(Vec3(p.x, p.y, p.z));
+  const Vec3 outside = (l.cwiseAbs() - 0.5 * b.size).cwiseMax(0.0);
+  return outside.norm();
+}
+
+double Sigmoidish(double x, double threshold) {
+  // 0 -> 0.05, threshold -> 0.5, 2 threshold and above -> 0.95.
+  return std::clamp(0.5 + 0.45 * (x - threshold) / threshold, 0.05, 0.95);
+}
+
+}  // namespace
+
+Status CameraIntrinsics::Validate() const {
+  if (width < 8 || height < 8 || width > 8192 || height > 8192) {
+    return InvalidArgumentError("camera: width and height must be in [8, 8192]");
+  }
+  if (!(fx > 0) || !(fy > 0) || !std::isfinite(fx) || !std::isfinite(fy) || !std::isfinite(cx) ||
+      !std::isfinite(cy)) {
+    return InvalidArgumentError("camera: focal lengths must be positive and finite");
+  }
+  return OkStatus();
+}
+
+Status PerceptionOptions::Validate() const {
+  for (double v : {voxel, icp_max_distance, icp_good_fitness, ransac_voxel, max_correction,
+                   map_distance, max_object_height, cluster_tolerance, association_gate,
+                   association_distance, sift_ratio, match_threshold, gripper_max}) {
+    if (!(v > 0) || !std::isfinite(v)) return InvalidArgumentError("perception options must be > 0");
+  }
+  if (icp_iterations < 1 || min_cluster_points < 1 || max_cluster_points < min_cluster_points) {
+    return InvalidArgumentError("perception options: bad counts");
+  }
+  return OkStatus();
+}
+
+Eigen::Matrix4d CameraToMap(const object_search::RobotPreset& robot,
+                            const object_search::RobotConfig& config) {
+  const object_search::CameraPose pose = object_search::CameraPoseFor(robot, config);
+  Eigen::Matrix4d t = Eigen::Matrix4d::Identity();
+  t.block<3, 1>(0, 0) = -pose.left;    // optical x: right
+  t.block<3, 1>(0, 1) = -pose.up;      // optical y: down
+  t.block<3, 1>(0, 2) = pose.forward;  // optical z: forward
+  t.block<3, 1>(0, 3) = pose.position;
+  return t;
+}
+
+struct Perception::Impl {
+  object_search::World world;
+  TargetModel target;
+  PerceptionOptions options;
+  CloudXYZ::Ptr map = pcl::make_shared<CloudXYZ>();
+  NormalCloud::Ptr map_normals;
+  pcl::KdTreeFLANN<PointXYZ> map_tree;
+  std::vector<Track> tracks;
+  int next_id = 0;
+  cv::Ptr<cv::SIFT> sift = cv::SIFT::create();
+  std::vector<cv::Mat> photo_descriptors;
+  std::vector<std::vector<cv::KeyPoint>> photo_keypoints;
+  std::vector<cv::Mat> photo_histograms;
+  // RANSAC fallback features of the map (computed on first use).
+  pcl::PointCloud<pcl::FPFHSignature33>::Ptr map_features;
+  CloudXYZ::Ptr map_ransac;
+
+  cv::Mat Histogram(const cv::Mat& bgr) const {
+    cv::Mat hsv, hist;
+    cv::cvtColor(bgr, hsv, cv::COLOR_BGR2HSV);
+    const int channels[] = {0, 1};
+    const int bins[] = {30, 32};
+    const float hue[] = {0, 180}, sat[] = {0, 256};
+    const float* ranges[] = {hue, sat};
+    cv::calcHist(&hsv, 1, channels, cv::Mat(), hist, 2, bins, ranges);
+    cv::normalize(hist, hist, 0, 1, cv::NORM_MINMAX);
+    return hist;
+  }
+
+  void ComputeRansacFeatures(const CloudXYZ::Ptr& cloud, CloudXYZ::Ptr* down,
+                             pcl::PointCloud<pcl::FPFHSignature33>::Ptr* features) const {
+    *down = Downsample(cloud, options.ransac_voxel);
+    auto normals = pcl::make_shared<pcl::PointCloud<pcl::Normal>>();
+    pcl::NormalEstimation<PointXYZ, pcl::Normal> ne;
+    ne.setInputCloud(*down);
+    ne.setRadiusSearch(3.0 * options.ransac_voxel);
+    ne.compute(*normals);
+    *features = pcl::make_shared<pcl::PointCloud<pcl::FPFHSignature33>>();
+    pcl::FPFHEstimation<PointXYZ, pcl::Normal, pcl::FPFHSignature33> fpfh;
+    fpfh.setInputCloud(*down);
+    fpfh.setInputNormals(normals);
+    fpfh.setRadiusSearch(5.0 * options.ransac_voxel);
+    fpfh.compute(**features);
+  }
+};
+
+Perception::Perception(const object_search::World& world, TargetModel target,
+                       PerceptionOptions options)
+    : impl_(std::make_unique<Impl>()) {
+  Impl& im = *impl_;
+  im.world = world;
+  im.target = std::move(target);
+  im.options = options;
+  for (const Box& b : world.furniture) SampleBox(b, 0.5 * options.voxel, im.map.get());
+  const auto& occ = world.occupancy;
+  const double floor_step = 2.0 * options.voxel;
+  for (double x = occ.min().x(); x <= occ.max().x(); x += floor_step) {
+    for (double y = occ.min().y(); y <= occ.max().y(); y += floor_step) {
+      im.map->push_back(PointXYZ(static_cast<float>(x), static_cast<float>(y), 0.0f));
+    }
+  }
+  im.map = Downsample(im.map, options.voxel);
+  im.map_tree.setInputCloud(im.map);
+  im.map_normals = WithNormals(Downsample(im.map, 2.0 * options.voxel), 3.0 * options.voxel);
+  for (const cv::Mat& photo : im.target.photos) {
+    if (photo.empty()) continue;
+    std::vector<cv::KeyPoint> keypoints;
+    cv::Mat descriptors;
+    cv::Mat gray;
+    cv::cvtColor(photo, gray, cv::COLOR_BGR2GRAY);
+    im.sift->detectAndCompute(gray, cv::noArray(), keypoints, descriptors);
+    if (!descriptors.empty()) {
+      im.photo_descriptors.push_back(descriptors);
+      im.photo_keypoints.push_back(keypoints);
+    }
+    im.photo_histograms.push_back(im.Histogram(photo));
+  }
+}
+
+Perception::~Perception() = default;
+
+int Perception::tracks() const { return static_cast<int>(impl_->tracks.size()); }
+
+Cloud::ConstPtr Perception::map() const {
+  auto out = pcl::make_shared<Cloud>();
+  for (const auto& p : *impl_->map) {
+    pcl::PointXYZRGB q;
+    q.x = p.x;
+    q.y = p.y;
+    q.z = p.z;
+    out->push_back(q);
+  }
+  return out;
+}
+
+double Perception::TargetScore(const cv::Mat& region, bool* used_colour) const {
+  const Impl& im = *impl_;
+  if (used_colour != nullptr) *used_colour = false;
+  if (region.empty() || im.target.photos.empty()) return 0.5;
+  cv::Mat gray;
+  cv::cvtColor(region, gray, cv::COLOR_BGR2GRAY);
+  std::vector<cv::KeyPoint> keypoints;
+  cv::Mat descriptors;
+  im.sift->detectAndCompute(gray, cv::noArray(), keypoints, descriptors);
+  if (static_cast<int>(keypoints.size()) >= im.options.min_features &&
+      !im.photo_descriptors.empty()) {
+    cv::BFMatcher matcher(cv::NORM_L2);
+    double best = 0.0;
+    for (size_t k = 0; k < im.photo_descriptors.size(); ++k) {
+      std::vector<std::vector<cv::DMatch>> knn;
+      matcher.knnMatch(descriptors, im.photo_descriptors[k], knn, 2);
+      std::vector<cv::Point2f> from, to;
+      for (const auto& m : knn) {
+        if (m.size() == 2 && m[0].distance < im.options.sift_ratio * m[1].distance) {
+          from.push_back(keypoints[m[0].queryIdx].pt);
+          to.push_back(im.photo_keypoints[k][m[0].trainIdx].pt);
+        }
+      }
+      // Matches that agree on one planar mapping (the photo's face seen in perspective): chance
+      // matches between look-alike textures do not.
+      int inliers = 0;
+      if (from.size() >= 5) {
+        std::vector<uchar> mask;
+        const cv::Mat homography = cv::findHomography(from, to, cv::RANSAC, 4.0, mask);
+        if (!homography.empty()) inliers = cv::countNonZero(mask);
+      }
+      best = std::max(best, static_cast<double>(inliers) / static_cast<double>(keypoints.size()));
+    }
+    return Sigmoidish(best, im.options.match_threshold);
+  }
+  // Too little texture: compare colours.
+  if (used_colour != nullptr) *used_colour = true;
+  const cv::Mat hist = im.Histogram(region);
+  double best = -1.0;
+  for (const cv::Mat& h : im.photo_histograms) {
+    best = std::max(best, cv::compareHist(hist, h, cv::HISTCMP_CORREL));
+  }
+  return std::clamp(0.5 + 0.9 * (best - 0.5), 0.05, 0.95);
+}
+
+StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
+  Impl& im = *impl_;
+  const PerceptionOptions& o = im.options;
+  const auto start = Clock::now();
+  // ---- input checks: nothing changes on error ----
+  if (Status s = frame.intrinsics.Validate(); !s.ok()) return s;
+  if (!frame.cloud || frame.cloud->empty()) {
+    return InvalidArgumentError("pointCloud.data: the cloud is empty");
+  }
+  for (size_t i = 0; i < frame.cloud->size(); ++i) {
+    const auto& p = (*frame.cloud)[i];
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
+      return InvalidArgumentError("pointCloud.data: point " + std::to_string(i) +
+                                  " is not finite (drop NaN points before sending)");
+    }
+  }
+  if (!frame.cloud_in_map_frame) {
+    size_t behind = 0;
+    for (const auto& p : *frame.cloud) behind += p.z <= 0.0f;
+    if (behind * 20 > frame.cloud->size()) {
+      return InvalidArgumentError(
+          "pointCloud.frame: " + std::to_string(100 * behind / frame.cloud->size()) +
+          "% of the points are behind the camera; is the cloud really in the camera frame?");
+    }
+  }
+  if (!frame.image.empty() && (frame.image.cols != frame.intrinsics.width ||
+                               frame.image.rows != frame.intrinsics.height ||
+                               frame.image.type() != CV_8UC3)) {
+    return InvalidArgumentError("image.data: the image is " + std::to_string(frame.image.cols) +
+                                "x" + std::to_string(frame.image.rows) +
+                                " (3 channels expected), the camera says " +
+                                std::to_string(frame.intrinsics.width) + "x" +
+                                std::to_string(frame.intrinsics.height));
+  }
+  PerceptionResult result;
+
+  // ---- 1. registration ----
+  auto t0 = Clock::now();
+  const Eigen::Matrix4d reported = CameraToMap(im.world.robot, frame.reported);
+  CloudXYZ::Ptr xyz = ToXYZ(*frame.cloud);
+  CloudXYZ::Ptr in_map = pcl::make_shared<CloudXYZ>();
+  if (frame.cloud_in_map_frame) {
+    *in_map = *xyz;
+  } else {
+    pcl::transformPointCloud(*xyz, *in_map, reported.cast<float>());
+  }
+  // Register with the static structure only: points standing on a workspace are probably the
+  // unknown objects, which the map lacks and which would drag the alignment.
+  const auto& workspaces = im.world.grid.workspaces();
+  auto on_workspace = [&](const PointXYZ& p, double margin, int* which) {
+    for (size_t w = 0; w < workspaces.size(); ++w) {
+      const auto& ws = workspaces[w];
+      if (p.z > ws.height + 0.005 && p.z < ws.height + o.max_object_height &&
+          ws.ContainsXY(object_search::Vec2(p.x, p.y), margin)) {
+        if (which != nullptr) *which = static_cast<int>(w);
+        return true;
+      }
+    }
+    return false;
+  };
+  // Points outside the mapped area have nothing to match and would drag it too.
+  const auto& bounds = im.world.occupancy;
+  CloudXYZ::Ptr structure = pcl::make_shared<CloudXYZ>();
+  for (const auto& p : *in_map) {
+    if (p.x < bounds.min().x() + 0.2 || p.y < bounds.min().y() + 0.2 ||
+        p.x > bounds.max().x() - 0.2 || p.y > bounds.max().y() - 0.2) {
+      continue;
+    }
+    if (!on_workspace(p, 0.05, nullptr)) structure->push_back(p);
+  }
+  if (structure->size() < 100) structure = in_map;
+  // Point-to-plane ICP: the scene is mostly planes (floor, table tops, sides), along which
+  // point-to-point ICP slides.
+  auto source = WithNormals(Downsample(structure, 2.0 * o.voxel), 3.0 * o.voxel);
+  // The point-to-plane step solves a 6x6 least-squares system in (rotation, translation); when
+  // the visible surfaces leave a direction free (only a floor and table tops, say) the system is
+  // singular and the step degenerates, so the reported pose is kept.
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& p : *source) mean += Eigen::Vector3d(p.x, p.y, p.z);
+  mean /= std::max<size_t>(source->size(), 1);
+  Eigen::Matrix<double, 6, 6> system = Eigen::Matrix<double, 6, 6>::Zero();
+  for (const auto& p : *source) {
+    const Eigen::Vector3d n(p.normal_x, p.normal_y, p.normal_z);
+    Eigen::Matrix<double, 6, 1> row;
+    row << (Eigen::Vector3d(p.x, p.y, p.z) - mean).cross(n), n;
+    system += row * row.transpose();
+  }
+  const Eigen::Matrix<double, 6, 1> directions =
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>>(system).eigenvalues();
+  const bool observable =
+      source->size() >= 200 && directions[0] > o.min_structure * directions[5];
+  pcl::IterativeClosestPointWithNormals<PointNormal, PointNormal> icp;
+  icp.setInputSource(source);
+  icp.setInputTarget(im.map_normals);
+  icp.setMaxCorrespondenceDistance(o.icp_max_distance);
+  icp.setMaximumIterations(o.icp_iterations);
+  icp.setTransformationEpsilon(1e-9);
+  NormalCloud aligned;
+  Eigen::Matrix4d correction = Eigen::Matrix4d::Identity();
+  double fitness = std::numeric_limits<double>::quiet_NaN();
+  if (observable) {
+    icp.align(aligned);
+    correction = icp.getFinalTransformation().cast<double>();
+    fitness = icp.hasConverged() ? icp.getFitnessScore(o.icp_max_distance) : 1e9;
+  }
+  if (observable && fitness > o.icp_good_fitness) {
+    // Poor fit from the reported pose: a global alignment first (RANSAC on FPFH features).
+    if (!im.map_features) im.ComputeRansacFeatures(im.map, &im.map_ransac, &im.map_features);
+    CloudXYZ::Ptr src_down;
+    pcl::PointCloud<pcl::FPFHSignature33>::Ptr src_features;
+    im.ComputeRansacFeatures(structure, &src_down, &src_features);
+    pcl::SampleConsensusPrerejective<PointXYZ, PointXYZ, pcl::FPFHSignature33> ransac;
+    ransac.setInputSource(src_down);
+    ransac.setSourceFeatures(src_features);
+    ransac.setInputTarget(im.map_ransac);
+    ransac.setTargetFeatures(im.map_features);
+    ransac.setMaximumIterations(20000);
+    ransac.setNumberOfSamples(3);
+    ransac.setCorrespondenceRandomness(5);
+    ransac.setSimilarityThreshold(0.9f);
+    ransac.setMaxCorrespondenceDistance(2.0f * static_cast<float>(o.ransac_voxel));
+    ransac.setInlierFraction(0.25f);
+    CloudXYZ ransac_aligned;
+    ransac.align(ransac_aligned);
+    if (ransac.hasConverged() && ransac.getFinalTransformation().allFinite()) {
+      icp.align(aligned, ransac.getFinalTransformation());
+      const double f2 = icp.hasConverged() ? icp.getFitnessScore(o.icp_max_distance) : 1e9;
+      if (f2 < fitness) {
+        fitness = f2;
+        correction = icp.getFinalTransformation().cast<double>();
+        result.used_ransac = true;
+      }
+    }
+  }
+  if (correction.block<3, 1>(0, 3).norm() > o.max_correction ||
+      !correction.allFinite()) {
+    correction.setIdentity();  // implausible: keep the reported pose
+  }
+  result.correction = correction;
+  result.fitness = fitness;
+  const Eigen::Matrix4d camera_to_map =
+      frame.cloud_in_map_frame ? reported : Eigen::Matrix4d(correction * reported);
+  // The corrected base pose: the correction applied to the base's position and heading.
+  object_search::RobotConfig corrected = frame.reported;
+  const Eigen::Vector4d base = correction * Eigen::Vector4d(frame.reported.x, frame.reported.y, 0, 1);
+  corrected.x = base.x();
+  corrected.y = base.y();
+  corrected.yaw = object_search::WrapAngle(frame.reported.yaw +
+                                           std::atan2(correction(1, 0), correction(0, 0)));
+  result.observation.achieved = corrected;
+  result.timings.registration = Ms(t0);
+
+  // ---- 2. segmentation ----
+  t0 = Clock::now();
+  CloudXYZ::Ptr points = pcl::make_shared<CloudXYZ>();
+  pcl::transformPointCloud(*in_map, *points, correction.cast<float>());
+  points = Downsample(points, o.voxel);
+  auto objects = pcl::make_shared<CloudXYZ>();
+  std::vector<int> nearest(1);
+  std::vector<float> distance(1);
+  std::vector<int> surface_of;
+  for (const auto& p : *points) {
+    int surface = -1;
+    if (!on_workspace(p, o.workspace_margin, &surface)) continue;
+    if (im.map_tree.nearestKSearch(p, 1, nearest, distance) > 0 &&
+        distance[0] < o.map_distance * o.map_distance) {
+      continue;
+    }
+    objects->push_back(p);
+    surface_of.push_back(surface);
+  }
+  std::vector<pcl::PointIndices> clusters;
+  if (!objects->empty()) {
+    auto tree = pcl::make_shared<pcl::search::KdTree<PointXYZ>>();
+    tree->setInputCloud(objects);
+    pcl::EuclideanClusterExtraction<PointXYZ> ec;
+    ec.setClusterTolerance(o.cluster_tolerance);
+    ec.setMinClusterSize(o.min_cluster_points);
+    ec.setMaxClusterSize(o.max_cluster_points);
+    ec.setSearchMethod(tree);
+    ec.setInputCloud(objects);
+    ec.extract(clusters);
+  }
+  result.clusters = static_cast<int>(clusters.size());
+  result.timings.segmentation = Ms(t0);
+
+  // ---- 3. association ----
+  t0 = Clock::now();
+  std::vector<int> track_of(clusters.size(), -1);
+  std::vector<bool> taken(im.tracks.size(), false);
+  for (size_t c = 0; c < clusters.size(); ++c) {
+    CloudXYZ cluster;
+    for (int i : clusters[c].indices) cluster.push_back((*objects)[i]);
+    Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+    for (const auto& p : cluster) centroid += p.getVector3fMap().cast<double>();
+    centroid /= static_cast<double>(cluster.size());
+    int best = -1;
+    double best_d = o.association_gate;
+    for (size_t t = 0; t < im.tracks.size(); ++t) {
+      if (taken[t]) continue;
+      Track& tr = im.tracks[t];
+      const Eigen::Vector3d d = centroid - tr.centroid;
+      const Eigen::Matrix3d cov = tr.covariance + 4e-4 * Eigen::Matrix3d::Identity();
+      const double mahalanobis = std::sqrt(d.dot(cov.ldlt().solve(d)));
+      if (mahalanobis >= best_d) continue;
+      // Mean distance of the cluster's points to the track's box: unlike point-to-point
+      // distances, it does not grow when a new viewpoint shows other faces of the object.
+      double mean = 0.0;
+      for (const auto& p : cluster) mean += DistanceToBox(tr.box, p);
+      mean /= static_cast<double>(cluster.size());
+      if (mean > o.association_distance) continue;
+      best = static_cast<int>(t);
+      best_d = mahalanobis;
+    }
+    if (best < 0) {
+      Track fresh;
+      fresh.id = "obj-" + std::to_string(im.next_id++);
+      im.tracks.push_back(std::move(fresh));
+      taken.push_back(false);
+      best = static_cast<int>(im.tracks.size()) - 1;
+    }
+    taken[best] = true;
+    Track& tr = im.tracks[best];
+    *tr.points += cluster;
+    tr.surface = surface_of[clusters[c].indices.front()];
+    tr.Refresh(o.voxel);
+    tr.box = FitBox(*tr.points, workspaces[tr.surface].height);
+    track_of[c] = best;
+  }
+  result.timings.association = Ms(t0);
+
+  // ---- 4. detection, faces and moveability ----
+  t0 = Clock::now();
+  const Eigen::Matrix4d map_to_camera = camera_to_map.inverse();
+  const Vec3 camera_position = camera_to_map.block<3, 1>(0, 3);
+  std::vector<Box> boxes;
+  for (int t : track_of) boxes.push_back(im.tracks[t].box);
+  for (size_t c = 0; c < clusters.size(); ++c) {
+    const Track& tr = im.tracks[track_of[c]];
+    object_search::ObjectDetection det;
+    det.key = tr.id;
+    det.box = boxes[c];
+    // Sub-image: the cluster's points reprojected into the image.
+    double score = 0.5;
+    if (!frame.image.empty()) {
+      int u0 = frame.intrinsics.width, v0 = frame.intrinsics.height, u1 = -1, v1 = -1;
+      for (int i : clusters[c].indices) {
+        const Eigen::Vector4d q =
+            map_to_camera * Eigen::Vector4d((*objects)[i].x, (*objects)[i].y, (*objects)[i].z, 1);
+        if (q.z() <= 0) continue;
+        const int u = static_cast<int>(frame.intrinsics.fx * q.x() / q.z() + frame.intrinsics.cx);
+        const int v = static_cast<int>(frame.intrinsics.fy * q.y() / q.z() + frame.intrinsics.cy);
+        u0 = std::min(u0, u);
+        v0 = std::min(v0, v);
+        u1 = std::max(u1, u);
+        v1 = std::max(v1, v);
+      }
+      const cv::Rect rect = cv::Rect(u0, v0, u1 - u0 + 1, v1 - v0 + 1) &
+                            cv::Rect(0, 0, frame.image.cols, frame.image.rows);
+      if (rect.width >= 4 && rect.height >= 4) score = TargetScore(frame.image(rect));
+    }
+    const auto semantic = frame.semantic_scores.find(tr.id);
+    if (semantic != frame.semantic_scores.end()) {
+      score = 0.5 * (score + std::clamp(semantic->second, 0.0, 1.0));
+    }
+    // The face grids facing the camera and not hidden by other objects get the detection.
+    const auto corners = det.box.Corners();
+    std::array<std::pair<double, int>, 8> by_distance;
+    for (int k = 0; k < 8; ++k) by_distance[k] = {(corners[k] - camera_position).squaredNorm(), k};
+    std::partial_sort(by_distance.begin(), by_distance.begin() + 4, by_distance.end());
+    for (int n = 0; n < 4; ++n) {
+      const int k = by_distance[n].second;
+      const Vec3 p = corners[k] + 0.05 * (det.box.center - corners[k]);
+      const Eigen::Vector4d q = map_to_camera * Eigen::Vector4d(p.x(), p.y(), p.z(), 1);
+      if (q.z() <= 0) continue;
+      const double u = frame.intrinsics.fx * q.x() / q.z() + frame.intrinsics.cx;
+      const double v = frame.intrinsics.fy * q.y() / q.z() + frame.intrinsics.cy;
+      if (u < 0 || v < 0 || u >= frame.intrinsics.width || v >= frame.intrinsics.height) continue;
+      bool hidden = false;
+      for (size_t other = 0; other < boxes.size() && !hidden; ++other) {
+        if (other != c) hidden = boxes[other].BlocksSegment(camera_position, p);
+      }
+      if (!hidden) det.faces.push_back({k, score});
+    }
+    // Moveability: graspable size, and reachable from some base region.
+    const double extent = std::max(det.box.size.x(), det.box.size.y());
+    double reach = 1e9;
+    for (const auto& region : im.world.base_regions) {
+      const double dx = std::max({region.min.x() - det.box.center.x(), 0.0,
+                                  det.box.center.x() - region.max.x()});
+      const double dy = std::max({region.min.y() - det.box.center.y(), 0.0,
+                                  det.box.center.y() - region.max.y()});
+      reach = std::min(reach, std::hypot(dx, dy));
+    }
+    const bool reachable = reach <= im.world.robot.reach;
+    det.moveability = !reachable                       ? 0.05
+                      : extent <= o.gripper_max        ? 0.95
+                      : extent <= 1.5 * o.gripper_max ? 0.5
+                                                      : 0.05;
+    result.observation.objects.push_back(std::move(det));
+  }
+  result.timings.detection = Ms(t0);
+  result.timings.total = Ms(start);
+  return result;
+}
+
+// ---- encodings ----
+
+std::string Base64Encode(const std::string& bytes) {
+  static const char* kAlphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  out.reserve((bytes.size() + 2) / 3 * 4);
+  size_t i = 0;
+  for (; i + 2 < bytes.size(); i += 3) {
+    const uint32_t v = (static_cast<uint8_t>(bytes[i]) << 16) |
+                       (static_cast<uint8_t>(bytes[i + 1]) << 8) | static_cast<uint8_t>(bytes[i + 2]);
+    out += kAlphabet[v >> 18];
+    out += kAlphabet[(v >> 12) & 63];
+    out += kAlphabet[(v >> 6) & 63];
+    out += kAlphabet[v & 63];
+  }
+  if (i < bytes.size()) {
+    uint32_t v = static_cast<uint8_t>(bytes[i]) << 16;
+    if (i + 1 < bytes.size()) v |= static_cast<uint8_t>(bytes[i + 1]) << 8;
+    out += kAlphabet[v >> 18];
+    out += kAlphabet[(v >> 12) & 63];
+    out += i + 1 < bytes.size() ? kAlphabet[(v >> 6) & 63] : '=';
+    out += '=';
+  }
+  return out;
+}
+
+StatusOr<std::string> Base64Decode(const std::string& text) {
+  auto value = [](char c) -> int {
+    if (c >= 'A' && c <= 'Z') return c - 'A';
+    if (c >= 'a' && c <= 'z') return c - 'a' + 26;
+    if (c >= '0' && c <= '9') return c - '0' + 52;
+    if (c == '+' || c == '-') return 62;
+    if (c == '/' || c == '_') return 63;
+    return -1;
+  };
+  std::string out;
+  out.reserve(text.size() * 3 / 4);
+  uint32_t buffer = 0;
+  int bits = 0;
+  size_t padding = 0;
+  for (char c : text) {
+    if (c == '\n' || c == '\r' || c == ' ') continue;
+    if (c == '=') {
+      ++padding;
+      continue;
+    }
+    if (padding > 0) return InvalidArgumentError("not base64: data after padding");
+    const int v = value(c);
+    if (v < 0) return InvalidArgumentError("not base64: unexpected character");
+    buffer = (buffer << 6) | static_cast<uint32_t>(v);
+    bits += 6;
+    if (bits >= 8) {
+      bits -= 8;
+      out += static_cast<char>((buffer >> bits) & 0xff);
+    }
+  }
+  if (padding > 2) return InvalidArgumentError("not base64: too much padding");
+  return out;
+}
+
+StatusOr<Cloud::Ptr> DecodeCloud(const std::string& base64, const std::string& fields,
+                                 const std::string& field) {
+  if (fields != "xyz" && fields != "xyzrgb") {
+    return InvalidArgumentError(field + ".fields: expected 'xyz' or 'xyzrgb'");
+  }
+  auto bytes = Base64Decode(base64);
+  if (!bytes.ok()) return InvalidArgumentError(field + ".data: " + bytes.status().message());
+  const size_t stride = fields == "xyz" ? 12 : 16;
+  if (bytes->empty()) return InvalidArgumentError(field + ".data: the cloud is empty");
+  if (bytes->size() % stride != 0) {
+    return InvalidArgumentError(field + ".data: " + std::to_string(bytes->size()) +
+                                " bytes is not a whole number of " + std::to_string(stride) +
+                                "-byte points");
+  }
+  auto cloud = pcl::make_shared<Cloud>();
+  const size_t n = bytes->size() / stride;
+  cloud->resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    float v[4] = {0, 0, 0, 0};
+    std::memcpy(v, bytes->data() + i * stride, stride);
+    auto& p = (*cloud)[i];
+    p.x = v[0];
+    p.y = v[1];
+    p.z = v[2];
+    if (stride == 16) {
+      uint32_t rgb;
+      std::memcpy(&rgb, &v[3], 4);
+      p.r = (rgb >> 16) & 0xff;
+      p.g = (rgb >> 8) & 0xff;
+      p.b = rgb & 0xff;
+    } else {
+      p.r = p.g = p.b = 128;
+    }
+  }
+  cloud->width = static_cast<uint32_t>(n);
+  cloud->height = 1;
+  return cloud;
+}
+
+std::string EncodeCloud(const Cloud& cloud) {
+  std::string bytes(cloud.size() * 16, '\0');
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    const auto& p = cloud[i];
+    const uint32_t rgb = (static_cast<uint32_t>(p.r) << 16) | (static_cast<uint32_t>(p.g) << 8) |
+                         static_cast<uint32_t>(p.b);
+    float v[4] = {p.x, p.y, p.z, 0.0f};
+    std::memcpy(&v[3], &rgb, 4);
+    std::memcpy(bytes.data() + i * 16, v, 16);
+  }
+  return Base64Encode(bytes);
+}
+
+StatusOr<cv::Mat> DecodeImage(const std::string& base64, const std::string& field) {
+  auto bytes = Base64Decode(base64);
+  if (!bytes.ok()) return InvalidArgumentError(field + ".data: " + bytes.status().message());
+  if (bytes->empty()) return InvalidArgumentError(field + ".data: empty");
+  cv::Mat image;
+  try {
+    image = cv::imdecode(cv::Mat(1, static_cast<int>(bytes->size()), CV_8U, bytes->data()),
+                         cv::IMREAD_COLOR);
+  } catch (const cv::Exception&) {
+    image.release();
+  }
+  if (image.empty()) return InvalidArgumentError(field + ".data: not a PNG or JPEG image");
+  return image;
+}
+
+}  // namespace npfkct::perception

@@ -1,0 +1,264 @@
+// Perception on frames rendered by the simulator, where the truth is known.
+#include "npfkct/perception/perception.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <set>
+
+#include "npfkct/sim/frame_io.h"
+#include "npfkct/sim/simulator.h"
+
+namespace npfkct::perception {
+namespace {
+
+using object_search::RobotConfig;
+using sim::Simulator;
+
+sim::Scenario Load(const std::string& name) {
+  auto s = sim::LoadScenario(std::string(NPFKCT_SCENARIO_DIR) + "/" + name + ".json").value();
+  s.noise.pose_xy = 0.0;  // the tests place the robot exactly
+  s.noise.pose_yaw = 0.0;
+  return s;
+}
+
+RobotConfig Config(double x, double y, double yaw, double tilt = 0.45) {
+  RobotConfig c;
+  c.x = x;
+  c.y = y;
+  c.yaw = yaw;
+  c.lift = 0.2;
+  c.tilt = tilt;
+  return c;
+}
+
+// Moves the simulated robot and returns the frame it renders, reported at `reported`.
+SensorFrame Capture(Simulator* sim, const RobotConfig& truth, const RobotConfig& reported) {
+  Rng rng(1);
+  const auto world = sim->InitialWorld().value();
+  EXPECT_FALSE(sim->ExecuteMove(truth, world.params, rng).illegal);
+  const sim::Frame f = sim->Render(640, 480);
+  SensorFrame frame;
+  frame.cloud = sim::FrameCloud(f, /*world_frame=*/false);
+  frame.image = sim::FrameBgr(f);
+  frame.intrinsics = {f.width, f.height, f.fx, f.fy, f.cx, f.cy};
+  frame.reported = reported;
+  return frame;
+}
+
+TargetModel TargetOf(const Simulator& sim) {
+  return {sim::ObjectPhotos(sim.objects()[sim.target_index()])};
+}
+
+// The scene object whose box holds (or is nearest to) a detected box's center.
+int SceneObjectOf(const Simulator& sim, const object_search::Box& box) {
+  int best = -1;
+  double best_d = 1e9;
+  for (size_t i = 0; i < sim.objects().size(); ++i) {
+    const double d = (sim.objects()[i].box.center - box.center).head<2>().norm();
+    if (d < best_d) {
+      best_d = d;
+      best = static_cast<int>(i);
+    }
+  }
+  return best;
+}
+
+TEST(PerceptionTest, IcpRecoversAKnownPoseOffset) {
+  Simulator sim(Load("loose1"), 1);
+  Perception p(sim.InitialWorld().value(), TargetOf(sim), {});
+  // From here the table's front face, its top and the floor beyond constrain the pose.
+  const RobotConfig truth = Config(0.05, 0.1, 0.05);
+  RobotConfig reported = truth;
+  reported.x += 0.06;
+  reported.y -= 0.04;
+  reported.yaw += 0.03;
+  auto r = p.Process(Capture(&sim, truth, reported));
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_NEAR(r->observation.achieved.x, truth.x, 0.015);
+  EXPECT_NEAR(r->observation.achieved.y, truth.y, 0.015);
+  EXPECT_NEAR(r->observation.achieved.yaw, truth.yaw, 0.01);
+  EXPECT_LT(r->fitness, 1e-3);
+}
+
+TEST(PerceptionTest, RansacRescuesABadReportedPose) {
+  Simulator sim(Load("loose1"), 1);
+  Perception p(sim.InitialWorld().value(), TargetOf(sim), {});
+  const RobotConfig truth = Config(0.05, 0.0, 0.0);
+  RobotConfig reported = truth;
+  reported.x += 0.3;
+  reported.yaw -= 0.25;
+  auto r = p.Process(Capture(&sim, truth, reported));
+  ASSERT_TRUE(r.ok());
+  EXPECT_NEAR(r->observation.achieved.x, truth.x, 0.03);
+  EXPECT_NEAR(r->observation.achieved.yaw, truth.yaw, 0.03);
+}
+
+TEST(PerceptionTest, ClustersBoxesAndDetectsTheTarget) {
+  Simulator sim(Load("loose1"), 1);
+  Perception p(sim.InitialWorld().value(), TargetOf(sim), {});
+  const RobotConfig at = Config(0.4, 0.0, 0.0);
+  auto frame = Capture(&sim, at, at);
+  // The truth: scene objects with enough pixels in the rendered frame.
+  const sim::Frame f = sim.Render(640, 480);
+  std::map<int, int> pixels;
+  for (int16_t id : f.ids) {
+    if (id >= 0 && id < 1000) ++pixels[id];
+  }
+  std::set<int> visible;
+  for (auto [id, n] : pixels) {
+    if (n > 300) visible.insert(id);
+  }
+  auto r = p.Process(frame);
+  ASSERT_TRUE(r.ok());
+  EXPECT_EQ(r->observation.objects.size(), visible.size());
+  std::set<int> found;
+  for (const auto& d : r->observation.objects) {
+    const int i = SceneObjectOf(sim, d.box);
+    found.insert(i);
+    const auto& truth = sim.objects()[i];
+    EXPECT_LT((d.box.center - truth.box.center).head<2>().norm(), 0.06) << truth.name;
+    EXPECT_NEAR(d.box.size.z(), truth.box.size.z(), 0.02) << truth.name;
+    ASSERT_FALSE(d.faces.empty()) << truth.name;
+    for (const auto& face : d.faces) {
+      if (truth.target) {
+        EXPECT_GT(face.score, 0.6) << "target face " << face.corner;
+      } else {
+        EXPECT_LT(face.score, 0.4) << truth.name;
+      }
+    }
+    EXPECT_GT(d.moveability, 0.5);
+  }
+  EXPECT_EQ(found, visible);
+}
+
+TEST(PerceptionTest, BoxesConvergeAndIdsStayWhenTheRobotMoves) {
+  Simulator sim(Load("loose1"), 1);
+  Perception p(sim.InitialWorld().value(), TargetOf(sim), {});
+  const RobotConfig front = Config(0.4, 0.0, 0.0);
+  const RobotConfig side = Config(1.6, -1.05, std::numbers::pi / 2);
+  auto a = p.Process(Capture(&sim, front, front));
+  ASSERT_TRUE(a.ok());
+  auto b = p.Process(Capture(&sim, side, side));
+  ASSERT_TRUE(b.ok());
+  std::map<int, std::string> id_of;
+  for (const auto& d : a->observation.objects) id_of[SceneObjectOf(sim, d.box)] = d.key;
+  int common = 0;
+  for (const auto& d : b->observation.objects) {
+    const int i = SceneObjectOf(sim, d.box);
+    if (!id_of.count(i)) continue;
+    ++common;
+    EXPECT_EQ(d.key, id_of[i]) << sim.objects()[i].name;
+    // Seen from two sides, the box's horizontal extents match the object's.
+    const auto& truth = sim.objects()[i].box;
+    const double big = std::max(truth.size.x(), truth.size.y());
+    const double small = std::min(truth.size.x(), truth.size.y());
+    EXPECT_NEAR(std::max(d.box.size.x(), d.box.size.y()), big, 0.03) << sim.objects()[i].name;
+    EXPECT_NEAR(std::min(d.box.size.x(), d.box.size.y()), small, 0.03) << sim.objects()[i].name;
+    // Yaw, modulo the box's quarter-turn symmetry.
+    const double dyaw = std::remainder(d.box.yaw - truth.yaw, std::numbers::pi / 2);
+    EXPECT_LT(std::abs(dyaw), 0.12) << sim.objects()[i].name;
+  }
+  EXPECT_GE(common, 2);
+  EXPECT_EQ(p.tracks(), static_cast<int>(sim.objects().size()));
+}
+
+TEST(PerceptionTest, SiftMatchesTheTargetAndRejectsLookAlikes) {
+  Simulator sim(Load("loose1"), 1);
+  sim::SceneObject target = sim.objects()[sim.target_index()];
+  Perception p(sim.InitialWorld().value(), {sim::ObjectPhotos(target)}, {});
+  // A view of the target's face, smaller and blurred: still the target.
+  cv::Mat face = sim::ObjectPhotos(target, 300)[1], view;
+  cv::resize(face, view, cv::Size(), 0.6, 0.6);
+  cv::GaussianBlur(view, view, cv::Size(3, 3), 0.8);
+  bool colour = true;
+  EXPECT_GT(p.TargetScore(view, &colour), 0.8);
+  EXPECT_FALSE(colour);
+  // The same colours printed in another pattern: a look-alike.
+  sim::SceneObject fake = target;
+  fake.texture_seed = 777;
+  EXPECT_LT(p.TargetScore(sim::ObjectPhotos(fake, 300)[1], &colour), 0.3);
+  EXPECT_FALSE(colour);
+  // A plain box: too few features, the colour decides (blue target photos, red box).
+  cv::Mat red(120, 120, CV_8UC3, cv::Scalar(40, 50, 200));
+  EXPECT_LT(p.TargetScore(red, &colour), 0.4);
+  EXPECT_TRUE(colour);
+}
+
+TEST(PerceptionTest, BadFramesGetClearErrorsAndChangeNothing) {
+  Simulator sim(Load("loose1"), 1);
+  Perception p(sim.InitialWorld().value(), TargetOf(sim), {});
+  const RobotConfig at = Config(0.4, 0.0, 0.0);
+  SensorFrame good = Capture(&sim, at, at);
+  SensorFrame empty = good;
+  empty.cloud = pcl::make_shared<Cloud>();
+  EXPECT_NE(p.Process(empty).status().message().find("pointCloud.data: the cloud is empty"),
+            std::string::npos);
+  auto nan_cloud = pcl::make_shared<Cloud>(*good.cloud);
+  (*nan_cloud)[10].x = std::nanf("");
+  SensorFrame nan = good;
+  nan.cloud = nan_cloud;
+  EXPECT_NE(p.Process(nan).status().message().find("point 10 is not finite"), std::string::npos);
+  // A map-frame cloud sent as a camera-frame one: many points "behind" the camera.
+  SensorFrame wrong = good;
+  auto map_cloud = pcl::make_shared<Cloud>();
+  for (const auto& q : *good.cloud) {
+    auto w = q;
+    w.z = -q.z;
+    map_cloud->push_back(w);
+  }
+  wrong.cloud = map_cloud;
+  EXPECT_NE(p.Process(wrong).status().message().find("pointCloud.frame"), std::string::npos);
+  SensorFrame small = good;
+  cv::resize(good.image, small.image, cv::Size(320, 240));
+  EXPECT_NE(p.Process(small).status().message().find("image.data: the image is 320x240"),
+            std::string::npos);
+  EXPECT_EQ(p.tracks(), 0);
+  EXPECT_TRUE(p.Process(good).ok());
+  EXPECT_GT(p.tracks(), 0);
+}
+
+TEST(EncodingTest, CloudsAndImagesRoundTripAndBadDataIsNamed) {
+  Cloud c;
+  pcl::PointXYZRGB p;
+  p.x = 1.5f;
+  p.y = -2.0f;
+  p.z = 0.25f;
+  p.r = 10;
+  p.g = 20;
+  p.b = 30;
+  c.push_back(p);
+  auto back = DecodeCloud(EncodeCloud(c), "xyzrgb", "pointCloud");
+  ASSERT_TRUE(back.ok());
+  EXPECT_EQ((*back)->size(), 1u);
+  EXPECT_EQ((**back)[0].x, 1.5f);
+  EXPECT_EQ((**back)[0].g, 20);
+  EXPECT_NE(DecodeCloud(Base64Encode(std::string(13, 'x')), "xyz", "pointCloud")
+                .status()
+                .message()
+                .find("pointCloud.data: 13 bytes"),
+            std::string::npos);
+  EXPECT_NE(DecodeCloud("!!!", "xyz", "pointCloud").status().message().find("not base64"),
+            std::string::npos);
+  EXPECT_NE(DecodeCloud("", "xyz", "pointCloud").status().message().find("empty"),
+            std::string::npos);
+  EXPECT_NE(DecodeCloud("AAAA", "xyzw", "pointCloud").status().message().find(
+                "pointCloud.fields"),
+            std::string::npos);
+  cv::Mat img(16, 16, CV_8UC3, cv::Scalar(1, 2, 3));
+  std::vector<uchar> png;
+  cv::imencode(".png", img, png);
+  auto decoded = DecodeImage(Base64Encode(std::string(png.begin(), png.end())), "image");
+  ASSERT_TRUE(decoded.ok());
+  EXPECT_EQ(decoded->cols, 16);
+  EXPECT_NE(DecodeImage(Base64Encode("GIF89a nonsense"), "image").status().message().find(
+                "image.data: not a PNG or JPEG"),
+            std::string::npos);
+  EXPECT_EQ(Base64Decode(Base64Encode("hello world")).value(), "hello world");
+}
+
+}  // namespace
+}  // namespace npfkct::perception
