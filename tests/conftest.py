@@ -1,5 +1,6 @@
 """Shared fixtures: the real npfkct-server on a loopback port, the simulated robot, paths."""
 
+import base64
 import json
 import os
 import signal
@@ -60,10 +61,16 @@ class ServerProcess:
 class SimRobot:
     """npfkct-sim-robot: executes API actions and returns :observe bodies."""
 
-    def __init__(self, scenario, seed=1):
-        self.proc = subprocess.Popen([ROBOT_BIN, "--scenario", scenario_path(scenario),
-                                      "--seed", str(seed)],
+    def __init__(self, scenario, seed=1, raw=False):
+        args = [ROBOT_BIN, "--scenario", scenario_path(scenario), "--seed", str(seed)]
+        self.proc = subprocess.Popen(args + (["--raw"] if raw else []),
                                      stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        self.photos_args = args + ["--target-photos"]
+
+    def target_photos(self):
+        """The target's photos as PNG bytes."""
+        out = subprocess.run(self.photos_args, check=True, capture_output=True, text=True).stdout
+        return [base64.b64decode(p) for p in json.loads(out)]
 
     def execute(self, action):
         self.proc.stdin.write(json.dumps(action) + "\n")

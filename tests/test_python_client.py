@@ -3,7 +3,10 @@
 import pytest
 
 from conftest import SimRobot, world_of
-from npfkct_client import ApiError, Detection, Box, Face, NpfkctClient, RobotConfig
+import base64
+
+from npfkct_client import (ApiError, Box, Detection, Face, NpfkctClient, PointCloud,
+                           RobotConfig)
 
 
 def run_episode(client, scenario, planner="npfkct", time_ms=250, max_steps=50):
@@ -37,6 +40,48 @@ def test_full_episode_loose1(server):
 def test_other_planners_serve_episodes(server, planner):
     client = NpfkctClient(server.url)
     assert run_episode(client, "loose1", planner=planner) is not None
+
+
+def test_raw_frames_through_the_typed_client(server):
+    """Rendered RGB-D frames sent as PointCloud + PNG: the server's perception finds the
+    objects and the episode ends with the target removed."""
+    client = NpfkctClient(server.url)
+    robot = SimRobot("loose1", seed=4, raw=True)
+    session = client.create_session(world_of("loose1"), seed=4,
+                                    target_description="patterned box",
+                                    target_photos=robot.target_photos())
+    assert session.raw["target"] == {"description": "patterned box", "photoCount": 4}
+    seen = set()
+    try:
+        for _ in range(30):
+            plan = client.plan(session.id, time_ms=250)
+            reply = robot.execute(plan.action.to_json())
+            o = reply["observation"]
+            if "pointCloud" not in o:  # the camera saw nothing in range
+                observed = client.observe(session.id, plan.action_id, body=o)
+            else:
+                observed = client.observe(
+                    session.id, plan.action_id, succeeded=o["succeeded"],
+                    robot_state=RobotConfig.from_json(o["robotState"]),
+                    point_cloud=PointCloud(base64.b64decode(o["pointCloud"]["data"]), "xyzrgb"),
+                    image=base64.b64decode(o["image"]["data"]), camera=o["camera"])
+                assert observed.perception["timingsMs"]["total"] > 0
+                seen |= {d["id"] for d in observed.perception["detections"]}
+            assert observed.done == reply["outcome"]["terminal"]
+            if observed.done:
+                break
+        assert observed.done, "the target was not removed within 30 steps"
+        assert len(seen) >= 2 and all(i.startswith("obj-") for i in seen)
+    finally:
+        robot.close()
+        client.delete_session(session.id)
+
+
+def test_point_cloud_packing():
+    cloud = PointCloud.from_points([(1.0, 2.0, 3.0), (float("nan"), 0.0, 1.0)])
+    assert cloud.fields == "xyz" and len(cloud.data) == 12
+    coloured = PointCloud.from_points([(1.0, 2.0, 3.0)], colors=[(255, 0, 1)])
+    assert coloured.fields == "xyzrgb" and coloured.data[12:] == bytes([1, 0, 255, 0])
 
 
 def test_typed_calls_and_errors(server):

@@ -1,5 +1,6 @@
 """JSON Schemas (draft 2020-12) and the OpenAPI document: examples and real responses validate."""
 
+import base64
 import json
 import os
 
@@ -41,9 +42,11 @@ def test_every_schema_is_valid_draft_2020_12():
 
 def test_examples_validate():
     examples = os.listdir(os.path.join(SCHEMAS, "examples"))
-    assert len(examples) >= 11
+    assert len(examples) >= 13
     for name in examples:
         message = name[: -len(".json")]
+        if message.endswith("_raw"):  # the raw-sensor-data variant of a message
+            message = message[: -len("_raw")]
         with open(os.path.join(SCHEMAS, "examples", name), encoding="utf-8") as f:
             validator(message).validate(json.load(f))
 
@@ -52,6 +55,11 @@ def test_schemas_reject_what_the_server_rejects():
     with pytest.raises(jsonschema.ValidationError):
         validator("observe_request").validate(
             {"actionId": "a1", "detections": [{"id": "x", "box": {"center": [0, 0], "size": [1, 1, 1]}}]})
+    with pytest.raises(jsonschema.ValidationError):  # detections and raw data together
+        validator("observe_request").validate(
+            {"actionId": "a1", "detections": [], "pointCloud": {"data": "AAAA"}})
+    with pytest.raises(jsonschema.ValidationError):  # an image without its cloud
+        validator("observe_request").validate({"actionId": "a1", "image": {"data": "AAAA"}})
     with pytest.raises(jsonschema.ValidationError):
         validator("plan_request").validate({"budget": {"timeMs": -1}})
     with pytest.raises(jsonschema.ValidationError):
@@ -102,6 +110,29 @@ def test_real_responses_validate(server):
         if observed["done"]:
             break
     robot.close()
+    # Raw frames through perception.
+    raw_robot = SimRobot("hidden1", seed=9, raw=True)
+    raw_create = {"world": world_of("hidden1"), "seed": 9,
+                  "target": {"photos": [base64.b64encode(p).decode()
+                                        for p in raw_robot.target_photos()]}}
+    v("create_session_request", raw_create)
+    raw_session = requests.post(url + "/v1/sessions", json=raw_create).json()
+    v("session", raw_session)
+    perceived = 0
+    for _ in range(3):
+        plan = requests.post(url + f"/v1/sessions/{raw_session['id']}:plan",
+                             json={"budget": {"timeMs": 100}}).json()
+        body = dict(raw_robot.execute(plan["action"])["observation"], actionId=plan["actionId"])
+        v("observe_request", body)
+        observed = requests.post(url + f"/v1/sessions/{raw_session['id']}:observe",
+                                 json=body).json()
+        v("observe_response", observed)
+        perceived += "perception" in observed
+        if observed["done"]:
+            break
+    raw_robot.close()
+    assert perceived > 0
+    v("session", requests.get(url + f"/v1/sessions/{raw_session['id']}").json())
     v("belief", requests.get(url + f"/v1/sessions/{session['id']}/belief").json())
     v("list_sessions_response", requests.get(url + "/v1/sessions").json())
     for bad in [("post", f"/v1/sessions/{session['id']}:plan", {"budget": {"simulations": -1}}),

@@ -14,12 +14,18 @@ Parameters (private):
   ~budget_ms     planning time per step (default 1000)
   ~lift_joint, ~pan_joint, ~tilt_joint   joint names (Fetch: torso_lift_joint, head_pan_joint,
                  head_tilt_joint)
+  ~map_frame     frame id of clouds already in the map frame (default map); any other frame id
+                 is taken as the camera's optical frame at the reported pose
+  ~target_photos list of PNG/JPEG files of the target (new sessions), for the server's perception
 
 Subscribes:
   ~base_pose      geometry_msgs/PoseStamped  base pose in the map frame
   ~joint_states   sensor_msgs/JointState     lift, head pan and tilt
-  ~points         sensor_msgs/PointCloud2    camera cloud (sent raw when perception runs)
-  ~image          sensor_msgs/Image          camera image (idem)
+  ~points         sensor_msgs/PointCloud2    camera cloud: sent raw for the server's perception
+                                             when no ~detections arrived for the step
+  ~image          sensor_msgs/Image          colour image registered with the cloud (rgb8, bgr8,
+                                             mono8), sent as PNG with the cloud
+  ~camera_info    sensor_msgs/CameraInfo     intrinsics of the cloud's camera
   ~detections     std_msgs/String            JSON array of detections in the API's form
   ~action_result  std_msgs/String            JSON {"actionId": ..., "succeeded": bool}
 Publishes:
@@ -33,12 +39,14 @@ import base64
 import json
 import math
 import os
+import struct
 import sys
 import threading
+import zlib
 
 import rospy
 from geometry_msgs.msg import PoseStamped
-from sensor_msgs.msg import Image, JointState, PointCloud2
+from sensor_msgs.msg import CameraInfo, Image, JointState, PointCloud2
 from std_msgs.msg import String
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "python"))
@@ -49,6 +57,71 @@ from npfkct_client.cli import world_of_scenario  # noqa: E402
 def yaw_of(q):
     """Yaw of a geometry_msgs/Quaternion."""
     return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+
+
+_FLOAT32 = 7  # sensor_msgs/PointField.FLOAT32
+
+
+def cloud_to_api(msg, map_frame="map"):
+    """A PointCloud2 as the API's pointCloud: NaN points dropped, packed as float32 xyz or, when
+    the cloud has an rgb/rgba field, xyzrgb. None when no valid point remains."""
+    fields = {f.name: f for f in msg.fields}
+    for name in ("x", "y", "z"):
+        if name not in fields or fields[name].datatype != _FLOAT32:
+            raise ValueError(f"~points: field {name} missing or not FLOAT32")
+    colour = fields.get("rgb") or fields.get("rgba")
+    order = "<" if not msg.is_bigendian else ">"
+    layout = [("x", "f"), ("y", "f"), ("z", "f")] + ([(colour.name, "I")] if colour else [])
+    fmt, offset = order, 0
+    for name, code in sorted(layout, key=lambda item: fields[item[0]].offset):
+        fmt += "x" * (fields[name].offset - offset) + code
+        offset = fields[name].offset + 4
+    fmt += "x" * (msg.point_step - offset)
+    names = [name for name, _ in sorted(layout, key=lambda item: fields[item[0]].offset)]
+    ix, iy, iz = names.index("x"), names.index("y"), names.index("z")
+    ic = names.index(colour.name) if colour else None
+    out = bytearray()
+    data = bytes(msg.data)
+    for row in range(msg.height):
+        chunk = data[row * msg.row_step:row * msg.row_step + msg.width * msg.point_step]
+        for p in struct.iter_unpack(fmt, chunk):
+            x, y, z = p[ix], p[iy], p[iz]
+            if x != x or y != y or z != z:
+                continue
+            if ic is None:
+                out += struct.pack("<fff", x, y, z)
+            else:
+                out += struct.pack("<fffI", x, y, z, p[ic] & 0xFFFFFF)
+    if not out:
+        return None
+    frame = "map" if msg.header.frame_id == map_frame else "camera"
+    return {"frame": frame, "fields": "xyzrgb" if colour else "xyz",
+            "data": base64.b64encode(bytes(out)).decode()}
+
+
+def image_to_png(msg):
+    """A sensor_msgs/Image (rgb8, bgr8, mono8) as PNG bytes."""
+    if msg.encoding in ("rgb8", "bgr8"):
+        channels, colour_type = 3, 2
+    elif msg.encoding == "mono8":
+        channels, colour_type = 1, 0
+    else:
+        raise ValueError(f"~image: encoding {msg.encoding} (rgb8, bgr8 or mono8 expected)")
+    data = bytes(msg.data)
+    rows = bytearray()
+    for v in range(msg.height):
+        line = bytearray(data[v * msg.step:v * msg.step + msg.width * channels])
+        if msg.encoding == "bgr8":
+            line[0::3], line[2::3] = line[2::3], line[0::3]
+        rows += b"\x00" + line
+
+    def chunk(kind, payload):
+        body = kind + payload
+        return struct.pack(">I", len(payload)) + body + struct.pack(">I", zlib.crc32(body))
+
+    header = struct.pack(">IIBBBBB", msg.width, msg.height, 8, colour_type, 0, 0, 0)
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) +
+            chunk(b"IDAT", zlib.compress(bytes(rows), 6)) + chunk(b"IEND", b""))
 
 
 class NpfkctNode:
@@ -69,6 +142,8 @@ class NpfkctNode:
         self.detections = None
         self.cloud = None
         self.image = None
+        self.camera = None
+        self.map_frame = rospy.get_param("~map_frame", "map")
         self.pending = None
         self.done = False
 
@@ -77,9 +152,13 @@ class NpfkctNode:
         if session_id:
             self.session_id = session_id
         elif scenario:
+            photos = []
+            for path in rospy.get_param("~target_photos", []):
+                with open(path, "rb") as f:
+                    photos.append(f.read())
             session = self.client.create_session(
                 world_of_scenario(scenario), planner=rospy.get_param("~planner", "npfkct"),
-                seed=int(rospy.get_param("~seed", 1)))
+                seed=int(rospy.get_param("~seed", 1)), target_photos=photos or None)
             self.session_id = session.id
         else:
             raise RuntimeError("set ~scenario or ~session_id")
@@ -93,6 +172,7 @@ class NpfkctNode:
         rospy.Subscriber("~joint_states", JointState, self.on_joints)
         rospy.Subscriber("~points", PointCloud2, self.on_points)
         rospy.Subscriber("~image", Image, self.on_image)
+        rospy.Subscriber("~camera_info", CameraInfo, self.on_camera_info)
         rospy.Subscriber("~detections", String, self.on_detections)
         rospy.Subscriber("~action_result", String, self.on_result)
 
@@ -122,6 +202,11 @@ class NpfkctNode:
         with self.lock:
             self.image = msg
 
+    def on_camera_info(self, msg):
+        with self.lock:
+            self.camera = {"width": msg.width, "height": msg.height, "fx": msg.K[0],
+                           "fy": msg.K[4], "cx": msg.K[2], "cy": msg.K[5]}
+
     def on_detections(self, msg):
         try:
             detections = json.loads(msg.data)
@@ -148,15 +233,27 @@ class NpfkctNode:
                 return
             body = {"succeeded": bool(result.get("succeeded", True)),
                     "robotState": dict(self.state)}
-            if self.detections is not None:
-                body["detections"] = self.detections
-            elif self.cloud is not None:
-                body["pointCloud"] = {"frame": self.cloud.header.frame_id or "camera",
-                                      "fields": "xyz",
-                                      "data": base64.b64encode(bytes(self.cloud.data)).decode()}
+            cloud, image, camera = self.cloud, self.image, self.camera
+            detections = self.detections
             action_id = self.pending["actionId"]
             self.pending = None
             self.detections = None
+            self.cloud = None
+            self.image = None
+        if detections is not None:
+            body["detections"] = detections
+        elif cloud is not None:
+            try:
+                points = cloud_to_api(cloud, self.map_frame)
+                if points is not None:  # an all-NaN cloud: the camera saw nothing in range
+                    body["pointCloud"] = points
+                    if image is not None:
+                        body["image"] = {"encoding": "png",
+                                         "data": base64.b64encode(image_to_png(image)).decode()}
+                    if camera is not None:
+                        body["camera"] = camera
+            except (ValueError, struct.error) as e:
+                rospy.logerr("sensor data not sent: %s", e)
         try:
             observed = self.client.observe(self.session_id, action_id, body=body)
         except ApiError as e:

@@ -12,6 +12,8 @@
 #include <pcl/segmentation/extract_clusters.h>
 
 #include <algorithm>
+#include <cstdio>
+#include <cstdlib>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -189,10 +191,6 @@ double DistanceToBox(const Box& b, const PointXYZ& p) {
   return outside.norm();
 }
 
-double Sigmoidish(double x, double threshold) {
-  // 0 -> 0.05, threshold -> 0.5, 2 threshold and above -> 0.95.
-  return std::clamp(0.5 + 0.45 * (x - threshold) / threshold, 0.05, 0.95);
-}
 
 }  // namespace
 
@@ -213,7 +211,8 @@ Status PerceptionOptions::Validate() const {
                    association_distance, sift_ratio, match_threshold, gripper_max}) {
     if (!(v > 0) || !std::isfinite(v)) return InvalidArgumentError("perception options must be > 0");
   }
-  if (icp_iterations < 1 || min_cluster_points < 1 || max_cluster_points < min_cluster_points) {
+  if (icp_iterations < 1 || min_cluster_points < 1 || max_cluster_points < min_cluster_points ||
+      min_features < 1 || min_inliers < 4) {
     return InvalidArgumentError("perception options: bad counts");
   }
   return OkStatus();
@@ -247,14 +246,14 @@ struct Perception::Impl {
   pcl::PointCloud<pcl::FPFHSignature33>::Ptr map_features;
   CloudXYZ::Ptr map_ransac;
 
-  cv::Mat Histogram(const cv::Mat& bgr) const {
+  cv::Mat Histogram(const cv::Mat& bgr, const cv::Mat& mask = cv::Mat()) const {
     cv::Mat hsv, hist;
     cv::cvtColor(bgr, hsv, cv::COLOR_BGR2HSV);
     const int channels[] = {0, 1};
     const int bins[] = {30, 32};
     const float hue[] = {0, 180}, sat[] = {0, 256};
     const float* ranges[] = {hue, sat};
-    cv::calcHist(&hsv, 1, channels, cv::Mat(), hist, 2, bins, ranges);
+    cv::calcHist(&hsv, 1, channels, mask, hist, 2, bins, ranges);
     cv::normalize(hist, hist, 0, 1, cv::NORM_MINMAX);
     return hist;
   }
@@ -313,6 +312,52 @@ Perception::~Perception() = default;
 
 int Perception::tracks() const { return static_cast<int>(impl_->tracks.size()); }
 
+std::vector<TrackState> Perception::SaveTracks(int* next_id) const {
+  std::vector<TrackState> out;
+  for (const Track& t : impl_->tracks) {
+    TrackState st;
+    st.id = t.id;
+    st.surface = t.surface;
+    for (const auto& p : *t.points) st.points.insert(st.points.end(), {p.x, p.y, p.z});
+    out.push_back(std::move(st));
+  }
+  *next_id = impl_->next_id;
+  return out;
+}
+
+Status Perception::RestoreTracks(const std::vector<TrackState>& tracks, int next_id) {
+  const auto& workspaces = impl_->world.grid.workspaces();
+  if (next_id < 0) return InvalidArgumentError("perception tracks: negative next id");
+  std::vector<Track> restored;
+  for (const TrackState& st : tracks) {
+    if (st.id.empty() || st.points.empty() || st.points.size() % 3 != 0 || st.surface < 0 ||
+        st.surface >= static_cast<int>(workspaces.size())) {
+      return InvalidArgumentError("perception track '" + st.id + "' is malformed");
+    }
+    Track t;
+    t.id = st.id;
+    t.surface = st.surface;
+    for (size_t i = 0; i < st.points.size(); i += 3) {
+      t.points->push_back(PointXYZ(st.points[i], st.points[i + 1], st.points[i + 2]));
+    }
+    t.Refresh(impl_->options.voxel);
+    t.box = FitBox(*t.points, workspaces[t.surface].height);
+    restored.push_back(std::move(t));
+  }
+  impl_->tracks = std::move(restored);
+  impl_->next_id = next_id;
+  return OkStatus();
+}
+
+bool Perception::DropTrack(const std::string& id) {
+  auto& tracks = impl_->tracks;
+  const auto it = std::find_if(tracks.begin(), tracks.end(),
+                               [&](const Track& t) { return t.id == id; });
+  if (it == tracks.end()) return false;
+  tracks.erase(it);
+  return true;
+}
+
 Cloud::ConstPtr Perception::map() const {
   auto out = pcl::make_shared<Cloud>();
   for (const auto& p : *impl_->map) {
@@ -325,19 +370,28 @@ Cloud::ConstPtr Perception::map() const {
   return out;
 }
 
-double Perception::TargetScore(const cv::Mat& region, bool* used_colour) const {
+double Perception::TargetScore(const cv::Mat& region, bool* used_colour,
+                               const cv::Mat& mask) const {
   const Impl& im = *impl_;
   if (used_colour != nullptr) *used_colour = false;
   if (region.empty() || im.target.photos.empty()) return 0.5;
+  // Evidence in log-odds, from two cues:
+  //  - SIFT: keypoints matched to a photo (Lowe's ratio test) that agree on one planar mapping
+  //    (the photo's face seen in perspective). Consistent matches are strong evidence for the
+  //    target; their absence is evidence against only in proportion to the keypoints found (a
+  //    small or far region has too few for SIFT to decide either way).
+  //  - colour: the hue-saturation histogram against the photos'. A mismatch rules the target
+  //    out; a match is weak evidence (look-alikes share colours).
   cv::Mat gray;
   cv::cvtColor(region, gray, cv::COLOR_BGR2GRAY);
   std::vector<cv::KeyPoint> keypoints;
   cv::Mat descriptors;
-  im.sift->detectAndCompute(gray, cv::noArray(), keypoints, descriptors);
-  if (static_cast<int>(keypoints.size()) >= im.options.min_features &&
-      !im.photo_descriptors.empty()) {
+  const bool masked = !mask.empty() && mask.size() == region.size() && mask.type() == CV_8U;
+  im.sift->detectAndCompute(gray, masked ? mask : cv::Mat(), keypoints, descriptors);
+  const int n = static_cast<int>(keypoints.size());
+  int inliers = 0;
+  if (n >= im.options.min_features) {
     cv::BFMatcher matcher(cv::NORM_L2);
-    double best = 0.0;
     for (size_t k = 0; k < im.photo_descriptors.size(); ++k) {
       std::vector<std::vector<cv::DMatch>> knn;
       matcher.knnMatch(descriptors, im.photo_descriptors[k], knn, 2);
@@ -348,26 +402,40 @@ double Perception::TargetScore(const cv::Mat& region, bool* used_colour) const {
           to.push_back(im.photo_keypoints[k][m[0].trainIdx].pt);
         }
       }
-      // Matches that agree on one planar mapping (the photo's face seen in perspective): chance
-      // matches between look-alike textures do not.
-      int inliers = 0;
       if (from.size() >= 5) {
         std::vector<uchar> mask;
         const cv::Mat homography = cv::findHomography(from, to, cv::RANSAC, 4.0, mask);
-        if (!homography.empty()) inliers = cv::countNonZero(mask);
+        // Most matches of a true view agree; chance matches between look-alike textures give
+        // a homography that only a minority supports.
+        const int agreeing = homography.empty() ? 0 : cv::countNonZero(mask);
+        if (2 * agreeing >= static_cast<int>(from.size())) inliers = std::max(inliers, agreeing);
       }
-      best = std::max(best, static_cast<double>(inliers) / static_cast<double>(keypoints.size()));
     }
-    return Sigmoidish(best, im.options.match_threshold);
   }
-  // Too little texture: compare colours.
-  if (used_colour != nullptr) *used_colour = true;
-  const cv::Mat hist = im.Histogram(region);
-  double best = -1.0;
+  double sift = 0.0;
+  if (n >= im.options.min_features && !im.photo_descriptors.empty()) {
+    const double expected = im.options.match_threshold * n;  // inliers a target view would give
+    if (inliers >= im.options.min_inliers) {
+      sift = 3.0 * std::min(1.0, static_cast<double>(inliers) / (2.0 * im.options.min_inliers));
+    } else {
+      // A few missing matches mean nothing: small regions give few even for the target.
+      sift = -std::min(2.0, 0.25 * std::max(0.0, expected - 0.5 * im.options.min_inliers));
+    }
+  }
+  const cv::Mat hist = im.Histogram(region, masked ? mask : cv::Mat());
+  double colour_corr = -1.0;
   for (const cv::Mat& h : im.photo_histograms) {
-    best = std::max(best, cv::compareHist(hist, h, cv::HISTCMP_CORREL));
+    colour_corr = std::max(colour_corr, cv::compareHist(hist, h, cv::HISTCMP_CORREL));
   }
-  return std::clamp(0.5 + 0.9 * (best - 0.5), 0.05, 0.95);
+  // Below 0.15 the colours differ (-3); from 0.5 they agree (+0.5).
+  const double colour = colour_corr < 0.35 ? -3.0 * std::min(1.0, (0.35 - colour_corr) / 0.2)
+                                           : 0.5 * std::min(1.0, (colour_corr - 0.35) / 0.15);
+  if (used_colour != nullptr) *used_colour = sift == 0.0;
+  if (std::getenv("NPFKCT_DEBUG_TARGET")) {
+    std::fprintf(stderr, "  region %dx%d keypoints %d inliers %d colour %.2f -> %.2f %.2f\n",
+                 region.cols, region.rows, n, inliers, colour_corr, sift, colour);
+  }
+  return std::clamp(1.0 / (1.0 + std::exp(-(sift + colour))), 0.05, 0.95);
 }
 
 StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
@@ -387,12 +455,29 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
     }
   }
   if (!frame.cloud_in_map_frame) {
-    size_t behind = 0;
-    for (const auto& p : *frame.cloud) behind += p.z <= 0.0f;
-    if (behind * 20 > frame.cloud->size()) {
+    // A camera's cloud lies in front of it and inside its field of view.
+    const CameraIntrinsics& in = frame.intrinsics;
+    size_t behind = 0, outside = 0;
+    for (const auto& p : *frame.cloud) {
+      if (p.z <= 0.0f) {
+        ++behind;
+        continue;
+      }
+      const double u = in.fx * p.x / p.z + in.cx, v = in.fy * p.y / p.z + in.cy;
+      outside += u < -0.1 * in.width || u > 1.1 * in.width || v < -0.1 * in.height ||
+                 v > 1.1 * in.height;
+    }
+    const size_t n = frame.cloud->size();
+    if (behind * 20 > n) {
       return InvalidArgumentError(
-          "pointCloud.frame: " + std::to_string(100 * behind / frame.cloud->size()) +
+          "pointCloud.frame: " + std::to_string(100 * behind / n) +
           "% of the points are behind the camera; is the cloud really in the camera frame?");
+    }
+    if (outside * 20 > n) {
+      return InvalidArgumentError(
+          "pointCloud.frame: " + std::to_string(100 * outside / n) +
+          "% of the points fall outside the camera's field of view; is the cloud really in the "
+          "camera's optical frame, and are the camera intrinsics right?");
     }
   }
   if (!frame.image.empty() && (frame.image.cols != frame.intrinsics.width ||
@@ -612,24 +697,36 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
     object_search::ObjectDetection det;
     det.key = tr.id;
     det.box = boxes[c];
-    // Sub-image: the cluster's points reprojected into the image.
+    // Sub-image: the cluster's points reprojected into the image, masked to the pixels they
+    // cover (the bounding rectangle alone also holds whatever stands beside or behind).
     double score = 0.5;
     if (!frame.image.empty()) {
-      int u0 = frame.intrinsics.width, v0 = frame.intrinsics.height, u1 = -1, v1 = -1;
+      const auto& in = frame.intrinsics;
+      std::vector<cv::Point3i> pixels;  // u, v, radius
+      int u0 = in.width, v0 = in.height, u1 = -1, v1 = -1;
       for (int i : clusters[c].indices) {
         const Eigen::Vector4d q =
             map_to_camera * Eigen::Vector4d((*objects)[i].x, (*objects)[i].y, (*objects)[i].z, 1);
         if (q.z() <= 0) continue;
-        const int u = static_cast<int>(frame.intrinsics.fx * q.x() / q.z() + frame.intrinsics.cx);
-        const int v = static_cast<int>(frame.intrinsics.fy * q.y() / q.z() + frame.intrinsics.cy);
-        u0 = std::min(u0, u);
-        v0 = std::min(v0, v);
-        u1 = std::max(u1, u);
-        v1 = std::max(v1, v);
+        const int u = static_cast<int>(in.fx * q.x() / q.z() + in.cx);
+        const int v = static_cast<int>(in.fy * q.y() / q.z() + in.cy);
+        // The voxel's footprint in pixels: neighbouring points' disks overlap.
+        const int r = std::clamp(static_cast<int>(std::ceil(in.fx * o.voxel / q.z())), 1, 50);
+        pixels.emplace_back(u, v, r);
+        u0 = std::min(u0, u - r);
+        v0 = std::min(v0, v - r);
+        u1 = std::max(u1, u + r);
+        v1 = std::max(v1, v + r);
       }
       const cv::Rect rect = cv::Rect(u0, v0, u1 - u0 + 1, v1 - v0 + 1) &
                             cv::Rect(0, 0, frame.image.cols, frame.image.rows);
-      if (rect.width >= 4 && rect.height >= 4) score = TargetScore(frame.image(rect));
+      if (rect.width >= 4 && rect.height >= 4) {
+        cv::Mat mask = cv::Mat::zeros(rect.size(), CV_8U);
+        for (const cv::Point3i& p : pixels) {
+          cv::circle(mask, cv::Point(p.x - rect.x, p.y - rect.y), p.z, cv::Scalar(255), cv::FILLED);
+        }
+        score = TargetScore(frame.image(rect), nullptr, mask);
+      }
     }
     const auto semantic = frame.semantic_scores.find(tr.id);
     if (semantic != frame.semantic_scores.end()) {
@@ -792,6 +889,9 @@ StatusOr<cv::Mat> DecodeImage(const std::string& base64, const std::string& fiel
   auto bytes = Base64Decode(base64);
   if (!bytes.ok()) return InvalidArgumentError(field + ".data: " + bytes.status().message());
   if (bytes->empty()) return InvalidArgumentError(field + ".data: empty");
+  const bool png = bytes->rfind("\x89PNG\r\n\x1a\n", 0) == 0;
+  const bool jpeg = bytes->rfind("\xff\xd8\xff", 0) == 0;
+  if (!png && !jpeg) return InvalidArgumentError(field + ".data: not a PNG or JPEG image");
   cv::Mat image;
   try {
     image = cv::imdecode(cv::Mat(1, static_cast<int>(bytes->size()), CV_8U, bytes->data()),

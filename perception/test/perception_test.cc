@@ -166,6 +166,43 @@ TEST(PerceptionTest, BoxesConvergeAndIdsStayWhenTheRobotMoves) {
   EXPECT_EQ(p.tracks(), static_cast<int>(sim.objects().size()));
 }
 
+TEST(PerceptionTest, SavedTracksRestoreIntoAFreshPipelineAndDroppedOnesAreForgotten) {
+  Simulator sim(Load("loose1"), 1);
+  const auto world = sim.InitialWorld().value();
+  Perception first(world, TargetOf(sim), {});
+  const RobotConfig front = Config(0.4, 0.0, 0.0);
+  auto a = first.Process(Capture(&sim, front, front));
+  ASSERT_TRUE(a.ok());
+  ASSERT_GE(a->observation.objects.size(), 2u);
+  int next_id = -1;
+  const std::vector<TrackState> saved = first.SaveTracks(&next_id);
+  EXPECT_EQ(next_id, first.tracks());
+
+  // A restarted server: a fresh pipeline with the saved tracks gives the same ids.
+  Perception second(world, TargetOf(sim), {});
+  ASSERT_TRUE(second.RestoreTracks(saved, next_id).ok());
+  const std::string dropped = a->observation.objects[0].key;
+  EXPECT_TRUE(second.DropTrack(dropped));
+  EXPECT_FALSE(second.DropTrack(dropped));
+  auto b = second.Process(Capture(&sim, front, front));
+  ASSERT_TRUE(b.ok());
+  std::set<std::string> keys;
+  for (const auto& d : b->observation.objects) keys.insert(d.key);
+  for (size_t i = 1; i < a->observation.objects.size(); ++i) {
+    EXPECT_TRUE(keys.count(a->observation.objects[i].key)) << a->observation.objects[i].key;
+  }
+  // The object of the dropped track (still in view here) comes back under a new id.
+  EXPECT_FALSE(keys.count(dropped));
+  EXPECT_EQ(keys.size(), a->observation.objects.size());
+
+  std::vector<TrackState> bad = saved;
+  bad[0].points.pop_back();
+  EXPECT_FALSE(second.RestoreTracks(bad, next_id).ok());
+  bad = saved;
+  bad[0].surface = 99;
+  EXPECT_FALSE(second.RestoreTracks(bad, next_id).ok());
+}
+
 TEST(PerceptionTest, SiftMatchesTheTargetAndRejectsLookAlikes) {
   Simulator sim(Load("loose1"), 1);
   sim::SceneObject target = sim.objects()[sim.target_index()];
@@ -212,6 +249,20 @@ TEST(PerceptionTest, BadFramesGetClearErrorsAndChangeNothing) {
   }
   wrong.cloud = map_cloud;
   EXPECT_NE(p.Process(wrong).status().message().find("pointCloud.frame"), std::string::npos);
+  // The real map-frame cloud of the same view.
+  SensorFrame in_map = good;
+  in_map.cloud = sim::FrameCloud(sim.Render(640, 480), /*world_frame=*/true);
+  EXPECT_NE(p.Process(in_map).status().message().find("pointCloud.frame"), std::string::npos);
+  // Points in front of the camera but outside its field of view.
+  SensorFrame wide = good;
+  auto wide_cloud = pcl::make_shared<Cloud>(*good.cloud);
+  for (auto& q : *wide_cloud) q.x = 3.0f * q.z;
+  wide.cloud = wide_cloud;
+  EXPECT_NE(p.Process(wide).status().message().find("field of view"), std::string::npos);
+  // Declared as a map-frame cloud, it is fine.
+  in_map.cloud_in_map_frame = true;
+  Perception q(sim.InitialWorld().value(), TargetOf(sim), {});
+  EXPECT_TRUE(q.Process(in_map).ok());
   SensorFrame small = good;
   cv::resize(good.image, small.image, cv::Size(320, 240));
   EXPECT_NE(p.Process(small).status().message().find("image.data: the image is 320x240"),
@@ -257,6 +308,15 @@ TEST(EncodingTest, CloudsAndImagesRoundTripAndBadDataIsNamed) {
   EXPECT_NE(DecodeImage(Base64Encode("GIF89a nonsense"), "image").status().message().find(
                 "image.data: not a PNG or JPEG"),
             std::string::npos);
+  std::vector<uchar> jpeg, bmp;
+  cv::imencode(".jpg", img, jpeg);
+  EXPECT_TRUE(DecodeImage(Base64Encode(std::string(jpeg.begin(), jpeg.end())), "image").ok());
+  // OpenCV decodes BMP too, but the API promises PNG or JPEG only.
+  cv::imencode(".bmp", img, bmp);
+  EXPECT_FALSE(DecodeImage(Base64Encode(std::string(bmp.begin(), bmp.end())), "image").ok());
+  // A PNG signature with a truncated body.
+  EXPECT_FALSE(
+      DecodeImage(Base64Encode(std::string(png.begin(), png.begin() + 20)), "image").ok());
   EXPECT_EQ(Base64Decode(Base64Encode("hello world")).value(), "hello world");
 }
 

@@ -300,6 +300,10 @@ int main(int argc, char** argv) {
   app.add_option("--opt", c.options, "planner option key=value (repeatable)");
   app.add_option("--robot", search.robot, "scenarios: override the robot (fetch | stretch)");
   app.add_option("--table", search.table_path, "scenarios: write a Markdown table (Table 1)");
+  app.add_option("--observe", search.observe,
+                 "scenarios: how the robot observes, geometric (the simulator's shortcut) and/or "
+                 "perception (rendered RGB-D frames through the perception pipeline)")
+      ->delimiter(',');
   app.add_option("--render", search.render_dir,
                  "scenarios: write per-step PNGs of the first trial into this directory");
   CLI11_PARSE(app, argc, argv);

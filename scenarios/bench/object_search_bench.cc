@@ -1,5 +1,6 @@
 #include "object_search_bench.h"
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -9,6 +10,7 @@
 #include <sstream>
 
 #include "episode_runner.h"
+#include "npfkct/perception/perception.h"
 #include "npfkct/sim/frame_io.h"
 #include "npfkct/sim/scenario.h"
 #include "npfkct/sim/simulator.h"
@@ -28,6 +30,48 @@ struct TrialContext {
   int max_steps;
   uint64_t seed;
   std::string render_prefix;  // empty: no pictures
+  bool perception = false;    // observe through rendered frames and the perception pipeline
+};
+
+// The robot's eyes in perception mode: renders the view, reports a noisy pose, and turns the
+// frame into detections with the perception pipeline, as the server does for raw :observe data.
+class PerceivingRobot {
+ public:
+  PerceivingRobot(const sim::Simulator& simulator, const World& world)
+      : simulator_(simulator),
+        perception_(world, {sim::ObjectPhotos(simulator.objects()[simulator.target_index()])},
+                    {}) {}
+
+  StatusOr<object_search::RealObservation> Observe(Rng& rng) {
+    const sim::Frame f = simulator_.Render(640, 480);
+    object_search::RobotConfig reported = simulator_.robot();
+    const sim::SimNoise& noise = simulator_.scenario().noise;
+    reported.x += noise.localization_xy * rng.Normal();
+    reported.y += noise.localization_xy * rng.Normal();
+    reported.yaw = object_search::WrapAngle(reported.yaw + noise.localization_yaw * rng.Normal());
+    perception::SensorFrame frame;
+    frame.cloud = sim::FrameCloud(f, /*world_frame=*/false);
+    if (frame.cloud->empty()) {  // nothing in range: the pose alone
+      object_search::RealObservation obs;
+      obs.achieved = reported;
+      return obs;
+    }
+    frame.image = sim::FrameBgr(f);
+    frame.intrinsics = {f.width, f.height, f.fx, f.fy, f.cx, f.cy};
+    frame.reported = reported;
+    auto result = perception_.Process(frame);
+    if (!result.ok()) return result.status();
+    frame_ms_.push_back(result->timings.total);
+    return result->observation;
+  }
+  /// The robot took the object away: its track goes.
+  void Removed(const std::string& key) { perception_.DropTrack(key); }
+  const std::vector<double>& frame_ms() const { return frame_ms_; }
+
+ private:
+  const sim::Simulator& simulator_;
+  perception::Perception perception_;
+  std::vector<double> frame_ms_;
 };
 
 std::string Describe(const HybridAction& a, const World& w) {
@@ -53,11 +97,19 @@ EpisodeResult RunTrial(const TrialContext& ctx) {
     return result;
   }
   World world = *initial;
-  Rng rng(ctx.seed * 7919 + 1), world_rng(ctx.seed * 104729 + 3);
+  Rng rng(ctx.seed * 7919 + 1), world_rng(ctx.seed * 104729 + 3), sensor_rng(ctx.seed * 31 + 5);
+  std::unique_ptr<PerceivingRobot> eyes;
+  if (ctx.perception) eyes = std::make_unique<PerceivingRobot>(simulator, world);
+  auto observe = [&]() -> StatusOr<object_search::RealObservation> {
+    if (eyes) return eyes->Observe(sensor_rng);
+    return simulator.Observe(world_rng);
+  };
   // The robot looks once from its start before planning.
-  if (Status s = object_search::ApplyRealObservation(&world, simulator.Observe(world_rng));
-      !s.ok()) {
-    result.error = s.ToString();
+  auto first = observe();
+  Status first_status = first.ok() ? object_search::ApplyRealObservation(&world, *first)
+                                   : first.status();
+  if (!first_status.ok()) {
+    result.error = first_status.ToString();
     return result;
   }
   ObjectSearchModel model(std::make_shared<World>(world));
@@ -84,14 +136,21 @@ EpisodeResult RunTrial(const TrialContext& ctx) {
     discount *= world.params.discount;
     ++result.steps;
     if (d.action.kind != object_search::kMoveKind && outcome.success) {
-      (void)object_search::ApplyDiscreteOutcome(&world, object_search::KindObject(d.action.kind),
-                                                object_search::KindOffset(d.action.kind), true);
+      const int object = object_search::KindObject(d.action.kind);
+      const int offset = object_search::KindOffset(d.action.kind);
+      if (eyes && offset == 2) eyes->Removed(world.objects[object].key);
+      (void)object_search::ApplyDiscreteOutcome(&world, object, offset, true);
     }
     if (outcome.terminal) {
       result.success = true;
       break;
     }
-    const object_search::RealObservation obs = simulator.Observe(world_rng);
+    auto observed = observe();
+    if (!observed.ok()) {
+      result.error = observed.status().ToString();
+      break;
+    }
+    const object_search::RealObservation& obs = *observed;
     std::vector<int> detected;
     bool new_objects = false;
     for (const auto& det : obs.objects) {
@@ -121,6 +180,7 @@ EpisodeResult RunTrial(const TrialContext& ctx) {
                           sim::RenderStep(world, simulator.Render(), caption));
     }
   }
+  if (eyes) result.extra_ms = eyes->frame_ms();
   return result;
 }
 
@@ -187,60 +247,94 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
   if (!config.render_dir.empty()) std::filesystem::create_directories(config.render_dir);
   // Trials run trial-major (trial 0 of every scenario and planner, then trial 1, ...), so that
   // whatever else the machine does spreads evenly over the planners compared.
-  const int per_trial = static_cast<int>(scenarios.size() * planners.size());
+  for (const std::string& mode : config.observe) {
+    if (mode != "geometric" && mode != "perception") {
+      std::cerr << "npfkct-bench: --observe: expected geometric or perception, got '" << mode
+                << "'\n";
+      return 2;
+    }
+  }
+  const std::vector<std::string>& modes = config.observe;
+  const int variants = static_cast<int>(planners.size() * modes.size());  // planner x mode
+  const int per_trial = static_cast<int>(scenarios.size()) * variants;
   const int jobs = config.trials * per_trial;
-  auto job = [&](int j, int* scenario, int* planner, int* trial) {
+  auto job = [&](int j, int* scenario, int* variant, int* trial) {
     *trial = j / per_trial;
-    *scenario = (j % per_trial) / static_cast<int>(planners.size());
-    *planner = j % static_cast<int>(planners.size());
+    *scenario = (j % per_trial) / variants;
+    *variant = j % variants;
+  };
+  auto planner_of = [&](int variant) { return variant / static_cast<int>(modes.size()); };
+  auto mode_of = [&](int variant) { return variant % static_cast<int>(modes.size()); };
+  // A row of the table: the planner, with the observation mode when several are compared.
+  auto row_name = [&](int variant) {
+    return modes.size() == 1 ? planners[planner_of(variant)]
+                             : planners[planner_of(variant)] + " (" + modes[mode_of(variant)] + ")";
   };
   const auto start = Clock::now();
   const std::vector<EpisodeResult> results = RunJobs(
       jobs, config.threads,
       [&](int j) {
-        int sc, pl, trial;
-        job(j, &sc, &pl, &trial);
+        int sc, variant, trial;
+        job(j, &sc, &variant, &trial);
         const sim::Scenario& scenario = scenarios[sc];
         const int max_steps =
             config.max_steps > 0 ? config.max_steps : scenario.params.max_steps;
+        const std::string& planner = planners[planner_of(variant)];
+        const std::string& mode = modes[mode_of(variant)];
         std::string render_prefix;
         if (!config.render_dir.empty() && trial == 0) {
-          render_prefix = config.render_dir + "/" + scenario.name + "-" + planners[pl];
+          render_prefix = config.render_dir + "/" + scenario.name + "-" + planner +
+                          (modes.size() > 1 ? "-" + mode : "");
         }
-        TrialContext ctx{&scenario, planners[pl], options, budget, max_steps,
-                         config.seed * 1000003ULL + static_cast<uint64_t>(trial), render_prefix};
+        TrialContext ctx{&scenario, planner, options, budget, max_steps,
+                         config.seed * 1000003ULL + static_cast<uint64_t>(trial), render_prefix,
+                         mode == "perception"};
         return RunTrial(ctx);
       },
       "object search");
   const double wall = MillisSince(start) / 1000.0;
   int failures = 0;
   for (size_t sc = 0; sc < scenarios.size(); ++sc) {
-    for (size_t pl = 0; pl < planners.size(); ++pl) {
+    for (int variant = 0; variant < variants; ++variant) {
       std::vector<EpisodeResult> mine;
+      std::vector<double> frame_ms;
       for (int j = 0; j < jobs; ++j) {
-        int s_idx, p_idx, trial;
-        job(j, &s_idx, &p_idx, &trial);
-        if (s_idx == static_cast<int>(sc) && p_idx == static_cast<int>(pl)) mine.push_back(results[j]);
+        int s_idx, v_idx, trial;
+        job(j, &s_idx, &v_idx, &trial);
+        if (s_idx == static_cast<int>(sc) && v_idx == variant) {
+          mine.push_back(results[j]);
+          frame_ms.insert(frame_ms.end(), results[j].extra_ms.begin(), results[j].extra_ms.end());
+        }
       }
       const RunSummary s = Summarize(mine, true, wall);
-      const std::string& planner = planners[pl];
+      const std::string& planner = planners[planner_of(variant)];
+      const std::string& mode = modes[mode_of(variant)];
       const sim::Scenario& scenario = scenarios[sc];
-      table[planner][scenario.name] = s;
+      table[row_name(variant)][scenario.name] = s;
       failures += s.failed_episodes;
+      std::string perception_ms;
+      if (!frame_ms.empty()) {
+        std::sort(frame_ms.begin(), frame_ms.end());
+        perception_ms = ", \"median_perception_ms_per_frame\": " +
+                        std::to_string(frame_ms[frame_ms.size() / 2]);
+      }
       std::printf(
-          "{\"scenario\": \"%s\", \"planner\": \"%s\", \"trials\": %d, \"time_ms\": %g, "
+          "{\"scenario\": \"%s\", \"planner\": \"%s\", \"observe\": \"%s\", \"trials\": %d, "
+          "\"time_ms\": %g, "
           "\"sims\": %lld, \"robot\": \"%s\", \"seed\": %llu, \"threads\": %d, "
           "\"mean_discounted_reward\": %.1f, \"ci95\": %.1f, \"mean_steps\": %.2f, "
           "\"ci95_steps\": %.2f, \"success_rate\": %.3f, \"median_sims_per_step\": %.1f, "
           "\"median_sims_per_second\": %.1f, \"median_first_step_sims_per_second\": %.1f, "
-          "\"wall_seconds\": %.1f, \"failed_trials\": %d%s%s%s}\n",
-          JsonEscape(scenario.name).c_str(), planner.c_str(), config.trials, config.time_ms,
+          "\"wall_seconds\": %.1f, \"failed_trials\": %d%s%s%s%s}\n",
+          JsonEscape(scenario.name).c_str(), planner.c_str(), mode.c_str(), config.trials,
+          config.time_ms,
           static_cast<long long>(config.sims), scenario.robot.c_str(),
           static_cast<unsigned long long>(config.seed), config.threads, s.mean_return,
           s.ci95_return, s.mean_steps, s.ci95_steps, s.success_rate.value_or(0.0),
           s.median_sims_per_step, s.median_sims_per_second, s.median_first_step_sims_per_second,
-          s.wall_seconds, s.failed_episodes, s.first_error.empty() ? "" : ", \"error\": \"",
-          JsonEscape(s.first_error).c_str(), s.first_error.empty() ? "" : "\"");
+          s.wall_seconds, s.failed_episodes, perception_ms.c_str(),
+          s.first_error.empty() ? "" : ", \"error\": \"", JsonEscape(s.first_error).c_str(),
+          s.first_error.empty() ? "" : "\"");
     }
   }
   std::fflush(stdout);
@@ -251,9 +345,10 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
     md << "\n|---|";
     for (size_t i = 0; i < scenario_names.size(); ++i) md << "---|";
     md << "\n";
-    for (const std::string& planner : planners) {
-      md << "| " << planner << " |";
-      for (const auto& sc : scenario_names) md << " " << Cell(table[planner][sc]) << " |";
+    for (int variant = 0; variant < variants; ++variant) {
+      const std::string row = row_name(variant);
+      md << "| " << row << " |";
+      for (const auto& sc : scenario_names) md << " " << Cell(table[row][sc]) << " |";
       md << "\n";
     }
     std::ofstream out(config.table_path);

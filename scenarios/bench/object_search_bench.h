@@ -22,6 +22,10 @@ struct SearchBenchConfig {
   std::string table_path;              ///< Markdown table output (Table 1 layout).
   std::string render_dir;              ///< Per-step PNGs (first trial of each run).
   std::string filter_model;            ///< Neural filter model (npfkct planner).
+  /// Observation modes compared: "geometric" (the simulator's visibility shortcut) and/or
+  /// "perception" (rendered 640x480 RGB-D frames, a noisy reported pose, and the perception
+  /// pipeline: registration, segmentation, association, SIFT target detection).
+  std::vector<std::string> observe = {"geometric"};
 };
 
 /// Runs every (scenario, planner) pair; prints one JSON line per pair and writes the table.

@@ -28,6 +28,7 @@ struct Options {
   int max_steps = 0;
   bool keep = false;
   bool quiet = false;
+  bool raw = false;
 };
 
 std::string Describe(const json& action) {
@@ -61,6 +62,9 @@ int main(int argc, char** argv) {
   app.add_option("--max-steps", o.max_steps, "step limit (default: the scenario's)");
   app.add_flag("--keep", o.keep, "keep the session on the server at the end");
   app.add_flag("--quiet", o.quiet, "print only the outcome");
+  app.add_flag("--raw", o.raw,
+               "send rendered RGB-D frames (point cloud + PNG) for the server's perception instead "
+               "of the simulator's geometric detections");
   CLI11_PARSE(app, argc, argv);
 
   auto scenario = npfkct::sim::LoadScenario(o.scenario);
@@ -76,10 +80,12 @@ int main(int argc, char** argv) {
   const int max_steps = o.max_steps > 0 ? o.max_steps : scenario->params.max_steps;
 
   npfkct::client::Client api(o.server, o.api_key);
-  auto session = api.CreateSession({{"displayName", "npfkct-drive " + scenario->name},
-                                    {"world", npfkct::sim::WorldJsonOf(scenario_json)},
-                                    {"planner", {{"name", o.planner}}},
-                                    {"seed", o.seed}});
+  json create = {{"displayName", "npfkct-drive " + scenario->name},
+                 {"world", npfkct::sim::WorldJsonOf(scenario_json)},
+                 {"planner", {{"name", o.planner}}},
+                 {"seed", o.seed}};
+  if (o.raw) create["target"] = {{"photos", robot.TargetPhotosJson()}};
+  auto session = api.CreateSession(create);
   if (!session.ok()) return Fail("creating the session", session.status());
   const std::string id = (*session)["id"];
   if (!o.quiet) {
@@ -98,7 +104,7 @@ int main(int argc, char** argv) {
     discounted += discount * outcome.reward;
     discount *= scenario->params.discount;
     ++steps;
-    json observation = robot.Observe(!outcome.illegal);
+    json observation = o.raw ? robot.ObserveRaw(!outcome.illegal) : robot.Observe(!outcome.illegal);
     observation["actionId"] = plan["actionId"];
     auto observed = api.Observe(id, observation);
     if (!observed.ok()) return Fail("observing", observed.status());

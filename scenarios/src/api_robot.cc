@@ -1,5 +1,10 @@
 #include "npfkct/sim/api_robot.h"
 
+#include <opencv2/imgcodecs.hpp>
+
+#include "npfkct/perception/perception.h"
+#include "npfkct/sim/frame_io.h"
+
 namespace npfkct::sim {
 
 using nlohmann::json;
@@ -49,7 +54,19 @@ ExecutionOutcome ApiRobot::Execute(const json& action) {
   const auto it = declared_.find(id);
   const int8_t status =
       it == declared_.end() ? static_cast<int8_t>(object_search::kUpdating) : it->second;
-  outcome = sim_.ExecuteOnObject(offset, id, status, params);
+  // Where the server believes the object is (ids from perception name no scene object).
+  Box seen;
+  bool has_box = false;
+  if (action.contains("objectBox") && action["objectBox"].is_object()) {
+    const json& b = action["objectBox"];
+    if (b.contains("center") && b["center"].is_array() && b["center"].size() == 3 &&
+        b["center"][0].is_number() && b["center"][1].is_number() && b["center"][2].is_number()) {
+      seen.center = Vec3(b["center"][0].get<double>(), b["center"][1].get<double>(),
+                         b["center"][2].get<double>());
+      has_box = true;
+    }
+  }
+  outcome = sim_.ExecuteOnObject(offset, id, status, params, has_box ? &seen : nullptr);
   if (outcome.success && offset < 2) {
     declared_[id] = offset == 0 ? object_search::kDeclaredTarget : object_search::kDeclaredObstacle;
   }
@@ -61,6 +78,47 @@ json ApiRobot::Observe(bool succeeded) {
   return {{"succeeded", succeeded},
           {"robotState", RobotConfigJson(obs.achieved)},
           {"detections", DetectionsJson(obs)}};
+}
+
+json ApiRobot::ObserveRaw(bool succeeded, int width, int height) {
+  const Frame frame = sim_.Render(width, height);
+  RobotConfig reported = sim_.robot();
+  const SimNoise& noise = sim_.scenario().noise;
+  reported.x += noise.localization_xy * rng_.Normal();
+  reported.y += noise.localization_xy * rng_.Normal();
+  reported.yaw = object_search::WrapAngle(reported.yaw + noise.localization_yaw * rng_.Normal());
+  // Pixels without a return carry no point (as a driver drops NaNs before sending).
+  const auto cloud = FrameCloud(frame, /*world_frame=*/false);
+  if (cloud->empty()) {
+    // Nothing within the sensor's range: the API wants no cloud rather than an empty one.
+    return {{"succeeded", succeeded}, {"robotState", RobotConfigJson(reported)}};
+  }
+  std::vector<uchar> png;
+  cv::imencode(".png", FrameBgr(frame), png);
+  return {{"succeeded", succeeded},
+          {"robotState", RobotConfigJson(reported)},
+          {"pointCloud",
+           {{"frame", "camera"}, {"fields", "xyzrgb"}, {"data", perception::EncodeCloud(*cloud)}}},
+          {"image",
+           {{"encoding", "png"},
+            {"data", perception::Base64Encode(std::string(png.begin(), png.end()))}}},
+          {"camera",
+           {{"width", frame.width},
+            {"height", frame.height},
+            {"fx", frame.fx},
+            {"fy", frame.fy},
+            {"cx", frame.cx},
+            {"cy", frame.cy}}}};
+}
+
+json ApiRobot::TargetPhotosJson() const {
+  json out = json::array();
+  for (const cv::Mat& photo : ObjectPhotos(sim_.objects()[sim_.target_index()])) {
+    std::vector<uchar> png;
+    cv::imencode(".png", photo, png);
+    out.push_back(perception::Base64Encode(std::string(png.begin(), png.end())));
+  }
+  return out;
 }
 
 json RobotConfigJson(const RobotConfig& c) {

@@ -133,16 +133,26 @@ cv::Mat RenderStep(const object_search::World& world, const Frame& view,
 
 std::vector<cv::Mat> ObjectPhotos(const SceneObject& object, int pixels) {
   std::vector<cv::Mat> photos;
+  const Vec3& size = object.box.size;
   for (int face = 0; face < 4; ++face) {
-    // Face axes as the renderer maps them: a = (axis + 1) % 3, b = (axis + 2) % 3.
-    const int axis = face / 2, a = (axis + 1) % 3, b = (axis + 2) % 3;
-    const double aspect = object.box.size[b] / object.box.size[a];
-    const int w = pixels, h = std::max(8, static_cast<int>(pixels * aspect));
+    // The side as a person photographs it: from outside, upright. In the box's frame the camera
+    // looks along -n, so the image's right is (-n) x z and its up is z.
+    Vec3 n = Vec3::Zero();
+    n[face / 2] = (face % 2) ? 1.0 : -1.0;
+    const Vec3 right = (-n).cross(Vec3::UnitZ());
+    const int horizontal = face / 2 == 0 ? 1 : 0;  // the box axis along the image's rows
+    const double width = size[horizontal], height = size.z();
+    const int w = pixels, h = std::max(8, static_cast<int>(pixels * height / width));
+    // The renderer's face coordinates: u along axis a, v along axis b.
+    const int a = (face / 2 + 1) % 3, b = (face / 2 + 2) % 3;
     cv::Mat img(h, w, CV_8UC3);
     for (int y = 0; y < h; ++y) {
       for (int x = 0; x < w; ++x) {
+        const Vec3 local = 0.5 * size[face / 2] * n + ((x + 0.5) / w - 0.5) * width * right +
+                           (0.5 - (y + 0.5) / h) * height * Vec3::UnitZ();
         const Color c = object.texture_seed != 0
-                            ? PatternColor(object.texture_seed, face, (x + 0.5) / w, 1.0 - (y + 0.5) / h)
+                            ? PatternColor(object.texture_seed, face, local[a] / size[a] + 0.5,
+                                           local[b] / size[b] + 0.5)
                             : object.color;
         img.at<cv::Vec3b>(y, x) = cv::Vec3b(c[2], c[1], c[0]);
       }

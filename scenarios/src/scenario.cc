@@ -254,7 +254,9 @@ StatusOr<Scenario> ParseScenarioJson(const json& j, bool world_only) {
         {"objectJitter", &sc.noise.object_jitter},
         {"boxEstimate", &sc.noise.box_estimate},
         {"detection", &sc.noise.detection},
-        {"falseDetection", &sc.noise.false_detection}};
+        {"falseDetection", &sc.noise.false_detection},
+        {"localizationXY", &sc.noise.localization_xy},
+        {"localizationYaw", &sc.noise.localization_yaw}};
     std::set<std::string> known;
     for (auto [key, field] : fields) {
       known.insert(key);

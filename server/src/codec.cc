@@ -343,8 +343,11 @@ json ActionToJson(const HybridAction& a, const World& w) {
   }
   static const char* kTypes[] = {"DECLARE_TARGET", "DECLARE_OBSTACLE", "REMOVE"};
   const int i = object_search::KindObject(a.kind);
-  return {{"type", kTypes[object_search::KindOffset(a.kind)]},
-          {"objectId", i < static_cast<int>(w.objects.size()) ? w.objects[i].key : ""}};
+  json out = {{"type", kTypes[object_search::KindOffset(a.kind)]},
+              {"objectId", i < static_cast<int>(w.objects.size()) ? w.objects[i].key : ""}};
+  // Where the object is, as the robot last saw it: what it needs to act on it.
+  if (i > 0 && i < static_cast<int>(w.objects.size())) out["objectBox"] = BoxToJson(w.objects[i].box);
+  return out;
 }
 
 StatusOr<HybridAction> ActionFromJson(const json& j, const std::string& path, const World& w) {
@@ -369,7 +372,7 @@ StatusOr<HybridAction> ActionFromJson(const json& j, const std::string& path, co
     return Err(path + ".type",
                "expected MOVE, DECLARE_TARGET, DECLARE_OBSTACLE or REMOVE, got '" + type + "'");
   }
-  RETURN_IF_ERROR(CheckKeys(j, path + ".", {"type", "objectId"}));
+  RETURN_IF_ERROR(CheckKeys(j, path + ".", {"type", "objectId", "objectBox"}));
   std::string id;
   RETURN_IF_ERROR(ReadString(j, "objectId", path + ".", &id, true));
   const int index = w.FindObject(id);

@@ -263,6 +263,7 @@ struct Server::Impl {
     if (!scenario.ok()) return scenario.status();
     auto world = sim::InitialWorld(*scenario);
     if (!world.ok()) return InvalidArgumentError("world." + world.status().message());
+    TargetSpec target;
     if (body.contains("target")) {
       const json& t = body.at("target");
       if (!t.is_object()) return InvalidArgumentError("target: expected an object");
@@ -274,6 +275,17 @@ struct Server::Impl {
       }
       if (t.contains("photos") && (!t.at("photos").is_array() || t.at("photos").size() > 16)) {
         return InvalidArgumentError("target.photos: expected an array of at most 16 images");
+      }
+      target.description = t.value("description", std::string());
+      if (t.contains("photos")) {
+        const json& photos = t.at("photos");
+        for (size_t i = 0; i < photos.size(); ++i) {
+          if (!photos[i].is_string()) {
+            return InvalidArgumentError("target.photos[" + std::to_string(i) +
+                                        "]: expected a base64 PNG or JPEG string");
+          }
+          target.photos.push_back(photos[i].get<std::string>());
+        }
       }
     }
     PlannerSpec spec;
@@ -356,7 +368,7 @@ struct Server::Impl {
       }
     }
     auto created = Session::Create(NewSessionId(), display_name, std::move(world).value(), spec,
-                                   seed, ttl, *samplers);
+                                   std::move(target), seed, ttl, *samplers);
     if (!created.ok()) return created.status();
     std::shared_ptr<Session> session = std::move(created).value();
     std::lock_guard<std::mutex> session_lock(session->mutex());

@@ -1,9 +1,12 @@
 #include "npfkct/server/session.h"
 
 #include <cmath>
+#include <cstring>
 #include <ctime>
+#include <optional>
 #include <random>
 
+#include "npfkct/perception/perception.h"
 #include "npfkct/server/codec.h"
 
 namespace npfkct::server {
@@ -35,6 +38,112 @@ std::string RandomHex(int bytes) {
   return out;
 }
 
+// The raw sensor data of an observation as a perception frame; errors name the field.
+StatusOr<perception::SensorFrame> FrameFromJson(const json& body,
+                                                const object_search::RobotConfig& reported) {
+  perception::SensorFrame frame;
+  frame.reported = reported;
+  const json& pc = body.at("pointCloud");
+  if (!pc.is_object()) return InvalidArgumentError("pointCloud: expected an object");
+  for (auto it = pc.begin(); it != pc.end(); ++it) {
+    if (it.key() != "frame" && it.key() != "fields" && it.key() != "data") {
+      return InvalidArgumentError("pointCloud." + it.key() + ": unknown field");
+    }
+  }
+  const std::string where = pc.contains("frame") && pc.at("frame").is_string()
+                                ? pc.at("frame").get<std::string>()
+                                : std::string(pc.contains("frame") ? "?" : "camera");
+  if (where != "camera" && where != "map") {
+    return InvalidArgumentError("pointCloud.frame: expected \"camera\" (optical frame: x right, "
+                                "y down, z forward) or \"map\"");
+  }
+  frame.cloud_in_map_frame = where == "map";
+  if (pc.contains("fields") && !pc.at("fields").is_string()) {
+    return InvalidArgumentError("pointCloud.fields: expected \"xyz\" or \"xyzrgb\"");
+  }
+  const std::string fields = pc.value("fields", std::string("xyz"));
+  if (!pc.contains("data") || !pc.at("data").is_string()) {
+    return InvalidArgumentError("pointCloud.data: missing or not a base64 string");
+  }
+  auto cloud = perception::DecodeCloud(pc.at("data").get<std::string>(), fields, "pointCloud");
+  if (!cloud.ok()) return cloud.status();
+  frame.cloud = *cloud;
+  if (body.contains("camera")) {
+    const json& c = body.at("camera");
+    if (!c.is_object()) return InvalidArgumentError("camera: expected an object");
+    for (auto it = c.begin(); it != c.end(); ++it) {
+      static const std::set<std::string> kKeys = {"width", "height", "fx", "fy", "cx", "cy"};
+      if (!kKeys.count(it.key())) return InvalidArgumentError("camera." + it.key() + ": unknown field");
+      if (!it.value().is_number()) {
+        return InvalidArgumentError("camera." + it.key() + ": expected a number");
+      }
+    }
+    for (const char* key : {"width", "height"}) {
+      if (c.contains(key) && !c.at(key).is_number_integer()) {
+        return InvalidArgumentError(std::string("camera.") + key + ": expected an integer");
+      }
+    }
+    auto& in = frame.intrinsics;
+    if (c.contains("width")) in.width = static_cast<int>(std::clamp<int64_t>(c.at("width").get<int64_t>(), -1, 1 << 20));
+    if (c.contains("height")) in.height = static_cast<int>(std::clamp<int64_t>(c.at("height").get<int64_t>(), -1, 1 << 20));
+    in.fx = c.value("fx", in.fx);
+    in.fy = c.value("fy", in.fy);
+    in.cx = c.value("cx", in.cx);
+    in.cy = c.value("cy", in.cy);
+  }
+  if (Status s = frame.intrinsics.Validate(); !s.ok()) return s;
+  if (body.contains("image")) {
+    const json& im = body.at("image");
+    if (!im.is_object()) return InvalidArgumentError("image: expected an object");
+    for (auto it = im.begin(); it != im.end(); ++it) {
+      if (it.key() != "encoding" && it.key() != "data") {
+        return InvalidArgumentError("image." + it.key() + ": unknown field");
+      }
+    }
+    if (im.contains("encoding") &&
+        (!im.at("encoding").is_string() ||
+         (im.at("encoding") != "png" && im.at("encoding") != "jpeg"))) {
+      return InvalidArgumentError("image.encoding: expected \"png\" or \"jpeg\"");
+    }
+    if (!im.contains("data") || !im.at("data").is_string()) {
+      return InvalidArgumentError("image.data: missing or not a base64 string");
+    }
+    auto decoded = perception::DecodeImage(im.at("data").get<std::string>(), "image");
+    if (!decoded.ok()) return decoded.status();
+    frame.image = *decoded;
+  }
+  if (body.contains("semanticScores")) {
+    const json& scores = body.at("semanticScores");
+    if (!scores.is_object() || scores.size() > 256) {
+      return InvalidArgumentError("semanticScores: expected an object of at most 256 scores");
+    }
+    for (auto it = scores.begin(); it != scores.end(); ++it) {
+      const json& v = it.value();
+      if (!v.is_number() || !(v.get<double>() >= 0.0 && v.get<double>() <= 1.0)) {
+        return InvalidArgumentError("semanticScores." + it.key() + ": expected a number in [0, 1]");
+      }
+      frame.semantic_scores[it.key()] = v.get<double>();
+    }
+  }
+  return frame;
+}
+
+std::string FloatsToBase64(const std::vector<float>& v) {
+  std::string bytes(v.size() * sizeof(float), '\0');
+  if (!v.empty()) std::memcpy(bytes.data(), v.data(), bytes.size());
+  return perception::Base64Encode(bytes);
+}
+
+StatusOr<std::vector<float>> FloatsFromBase64(const std::string& text) {
+  auto bytes = perception::Base64Decode(text);
+  if (!bytes.ok() || bytes->size() % sizeof(float) != 0) {
+    return Status(StatusCode::kDataLoss, "snapshot: bad float array");
+  }
+  std::vector<float> v(bytes->size() / sizeof(float));
+  if (!v.empty()) std::memcpy(v.data(), bytes->data(), bytes->size());
+  return v;
+}
+
 int64_t Millis(std::chrono::system_clock::time_point t) {
   return std::chrono::duration_cast<std::chrono::milliseconds>(t.time_since_epoch()).count();
 }
@@ -53,11 +162,37 @@ std::string Rfc3339(std::chrono::system_clock::time_point t) {
   return buf;
 }
 
+Status TargetSpec::Validate() const {
+  if (description.size() > 2000) {
+    return InvalidArgumentError("target.description: at most 2000 characters");
+  }
+  if (photos.size() > 16) return InvalidArgumentError("target.photos: at most 16 photos");
+  for (size_t i = 0; i < photos.size(); ++i) {
+    const std::string field = "target.photos[" + std::to_string(i) + "]";
+    auto image = perception::DecodeImage(photos[i], field);
+    if (!image.ok()) {
+      // DecodeImage names "<field>.data"; photos are plain strings.
+      std::string m = image.status().message();
+      if (m.rfind(field + ".data", 0) == 0) m = field + m.substr(field.size() + 5);
+      return InvalidArgumentError(m);
+    }
+    if (image->cols < 16 || image->rows < 16) {
+      return InvalidArgumentError(field + ": at least 16 x 16 pixels");
+    }
+  }
+  return OkStatus();
+}
+
+Session::~Session() = default;
+
 StatusOr<std::unique_ptr<Session>> Session::Create(std::string id, std::string display_name,
-                                                   World world, PlannerSpec spec, uint64_t seed,
+                                                   World world, PlannerSpec spec,
+                                                   TargetSpec target, uint64_t seed,
                                                    double ttl_seconds,
                                                    const SamplerFactory& samplers) {
+  if (Status st = target.Validate(); !st.ok()) return st;
   std::unique_ptr<Session> s(new Session());
+  s->target_ = std::move(target);
   s->id_ = std::move(id);
   s->display_name_ = std::move(display_name);
   s->spec_ = std::move(spec);
@@ -93,6 +228,19 @@ Status Session::Init(const SamplerFactory& samplers) {
   return OkStatus();
 }
 
+perception::Perception& Session::Perceiver() {
+  if (!perception_) {
+    perception::TargetModel target;
+    for (const std::string& photo : target_.photos) {
+      auto image = perception::DecodeImage(photo, "target.photos");
+      if (image.ok()) target.photos.push_back(*image);  // validated at creation
+    }
+    perception_ = std::make_unique<perception::Perception>(*world_, std::move(target),
+                                                           perception::PerceptionOptions{});
+  }
+  return *perception_;
+}
+
 void Session::Reseed() {
   // A function of the seed and the step only, so that a restored session continues identically.
   rng_.Seed(HashMix(seed_ ^ HashMix(static_cast<uint64_t>(actions_) + 0x51ed27)));
@@ -122,6 +270,9 @@ json Session::Resource() const {
                   {"options", spec_.options_json}};
   if (!spec_.model_path.empty()) j["planner"]["modelPath"] = spec_.model_path;
   j["seed"] = std::to_string(seed_);
+  j["target"] = {{"description", target_.description},
+                 {"photoCount", static_cast<int>(target_.photos.size())}};
+  if (perception_) j["perceptionTracks"] = perception_->tracks();
   j["step"] = world_->steps;
   j["robot"] = ConfigToJson(world_->robot_config);
   j["objectCount"] = static_cast<int>(world_->objects.size()) - 1;
@@ -158,6 +309,15 @@ json Session::Snapshot() const {
                                                         pending_action_.x.size())}};
   }
   j["world"] = WorldToJson(*world_);
+  j["target"] = {{"description", target_.description}, {"photos", target_.photos}};
+  if (perception_) {
+    int next_id = 0;
+    json tracks = json::array();
+    for (const perception::TrackState& t : perception_->SaveTracks(&next_id)) {
+      tracks.push_back({{"id", t.id}, {"surface", t.surface}, {"points", FloatsToBase64(t.points)}});
+    }
+    j["perception"] = {{"nextId", next_id}, {"tracks", tracks}};
+  }
   return j;
 }
 
@@ -205,6 +365,41 @@ StatusOr<std::unique_ptr<Session>> Session::Restore(const json& j,
   s->world_ = std::make_shared<World>(std::move(world).value());
   const std::string state = j.value("state", std::string("READY"));
   if (Status st = s->Init(samplers); !st.ok()) return st;
+  if (j.contains("target")) {
+    const json& t = j.at("target");
+    if (!t.is_object()) return bad("target");
+    s->target_.description = t.value("description", std::string());
+    if (t.contains("photos")) {
+      if (!t.at("photos").is_array()) return bad("target photos");
+      for (const json& photo : t.at("photos")) {
+        if (!photo.is_string()) return bad("target photos");
+        s->target_.photos.push_back(photo.get<std::string>());
+      }
+    }
+    if (!s->target_.Validate().ok()) return bad("target photos");
+  }
+  if (j.contains("perception")) {
+    const json& pj = j.at("perception");
+    if (!pj.is_object() || !pj.contains("tracks") || !pj.at("tracks").is_array()) {
+      return bad("perception");
+    }
+    std::vector<perception::TrackState> tracks;
+    for (const json& tj : pj.at("tracks")) {
+      if (!tj.is_object() || !tj.contains("points") || !tj.at("points").is_string()) {
+        return bad("perception track");
+      }
+      perception::TrackState t;
+      t.id = tj.value("id", std::string());
+      t.surface = tj.value("surface", -1);
+      auto points = FloatsFromBase64(tj.at("points").get<std::string>());
+      if (!points.ok()) return points.status();
+      t.points = std::move(points).value();
+      tracks.push_back(std::move(t));
+    }
+    if (!s->Perceiver().RestoreTracks(tracks, pj.value("nextId", 0)).ok()) {
+      return bad("perception tracks");
+    }
+  }
   if (state == "DONE") s->state_ = State::kDone;
   if (state == "ACTION_PENDING") {
     if (!j.contains("pendingAction") || !j.at("pendingAction").is_object()) {
@@ -270,8 +465,9 @@ StatusOr<json> Session::Plan(const Budget& budget) {
 
 StatusOr<json> Session::Observe(const json& body) {
   if (!body.is_object()) return InvalidArgumentError("body: expected a JSON object");
-  static const std::set<std::string> kKnown = {"actionId",   "succeeded", "robotState",
-                                                "detections", "pointCloud", "image"};
+  static const std::set<std::string> kKnown = {"actionId",   "succeeded",  "robotState",
+                                                "detections", "pointCloud", "image",
+                                                "camera",     "semanticScores"};
   for (auto it = body.begin(); it != body.end(); ++it) {
     if (!kKnown.count(it.key())) return InvalidArgumentError(it.key() + ": unknown field");
   }
@@ -297,13 +493,28 @@ StatusOr<json> Session::Observe(const json& body) {
     succeeded = body.at("succeeded").get<bool>();
   }
   const bool is_move = pending_action_.kind == object_search::kMoveKind;
-  if ((body.contains("pointCloud") || body.contains("image")) && !body.contains("detections")) {
-    return Status(StatusCode::kUnimplemented,
-                  "raw point clouds and images need the perception pipeline, which this server "
-                  "does not run yet: send detections");
+  const bool raw = body.contains("pointCloud") || body.contains("image");
+  if (raw && body.contains("detections")) {
+    return InvalidArgumentError(
+        "detections: send either detections or raw sensor data (pointCloud, image), not both");
+  }
+  if (body.contains("image") && !body.contains("pointCloud")) {
+    return InvalidArgumentError(
+        "pointCloud: missing; an image is used with the point cloud taken with it");
+  }
+  for (const char* key : {"camera", "semanticScores"}) {
+    if (body.contains(key) && !raw) {
+      return InvalidArgumentError(std::string(key) + ": only used with a pointCloud");
+    }
   }
   auto obs = ObservationFromJson(body, *world_, is_move && succeeded);
   if (!obs.ok()) return obs.status();
+  std::optional<perception::SensorFrame> frame;
+  if (raw) {
+    auto parsed = FrameFromJson(body, obs->achieved);
+    if (!parsed.ok()) return parsed.status();
+    frame = std::move(parsed).value();
+  }
 
   // Apply to a copy and swap on success: a rejected observation changes nothing.
   World next = *world_;
@@ -329,6 +540,30 @@ StatusOr<json> Session::Observe(const json& body) {
   } else {
     reward = succeeded ? p.r_min : p.r_ill;
   }
+  // Raw data: the perception pipeline turns the frame into the corrected pose and detections.
+  // Its tracks are restored if anything below fails, so a rejected observation changes nothing.
+  std::vector<perception::TrackState> saved_tracks;
+  int saved_next_id = 0;
+  std::optional<perception::PerceptionResult> perceived;
+  if (frame) {
+    perception::Perception& perceiver = Perceiver();
+    saved_tracks = perceiver.SaveTracks(&saved_next_id);
+    if (!is_move && succeeded &&
+        object_search::KindOffset(pending_action_.kind) == 2) {  // the object left the scene
+      perceiver.DropTrack(world_->objects[object_search::KindObject(pending_action_.kind)].key);
+    }
+    auto result = perceiver.Process(*frame);
+    if (!result.ok()) {
+      (void)perceiver.RestoreTracks(saved_tracks, saved_next_id);
+      return result.status();
+    }
+    obs->achieved = result->observation.achieved;
+    obs->objects = result->observation.objects;
+    perceived = std::move(result).value();
+  }
+  auto rollback = [&] {
+    if (frame) (void)perception_->RestoreTracks(saved_tracks, saved_next_id);
+  };
   std::vector<int> detected;
   bool new_objects = false;
   for (const auto& det : obs->objects) {
@@ -338,9 +573,10 @@ StatusOr<json> Session::Observe(const json& body) {
   }
   const object_search::Observation key = model_->RealObservationKey(detected);
   if (Status s = object_search::ApplyRealObservation(&next, *obs); !s.ok()) {
-    return InvalidArgumentError(s.message().rfind("objects[", 0) == 0
-                                    ? "detections" + s.message().substr(7)
-                                    : s.message());
+    rollback();
+    return Status(s.code(), s.message().rfind("objects[", 0) == 0
+                                ? "detections" + s.message().substr(7)
+                                : s.message());
   }
   *world_ = std::move(next);
   model_->SetWorld(std::make_shared<const World>(*world_));
@@ -362,6 +598,31 @@ StatusOr<json> Session::Observe(const json& body) {
   json out;
   out["done"] = done;
   out["reward"] = reward;
+  if (perceived) {
+    const perception::PerceptionResult& r = *perceived;
+    json objects = json::array();
+    for (const auto& d : r.observation.objects) {
+      json faces = json::array();
+      for (const auto& f : d.faces) faces.push_back({{"corner", f.corner}, {"score", f.score}});
+      objects.push_back({{"id", d.key},
+                         {"box", BoxToJson(d.box)},
+                         {"moveability", d.moveability},
+                         {"faces", faces}});
+    }
+    out["perception"] = {
+        {"robotState", ConfigToJson(r.observation.achieved)},
+        {"registration", std::isfinite(r.fitness) ? (r.used_ransac ? "RANSAC_ICP" : "ICP")
+                                                  : "SKIPPED"},
+        {"fitness", std::isfinite(r.fitness) ? json(r.fitness) : json(nullptr)},
+        {"clusters", r.clusters},
+        {"detections", objects},
+        {"timingsMs",
+         {{"registration", r.timings.registration},
+          {"segmentation", r.timings.segmentation},
+          {"association", r.timings.association},
+          {"detection", r.timings.detection},
+          {"total", r.timings.total}}}};
+  }
   out["session"] = Resource();
   return out;
 }

@@ -61,7 +61,10 @@ TEST(CodecTest, ActionsAndObservationsNameTheField) {
   auto a = ActionFromJson(json{{"type", "REMOVE"}, {"objectId", "box"}}, "action", w);
   ASSERT_TRUE(a.ok());
   EXPECT_EQ(a->kind, object_search::RemoveKind(1));
-  EXPECT_EQ(ActionToJson(*a, w), (json{{"type", "REMOVE"}, {"objectId", "box"}}));
+  const json box = {{"center", {0.0, 0.0, 0.0}}, {"size", {1.0, 1.0, 1.0}}, {"yaw", 0.0}};
+  EXPECT_EQ(ActionToJson(*a, w), (json{{"type", "REMOVE"}, {"objectId", "box"}, {"objectBox", box}}));
+  // The box the action carries is accepted back (clients echo actions).
+  EXPECT_TRUE(ActionFromJson(ActionToJson(*a, w), "action", w).ok());
   EXPECT_NE(ActionFromJson(json{{"type", "JUMP"}}, "action", w).status().message().find(
                 "action.type"),
             std::string::npos);

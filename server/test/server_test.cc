@@ -6,76 +6,12 @@
 
 #include <chrono>
 #include <filesystem>
-#include <fstream>
-#include <sstream>
 #include <thread>
+
+#include "server_fixture.h"
 
 namespace npfkct::server {
 namespace {
-
-json WorldOf(const std::string& scenario) {
-  std::ifstream in(std::string(NPFKCT_SCENARIO_DIR) + "/" + scenario + ".json");
-  std::stringstream buffer;
-  buffer << in.rdbuf();
-  json s = json::parse(buffer.str());
-  json world;
-  for (const char* key : {"robot", "room", "mapResolution", "furniture", "baseRegions",
-                          "discretePoses", "start"}) {
-    if (s.contains(key)) world[key] = s[key];
-  }
-  return world;
-}
-
-struct Reply {
-  int status = 0;
-  json body;
-  std::string raw;
-};
-
-class ServerTest : public ::testing::Test {
- protected:
-  void Start(ServerOptions o = {}) {
-    o.port = 0;
-    server_ = std::make_unique<Server>(o);
-    ASSERT_TRUE(server_->Start().ok());
-    client_ = std::make_unique<httplib::Client>("127.0.0.1", server_->port());
-    client_->set_read_timeout(60, 0);
-  }
-  void TearDown() override {
-    if (server_) server_->Stop();
-  }
-  static Reply Wrap(const httplib::Result& r) {
-    Reply out;
-    if (!r) return out;
-    out.status = r->status;
-    out.raw = r->body;
-    out.body = json::parse(r->body, nullptr, false);
-    return out;
-  }
-  Reply Post(const std::string& path, const json& body, const httplib::Headers& h = {}) {
-    return Wrap(client_->Post(path.c_str(), h, body.dump(), "application/json"));
-  }
-  Reply PostRaw(const std::string& path, const std::string& body) {
-    return Wrap(client_->Post(path.c_str(), body, "application/json"));
-  }
-  Reply Get(const std::string& path, const httplib::Headers& h = {}) {
-    return Wrap(client_->Get(path.c_str(), h));
-  }
-  Reply Delete(const std::string& path) { return Wrap(client_->Delete(path.c_str())); }
-
-  std::string Create(json extra = json::object()) {
-    json body = {{"world", WorldOf("loose1")},
-                 {"seed", 7},
-                 {"planner", {{"name", "npfkct"}, {"particles", 100}}}};
-    body.update(extra);
-    Reply r = Post("/v1/sessions", body);
-    EXPECT_EQ(r.status, 200) << r.raw;
-    return r.body.value("id", "");
-  }
-
-  std::unique_ptr<Server> server_;
-  std::unique_ptr<httplib::Client> client_;
-};
 
 // An observation that reports what the robot saw after a move: one box with two faces.
 json Observation(const std::string& action_id, double tilt = 0.4) {

@@ -9,6 +9,7 @@ from npfkct_client.client import (
     NpfkctClient,
     Observation,
     Plan,
+    PointCloud,
     RobotConfig,
     Session,
 )
@@ -22,6 +23,7 @@ __all__ = [
     "NpfkctClient",
     "Observation",
     "Plan",
+    "PointCloud",
     "RobotConfig",
     "Session",
 ]

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import base64
 import dataclasses
 import json
-from typing import Any, Dict, List, Optional
+import struct
+from typing import Any, Dict, Iterable, List, Optional, Sequence
 
 import requests
 
@@ -47,6 +49,10 @@ class Box:
     size: List[float]
     yaw: float = 0.0
 
+    @classmethod
+    def from_json(cls, j: Dict[str, Any]) -> "Box":
+        return cls(center=list(j["center"]), size=list(j["size"]), yaw=float(j.get("yaw", 0.0)))
+
     def to_json(self) -> Dict[str, Any]:
         return {"center": list(self.center), "yaw": self.yaw, "size": list(self.size)}
 
@@ -84,17 +90,53 @@ class Action:
     type: str
     configuration: Optional[RobotConfig] = None
     object_id: Optional[str] = None
+    object_box: Optional[Box] = None  # where the object is, as the robot last saw it
 
     @classmethod
     def from_json(cls, j: Dict[str, Any]) -> "Action":
         if j["type"] == "MOVE":
             return cls("MOVE", configuration=RobotConfig.from_json(j["configuration"]))
-        return cls(j["type"], object_id=j["objectId"])
+        box = j.get("objectBox")
+        return cls(j["type"], object_id=j["objectId"],
+                   object_box=Box.from_json(box) if box else None)
 
     def to_json(self) -> Dict[str, Any]:
         if self.type == "MOVE":
             return {"type": "MOVE", "configuration": self.configuration.to_json()}
-        return {"type": self.type, "objectId": self.object_id}
+        out: Dict[str, Any] = {"type": self.type, "objectId": self.object_id}
+        if self.object_box is not None:
+            out["objectBox"] = self.object_box.to_json()
+        return out
+
+
+@dataclasses.dataclass
+class PointCloud:
+    """Raw points for the server's perception: little-endian float32 x, y, z (and, with fields
+    "xyzrgb", a fourth float packing 0x00RRGGBB as PCL does), in the camera's optical frame
+    ("camera": x right, y down, z forward) or the map frame ("map")."""
+
+    data: bytes
+    fields: str = "xyz"
+    frame: str = "camera"
+
+    @classmethod
+    def from_points(cls, points: Iterable[Sequence[float]], frame: str = "camera",
+                    colors: Optional[Iterable[Sequence[int]]] = None) -> "PointCloud":
+        """Packs (x, y, z) tuples, with optional (r, g, b) colours; NaN points are dropped."""
+        out = bytearray()
+        if colors is None:
+            for p in points:
+                if all(v == v for v in p[:3]):
+                    out += struct.pack("<fff", p[0], p[1], p[2])
+            return cls(bytes(out), "xyz", frame)
+        for p, c in zip(points, colors):
+            if all(v == v for v in p[:3]):
+                out += struct.pack("<fffI", p[0], p[1], p[2], (c[0] << 16) | (c[1] << 8) | c[2])
+        return cls(bytes(out), "xyzrgb", frame)
+
+    def to_json(self) -> Dict[str, Any]:
+        return {"frame": self.frame, "fields": self.fields,
+                "data": base64.b64encode(self.data).decode()}
 
 
 @dataclasses.dataclass
@@ -153,6 +195,7 @@ class Observation:
     done: bool
     reward: float
     session: Session
+    perception: Optional[Dict[str, Any]] = None  # what perception made of raw data
 
 
 class NpfkctClient:
@@ -201,7 +244,10 @@ class NpfkctClient:
                        options: Optional[Dict[str, Any]] = None, seed: Optional[int] = None,
                        display_name: Optional[str] = None,
                        ttl_seconds: Optional[float] = None,
-                       target_description: Optional[str] = None) -> Session:
+                       target_description: Optional[str] = None,
+                       target_photos: Optional[List[bytes]] = None) -> Session:
+        """Creates a session; `target_photos` are PNG or JPEG files' bytes of the target, for
+        the server's perception to match camera images against."""
         body: Dict[str, Any] = {"world": world, "planner": {"name": planner}}
         if particles is not None:
             body["planner"]["particles"] = particles
@@ -213,8 +259,12 @@ class NpfkctClient:
             body["displayName"] = display_name
         if ttl_seconds is not None:
             body["ttlSeconds"] = ttl_seconds
-        if target_description:
-            body["target"] = {"description": target_description}
+        if target_description or target_photos:
+            body["target"] = {}
+            if target_description:
+                body["target"]["description"] = target_description
+            if target_photos:
+                body["target"]["photos"] = [base64.b64encode(p).decode() for p in target_photos]
         return Session.from_json(self._call("POST", "/v1/sessions", body))
 
     def get_session(self, session_id: str) -> Session:
@@ -249,19 +299,34 @@ class NpfkctClient:
     def observe(self, session_id: str, action_id: str,
                 robot_state: Optional[RobotConfig] = None,
                 detections: Optional[List[Detection]] = None, succeeded: bool = True,
-                body: Optional[Dict[str, Any]] = None) -> Observation:
-        """Reports the outcome of `action_id`. `body` may carry a ready :observe body (as the
-        simulated robot produces); the typed arguments are used otherwise."""
+                body: Optional[Dict[str, Any]] = None,
+                point_cloud: Optional[PointCloud] = None, image: Optional[bytes] = None,
+                camera: Optional[Dict[str, float]] = None,
+                semantic_scores: Optional[Dict[str, float]] = None) -> Observation:
+        """Reports the outcome of `action_id`: either `detections`, or raw sensor data for the
+        server's perception (`point_cloud`, with the PNG/JPEG bytes of `image` and the `camera`
+        intrinsics {width, height, fx, fy, cx, cy}). `body` may carry a ready :observe body (as
+        the simulated robot produces); the typed arguments are used otherwise."""
         if body is None:
             body = {"succeeded": succeeded}
             if robot_state is not None:
                 body["robotState"] = robot_state.to_json()
             if detections is not None:
                 body["detections"] = [d.to_json() for d in detections]
+            if point_cloud is not None:
+                body["pointCloud"] = point_cloud.to_json()
+            if image is not None:
+                body["image"] = {"encoding": "jpeg" if image[:3] == b"\xff\xd8\xff" else "png",
+                                 "data": base64.b64encode(image).decode()}
+            if camera is not None:
+                body["camera"] = dict(camera)
+            if semantic_scores is not None:
+                body["semanticScores"] = dict(semantic_scores)
         body = dict(body, actionId=action_id)
         j = self._call("POST", f"/v1/sessions/{session_id}:observe", body)
         return Observation(done=j["done"], reward=j["reward"],
-                           session=Session.from_json(j["session"]))
+                           session=Session.from_json(j["session"]),
+                           perception=j.get("perception"))
 
     def belief(self, session_id: str) -> Dict[str, Any]:
         return self._call("GET", f"/v1/sessions/{session_id}/belief")

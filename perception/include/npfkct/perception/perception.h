@@ -72,7 +72,10 @@ struct PerceptionOptions {
   double association_distance = 0.03;  ///< Gate on the mean distance of points to a track's box (m).
   double sift_ratio = 0.75;            ///< Lowe's ratio test.
   int min_features = 12;               ///< Fewer keypoints than this: colour matching instead.
-  double match_threshold = 0.08;       ///< Ratio of matched features that means "target".
+  /// Fraction of a region's keypoints that a view of the target matches consistently; fewer
+  /// than expected is evidence against the target.
+  double match_threshold = 0.08;
+  int min_inliers = 6;                 ///< Consistent matches that mean "target".
   double gripper_max = 0.25;           ///< Largest graspable horizontal extent (m).
 
   Status Validate() const;
@@ -100,6 +103,13 @@ struct TargetModel {
   std::vector<cv::Mat> photos;
 };
 
+/// The state of one object track, for snapshots: id, supporting workspace, points (map frame).
+struct TrackState {
+  std::string id;
+  int surface = -1;
+  std::vector<float> points;  ///< x, y, z per point
+};
+
 /// The pipeline of one session: holds the map cloud and the object tracks across frames.
 class Perception {
  public:
@@ -113,12 +123,21 @@ class Perception {
 
   /// Number of object tracks so far.
   int tracks() const;
+  /// The tracks and the next id number, for snapshots.
+  std::vector<TrackState> SaveTracks(int* next_id) const;
+  /// Replaces the tracks (from SaveTracks); INVALID_ARGUMENT on malformed states.
+  Status RestoreTracks(const std::vector<TrackState>& tracks, int next_id);
+  /// Forgets the track `id` (the robot removed that object); false when there is none.
+  bool DropTrack(const std::string& id);
   /// The prior map cloud (for tests and visualisation).
   Cloud::ConstPtr map() const;
 
-  /// Detection score of an image region against the target (SIFT ratio mapped to [0, 1], colour
-  /// fallback); exposed for tests.
-  double TargetScore(const cv::Mat& region, bool* used_colour = nullptr) const;
+  /// Probability in [0.05, 0.95] that an image region (BGR; `mask`, 8-bit of the same size,
+  /// selects the object's pixels) shows the target: SIFT matches against the photos that agree
+  /// on one homography, with the colour histogram as the second cue. `used_colour` tells whether
+  /// SIFT had too few keypoints to contribute. Exposed for tests.
+  double TargetScore(const cv::Mat& region, bool* used_colour = nullptr,
+                     const cv::Mat& mask = cv::Mat()) const;
 
  private:
   struct Impl;

@@ -20,8 +20,16 @@ class ApiRobot {
   /// {"type": "DECLARE_TARGET" | "DECLARE_OBSTACLE" | "REMOVE", "objectId": "..."}; "LOOK" only
   /// observes). A malformed action is reported as illegal.
   ExecutionOutcome Execute(const nlohmann::json& action);
-  /// The observation after the last action, as an :observe body without the actionId.
+  /// The observation after the last action, as an :observe body without the actionId: the
+  /// geometric detections (the simulator's shortcut).
   nlohmann::json Observe(bool succeeded);
+  /// The same as raw sensor data for the server's perception: the rendered RGB-D frame as a
+  /// camera-frame point cloud (base64 float32 xyzrgb) and a PNG, the camera's intrinsics, and
+  /// the pose as the robot's localization reports it (the truth plus noise.localization*). When
+  /// the camera saw nothing within range, only the pose.
+  nlohmann::json ObserveRaw(bool succeeded, int width = 640, int height = 480);
+  /// Photos of the target (base64 PNGs), as the robot's operator would give them.
+  nlohmann::json TargetPhotosJson() const;
 
   const Simulator& simulator() const { return sim_; }
   const Scenario& scenario() const { return sim_.scenario(); }

@@ -49,6 +49,10 @@ struct SimNoise {
   double box_estimate = 0.005;  ///< Std of detected box centers and sizes (m).
   double detection = 0.08;      ///< Std of a face's detection score.
   double false_detection = 0.03;  ///< Probability that a face's detection is flipped.
+  /// Std of the base pose the robot reports with raw frames (its localization error; m, rad),
+  /// which perception's registration corrects.
+  double localization_xy = 0.03;
+  double localization_yaw = 0.02;
 };
 
 /// A complete scenario.

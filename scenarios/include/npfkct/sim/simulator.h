@@ -66,10 +66,17 @@ class Simulator {
   /// Executes a move to `config` (pose noise added; collisions and joint limits are illegal).
   ExecutionOutcome ExecuteMove(const RobotConfig& config, const object_search::SearchParams& p,
                                Rng& rng);
-  /// Executes a declare/remove on the scene object named `name`: `offset` 0 declares it the
+  /// Executes a declare/remove on the scene object named `name` (or, for an id that perception
+  /// made up, the one standing where the robot saw box `seen`): `offset` 0 declares it the
   /// target, 1 an obstacle, 2 removes it; `status` is what the robot has declared it so far.
   ExecutionOutcome ExecuteOnObject(int offset, const std::string& name, int8_t status,
-                                   const object_search::SearchParams& p);
+                                   const object_search::SearchParams& p,
+                                   const Box* seen = nullptr);
+  /// The scene object named `key` or, failing that, the one not removed whose center is nearest
+  /// to `seen`'s, within kSameObjectDistance; -1 when none.
+  int FindObject(const std::string& key, const Box* seen = nullptr) const;
+  /// How far a seen box's center may be from an object's for the two to be the same object (m).
+  static constexpr double kSameObjectDistance = 0.12;
 
   /// The geometric observation from the robot's current configuration: every scene object whose
   /// center the camera sees unoccluded, with its estimated box and, for each of its 4 face grids

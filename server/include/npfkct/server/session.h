@@ -19,9 +19,23 @@
 #include "npfkct/solver/object_search/search_planner.h"
 #include "npfkct/solver/planner.h"
 
+namespace npfkct::perception {
+class Perception;
+}  // namespace npfkct::perception
+
 namespace npfkct::server {
 
 using nlohmann::json;
+
+/// What the robot is told about the object it searches for.
+struct TargetSpec {
+  std::string description;
+  /// Photos of the target (base64 PNG or JPEG), matched against camera images by perception.
+  std::vector<std::string> photos;
+
+  /// Decodes every photo; INVALID_ARGUMENT naming `target.photos[i]` on a bad one.
+  Status Validate() const;
+};
 
 /// Which planner a session uses and how.
 struct PlannerSpec {
@@ -47,11 +61,14 @@ class Session {
   /// A new session over `world`. Fails on a bad planner name or options.
   static StatusOr<std::unique_ptr<Session>> Create(std::string id, std::string display_name,
                                                    object_search::World world, PlannerSpec spec,
-                                                   uint64_t seed, double ttl_seconds,
+                                                   TargetSpec target, uint64_t seed,
+                                                   double ttl_seconds,
                                                    const SamplerFactory& samplers);
   /// A session restored from Snapshot() output (the tree is rebuilt by the next plan).
   static StatusOr<std::unique_ptr<Session>> Restore(const json& snapshot,
                                                     const SamplerFactory& samplers);
+
+  ~Session();
 
   const std::string& id() const { return id_; }
   std::mutex& mutex() const { return mutex_; }
@@ -65,7 +82,8 @@ class Session {
   /// pending or after the target was removed.
   StatusOr<json> Plan(const Budget& budget);
   /// Applies the observation that followed the pending action (validated in full before anything
-  /// changes). FAILED_PRECONDITION for a missing, stale or repeated actionId.
+  /// changes). FAILED_PRECONDITION for a missing, stale or repeated actionId. Raw `pointCloud` (and
+  /// `image`) go through the session's perception pipeline, created on first use.
   StatusOr<json> Observe(const json& body);
   /// The belief as JSON.
   json Belief() const;
@@ -85,12 +103,16 @@ class Session {
  private:
   Session() = default;
   Status Init(const SamplerFactory& samplers);
+  /// The perception pipeline, built from the world's map and the target photos on first use.
+  perception::Perception& Perceiver();
   void Reseed();
   ParticleBelief<object_search::State> FreshBelief();
 
   std::string id_;
   std::string display_name_;
   PlannerSpec spec_;
+  TargetSpec target_;
+  std::unique_ptr<perception::Perception> perception_;
   uint64_t seed_ = 0;
   double ttl_seconds_ = 3600.0;
   Rng rng_;
