@@ -1,8 +1,9 @@
 // npfkct-server: the planning server (see README.md and schemas/openapi.yaml).
+#include <spdlog/spdlog.h>
+
 #include <CLI/CLI.hpp>
 #include <csignal>
 #include <cstdio>
-#include <spdlog/spdlog.h>
 
 #include "npfkct/server/server.h"
 

@@ -3,12 +3,13 @@
 // Prints one JSON object with the median milliseconds of each stage, and how well the target was
 // told apart: the share of the target's detections scored above 0.5 (recall) and of the other
 // objects' scored below (rejected), each detection matched to the scene object at its box.
+#include <pcl/console/print.h>
+
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cstdio>
 #include <numbers>
 #include <opencv2/core.hpp>
-#include <pcl/console/print.h>
 #include <vector>
 
 #include "npfkct/perception/perception.h"

@@ -1,7 +1,6 @@
 #include "npfkct/perception/perception.h"
 
 #include <pcl/common/transforms.h>
-#include <Eigen/Eigenvalues>
 #include <pcl/features/fpfh.h>
 #include <pcl/features/normal_3d.h>
 #include <pcl/filters/voxel_grid.h>
@@ -11,11 +10,12 @@
 #include <pcl/search/kdtree.h>
 #include <pcl/segmentation/extract_clusters.h>
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
-#include <cstdio>
-#include <cstdlib>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <numbers>
@@ -177,8 +177,8 @@ Box FitBox(const CloudXYZ& points, double surface_height) {
   const double mu = 0.5 * (e[0] + e[1]), mv = 0.5 * (e[2] + e[3]);
   Box b;
   b.yaw = yaw;
-  b.center = Vec3(mean.x() + c * mu - s * mv, mean.y() + s * mu + c * mv,
-                  0.5 * (surface_height + top));
+  b.center =
+      Vec3(mean.x() + c * mu - s * mv, mean.y() + s * mu + c * mv, 0.5 * (surface_height + top));
   b.size = Vec3(std::max(e[1] - e[0], 0.01), std::max(e[3] - e[2], 0.01),
                 std::max(top - surface_height, 0.01));
   return b;
@@ -190,7 +190,6 @@ double DistanceToBox(const Box& b, const PointXYZ& p) {
   const Vec3 outside = (l.cwiseAbs() - 0.5 * b.size).cwiseMax(0.0);
   return outside.norm();
 }
-
 
 }  // namespace
 
@@ -209,7 +208,8 @@ Status PerceptionOptions::Validate() const {
   for (double v : {voxel, icp_max_distance, icp_good_fitness, ransac_voxel, max_correction,
                    map_distance, max_object_height, cluster_tolerance, association_gate,
                    association_distance, sift_ratio, match_threshold, gripper_max}) {
-    if (!(v > 0) || !std::isfinite(v)) return InvalidArgumentError("perception options must be > 0");
+    if (!(v > 0) || !std::isfinite(v))
+      return InvalidArgumentError("perception options must be > 0");
   }
   if (icp_iterations < 1 || min_cluster_points < 1 || max_cluster_points < min_cluster_points ||
       min_features < 1 || min_inliers < 4) {
@@ -351,8 +351,8 @@ Status Perception::RestoreTracks(const std::vector<TrackState>& tracks, int next
 
 bool Perception::DropTrack(const std::string& id) {
   auto& tracks = impl_->tracks;
-  const auto it = std::find_if(tracks.begin(), tracks.end(),
-                               [&](const Track& t) { return t.id == id; });
+  const auto it =
+      std::find_if(tracks.begin(), tracks.end(), [&](const Track& t) { return t.id == id; });
   if (it == tracks.end()) return false;
   tracks.erase(it);
   return true;
@@ -464,8 +464,8 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
         continue;
       }
       const double u = in.fx * p.x / p.z + in.cx, v = in.fy * p.y / p.z + in.cy;
-      outside += u < -0.1 * in.width || u > 1.1 * in.width || v < -0.1 * in.height ||
-                 v > 1.1 * in.height;
+      outside +=
+          u < -0.1 * in.width || u > 1.1 * in.width || v < -0.1 * in.height || v > 1.1 * in.height;
     }
     const size_t n = frame.cloud->size();
     if (behind * 20 > n) {
@@ -480,14 +480,13 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
           "camera's optical frame, and are the camera intrinsics right?");
     }
   }
-  if (!frame.image.empty() && (frame.image.cols != frame.intrinsics.width ||
-                               frame.image.rows != frame.intrinsics.height ||
-                               frame.image.type() != CV_8UC3)) {
-    return InvalidArgumentError("image.data: the image is " + std::to_string(frame.image.cols) +
-                                "x" + std::to_string(frame.image.rows) +
-                                " (3 channels expected), the camera says " +
-                                std::to_string(frame.intrinsics.width) + "x" +
-                                std::to_string(frame.intrinsics.height));
+  if (!frame.image.empty() &&
+      (frame.image.cols != frame.intrinsics.width || frame.image.rows != frame.intrinsics.height ||
+       frame.image.type() != CV_8UC3)) {
+    return InvalidArgumentError(
+        "image.data: the image is " + std::to_string(frame.image.cols) + "x" +
+        std::to_string(frame.image.rows) + " (3 channels expected), the camera says " +
+        std::to_string(frame.intrinsics.width) + "x" + std::to_string(frame.intrinsics.height));
   }
   PerceptionResult result;
 
@@ -544,8 +543,7 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
   }
   const Eigen::Matrix<double, 6, 1> directions =
       Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>>(system).eigenvalues();
-  const bool observable =
-      source->size() >= 200 && directions[0] > o.min_structure * directions[5];
+  const bool observable = source->size() >= 200 && directions[0] > o.min_structure * directions[5];
   pcl::IterativeClosestPointWithNormals<PointNormal, PointNormal> icp;
   icp.setInputSource(source);
   icp.setInputTarget(im.map_normals);
@@ -589,8 +587,7 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
       }
     }
   }
-  if (correction.block<3, 1>(0, 3).norm() > o.max_correction ||
-      !correction.allFinite()) {
+  if (correction.block<3, 1>(0, 3).norm() > o.max_correction || !correction.allFinite()) {
     correction.setIdentity();  // implausible: keep the reported pose
   }
   result.correction = correction;
@@ -599,11 +596,12 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
       frame.cloud_in_map_frame ? reported : Eigen::Matrix4d(correction * reported);
   // The corrected base pose: the correction applied to the base's position and heading.
   object_search::RobotConfig corrected = frame.reported;
-  const Eigen::Vector4d base = correction * Eigen::Vector4d(frame.reported.x, frame.reported.y, 0, 1);
+  const Eigen::Vector4d base =
+      correction * Eigen::Vector4d(frame.reported.x, frame.reported.y, 0, 1);
   corrected.x = base.x();
   corrected.y = base.y();
-  corrected.yaw = object_search::WrapAngle(frame.reported.yaw +
-                                           std::atan2(correction(1, 0), correction(0, 0)));
+  corrected.yaw =
+      object_search::WrapAngle(frame.reported.yaw + std::atan2(correction(1, 0), correction(0, 0)));
   result.observation.achieved = corrected;
   result.timings.registration = Ms(t0);
 
@@ -755,15 +753,15 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
     const double extent = std::max(det.box.size.x(), det.box.size.y());
     double reach = 1e9;
     for (const auto& region : im.world.base_regions) {
-      const double dx = std::max({region.min.x() - det.box.center.x(), 0.0,
-                                  det.box.center.x() - region.max.x()});
-      const double dy = std::max({region.min.y() - det.box.center.y(), 0.0,
-                                  det.box.center.y() - region.max.y()});
+      const double dx =
+          std::max({region.min.x() - det.box.center.x(), 0.0, det.box.center.x() - region.max.x()});
+      const double dy =
+          std::max({region.min.y() - det.box.center.y(), 0.0, det.box.center.y() - region.max.y()});
       reach = std::min(reach, std::hypot(dx, dy));
     }
     const bool reachable = reach <= im.world.robot.reach;
-    det.moveability = !reachable                       ? 0.05
-                      : extent <= o.gripper_max        ? 0.95
+    det.moveability = !reachable                      ? 0.05
+                      : extent <= o.gripper_max       ? 0.95
                       : extent <= 1.5 * o.gripper_max ? 0.5
                                                       : 0.05;
     result.observation.objects.push_back(std::move(det));
@@ -782,7 +780,8 @@ std::string Base64Encode(const std::string& bytes) {
   size_t i = 0;
   for (; i + 2 < bytes.size(); i += 3) {
     const uint32_t v = (static_cast<uint8_t>(bytes[i]) << 16) |
-                       (static_cast<uint8_t>(bytes[i + 1]) << 8) | static_cast<uint8_t>(bytes[i + 2]);
+                       (static_cast<uint8_t>(bytes[i + 1]) << 8) |
+                       static_cast<uint8_t>(bytes[i + 2]);
     out += kAlphabet[v >> 18];
     out += kAlphabet[(v >> 12) & 63];
     out += kAlphabet[(v >> 6) & 63];

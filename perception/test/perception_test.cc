@@ -296,8 +296,7 @@ TEST(EncodingTest, CloudsAndImagesRoundTripAndBadDataIsNamed) {
             std::string::npos);
   EXPECT_NE(DecodeCloud("", "xyz", "pointCloud").status().message().find("empty"),
             std::string::npos);
-  EXPECT_NE(DecodeCloud("AAAA", "xyzw", "pointCloud").status().message().find(
-                "pointCloud.fields"),
+  EXPECT_NE(DecodeCloud("AAAA", "xyzw", "pointCloud").status().message().find("pointCloud.fields"),
             std::string::npos);
   cv::Mat img(16, 16, CV_8UC3, cv::Scalar(1, 2, 3));
   std::vector<uchar> png;
@@ -305,8 +304,10 @@ TEST(EncodingTest, CloudsAndImagesRoundTripAndBadDataIsNamed) {
   auto decoded = DecodeImage(Base64Encode(std::string(png.begin(), png.end())), "image");
   ASSERT_TRUE(decoded.ok());
   EXPECT_EQ(decoded->cols, 16);
-  EXPECT_NE(DecodeImage(Base64Encode("GIF89a nonsense"), "image").status().message().find(
-                "image.data: not a PNG or JPEG"),
+  EXPECT_NE(DecodeImage(Base64Encode("GIF89a nonsense"), "image")
+                .status()
+                .message()
+                .find("image.data: not a PNG or JPEG"),
             std::string::npos);
   std::vector<uchar> jpeg, bmp;
   cv::imencode(".jpg", img, jpeg);
@@ -315,8 +316,7 @@ TEST(EncodingTest, CloudsAndImagesRoundTripAndBadDataIsNamed) {
   cv::imencode(".bmp", img, bmp);
   EXPECT_FALSE(DecodeImage(Base64Encode(std::string(bmp.begin(), bmp.end())), "image").ok());
   // A PNG signature with a truncated body.
-  EXPECT_FALSE(
-      DecodeImage(Base64Encode(std::string(png.begin(), png.begin() + 20)), "image").ok());
+  EXPECT_FALSE(DecodeImage(Base64Encode(std::string(png.begin(), png.begin() + 20)), "image").ok());
   EXPECT_EQ(Base64Decode(Base64Encode("hello world")).value(), "hello world");
 }
 

@@ -8,7 +8,6 @@
 #include <vector>
 
 #include "episode_runner.h"
-#include "object_search_bench.h"
 #include "npfkct/solver/advt.h"
 #include "npfkct/solver/kct.h"
 #include "npfkct/solver/models/light_dark.h"
@@ -18,6 +17,7 @@
 #include "npfkct/solver/option_setters.h"
 #include "npfkct/solver/pomcp.h"
 #include "npfkct/solver/pomcpow.h"
+#include "object_search_bench.h"
 
 namespace npfkct::bench {
 namespace {
@@ -92,8 +92,8 @@ void PrintJson(const Config& c, const RunSummary& s, int max_steps) {
       "\"sims\": %lld, \"max_steps\": %d, \"seed\": %llu, \"threads\": %d, \"rollout\": \"%s\", "
       "\"options\": [",
       JsonEscape(c.problem).c_str(), JsonEscape(c.planner).c_str(), c.episodes, c.time_ms,
-      static_cast<long long>(c.sims), max_steps, static_cast<unsigned long long>(c.seed),
-      c.threads, JsonEscape(c.rollout).c_str());
+      static_cast<long long>(c.sims), max_steps, static_cast<unsigned long long>(c.seed), c.threads,
+      JsonEscape(c.rollout).c_str());
   for (size_t i = 0; i < c.options.size(); ++i) {
     std::printf("%s\"%s\"", i ? ", " : "", JsonEscape(c.options[i]).c_str());
   }
@@ -194,7 +194,7 @@ int RunLightDark(const Config& c) {
     o.search.num_particles = 10000;
     o.search.leaf_value = SearchOptions::LeafValue::kHeuristic;
     return Run<models::SimpleLightDark, Pomcp<models::SimpleLightDark>>(c, model, o, 100, true,
-                                                                         declared_at_zero);
+                                                                        declared_at_zero);
   }
   if (c.planner == "pomcpow") {
     PomcpowOptions o;  // the POMCPOW paper's settings
@@ -207,7 +207,7 @@ int RunLightDark(const Config& c) {
     o.search.num_particles = 10000;
     o.search.leaf_value = SearchOptions::LeafValue::kHeuristic;
     return Run<models::SimpleLightDark, Pomcpow<models::SimpleLightDark>>(c, model, o, 100, true,
-                                                                           declared_at_zero);
+                                                                          declared_at_zero);
   }
   return Unsupported(c);
 }
@@ -282,7 +282,8 @@ int main(int argc, char** argv) {
                  "object-search scenario file(s) (repeatable or comma-separated)")
       ->delimiter(',');
   app.add_option("--planner", search.planners,
-                 "problems: pomcp | pomcpow | vomcpow | advt | kct; scenarios: npfkct, kct, "
+                 "problems: pomcp | pomcpow | vomcpow | advt | kct; scenarios: npfkct, "
+                 "npfkct+filter[:explore], kct, "
                  "pomcp, gpomcp, pomcpow, vomcpow, advt or all (comma-separated)")
       ->delimiter(',')
       ->required();
@@ -298,6 +299,8 @@ int main(int argc, char** argv) {
   app.add_option("--rollout", c.rollout,
                  "tiger: listen (default) | random; vdptag: random (default) | tonextml");
   app.add_option("--opt", c.options, "planner option key=value (repeatable)");
+  app.add_option("--model", search.filter_model,
+                 "scenarios: filter model of the npfkct+filter planner (default: the shipped one)");
   app.add_option("--robot", search.robot, "scenarios: override the robot (fetch | stretch)");
   app.add_option("--table", search.table_path, "scenarios: write a Markdown table (Table 1)");
   app.add_option("--observe", search.observe,

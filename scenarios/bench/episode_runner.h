@@ -30,7 +30,7 @@ struct EpisodeResult {
   std::vector<int64_t> sims_per_step;
   std::vector<double> ms_per_step;
   std::vector<double> extra_ms;  ///< Other per-step timings (perception per frame).
-  std::string error;  ///< Non-empty when planning failed.
+  std::string error;             ///< Non-empty when planning failed.
 };
 
 /// Aggregates of a run.

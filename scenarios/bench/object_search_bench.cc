@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -10,6 +11,7 @@
 #include <sstream>
 
 #include "episode_runner.h"
+#include "npfkct/filter/filter.h"
 #include "npfkct/perception/perception.h"
 #include "npfkct/sim/frame_io.h"
 #include "npfkct/sim/scenario.h"
@@ -31,7 +33,33 @@ struct TrialContext {
   uint64_t seed;
   std::string render_prefix;  // empty: no pictures
   bool perception = false;    // observe through rendered frames and the perception pipeline
+  std::shared_ptr<const filter::NeuralFilter> filter;  // for the "npfkct+filter" planner
 };
+
+// The planner "npfkct+filter" is NPF-kCT with the neural filter as its candidate sampler;
+// "npfkct+filter:X" also keeps a share X of uniform candidates (FilterOptions::explore).
+constexpr char kFilteredPlanner[] = "npfkct+filter";
+
+bool IsFiltered(const std::string& name) { return name.rfind(kFilteredPlanner, 0) == 0; }
+
+StatusOr<std::unique_ptr<object_search::SearchPlanner>> MakePlanner(
+    const std::string& name, const ObjectSearchModel& model,
+    const std::vector<std::pair<std::string, double>>& options,
+    const std::shared_ptr<const filter::NeuralFilter>& net) {
+  if (!IsFiltered(name)) return object_search::MakeSearchPlanner(name, model, options);
+  filter::FilterOptions fo;
+  const std::string rest = name.substr(std::strlen(kFilteredPlanner));
+  if (!rest.empty()) {
+    char* end = nullptr;
+    fo.explore = rest[0] == ':' ? std::strtod(rest.c_str() + 1, &end) : -1.0;
+    if (rest[0] != ':' || end == rest.c_str() + 1 || *end != '\0') {
+      return InvalidArgumentError("planner '" + name + "': expected npfkct+filter[:explore]");
+    }
+  }
+  auto sampler = filter::MakeNetSam(net, model, fo);
+  if (!sampler.ok()) return sampler.status();
+  return object_search::MakeSearchPlanner("npfkct", model, options, *sampler);
+}
 
 // The robot's eyes in perception mode: renders the view, reports a noisy pose, and turns the
 // frame into detections with the perception pipeline, as the server does for raw :observe data.
@@ -39,8 +67,8 @@ class PerceivingRobot {
  public:
   PerceivingRobot(const sim::Simulator& simulator, const World& world)
       : simulator_(simulator),
-        perception_(world, {sim::ObjectPhotos(simulator.objects()[simulator.target_index()])},
-                    {}) {}
+        perception_(world, {sim::ObjectPhotos(simulator.objects()[simulator.target_index()])}, {}) {
+  }
 
   StatusOr<object_search::RealObservation> Observe(Rng& rng) {
     const sim::Frame f = simulator_.Render(640, 480);
@@ -106,14 +134,14 @@ EpisodeResult RunTrial(const TrialContext& ctx) {
   };
   // The robot looks once from its start before planning.
   auto first = observe();
-  Status first_status = first.ok() ? object_search::ApplyRealObservation(&world, *first)
-                                   : first.status();
+  Status first_status =
+      first.ok() ? object_search::ApplyRealObservation(&world, *first) : first.status();
   if (!first_status.ok()) {
     result.error = first_status.ToString();
     return result;
   }
   ObjectSearchModel model(std::make_shared<World>(world));
-  auto made = object_search::MakeSearchPlanner(ctx.planner, model, ctx.options);
+  auto made = MakePlanner(ctx.planner, model, ctx.options, ctx.filter);
   if (!made.ok()) {
     result.error = made.status().ToString();
     return result;
@@ -187,8 +215,7 @@ EpisodeResult RunTrial(const TrialContext& ctx) {
 std::string Cell(const RunSummary& s) {
   char buf[160];
   std::snprintf(buf, sizeof buf, "%.1f ± %.1f \\| %.1f ± %.1f \\| %.0f%%", s.mean_return,
-                s.ci95_return, s.mean_steps, s.ci95_steps,
-                100.0 * s.success_rate.value_or(0.0));
+                s.ci95_return, s.mean_steps, s.ci95_steps, 100.0 * s.success_rate.value_or(0.0));
   return buf;
 }
 
@@ -216,6 +243,17 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
   if (planners.size() == 1 && planners[0] == "all") {
     planners = {"pomcp", "gpomcp", "pomcpow", "vomcpow", "advt", "kct"};
   }
+  std::shared_ptr<const filter::NeuralFilter> net;
+  if (std::any_of(planners.begin(), planners.end(), IsFiltered)) {
+    const std::string path =
+        config.filter_model.empty() ? std::string(NPFKCT_FILTER_MODEL) : config.filter_model;
+    auto loaded = filter::NeuralFilter::Load(path);
+    if (!loaded.ok()) {
+      std::cerr << "npfkct-bench: --model: " << loaded.status().message() << "\n";
+      return 2;
+    }
+    net = *loaded;
+  }
   std::map<std::string, std::map<std::string, RunSummary>> table;
   std::vector<std::string> scenario_names;
   std::vector<sim::Scenario> scenarios;
@@ -235,7 +273,7 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
     }
     ObjectSearchModel probe(std::make_shared<World>(*world));
     for (const std::string& planner : planners) {
-      auto made = object_search::MakeSearchPlanner(planner, probe, options);
+      auto made = MakePlanner(planner, probe, options, net);
       if (!made.ok()) {
         std::cerr << "npfkct-bench: " << made.status().message() << "\n";
         return 2;
@@ -277,8 +315,7 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
         int sc, variant, trial;
         job(j, &sc, &variant, &trial);
         const sim::Scenario& scenario = scenarios[sc];
-        const int max_steps =
-            config.max_steps > 0 ? config.max_steps : scenario.params.max_steps;
+        const int max_steps = config.max_steps > 0 ? config.max_steps : scenario.params.max_steps;
         const std::string& planner = planners[planner_of(variant)];
         const std::string& mode = modes[mode_of(variant)];
         std::string render_prefix;
@@ -286,9 +323,15 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
           render_prefix = config.render_dir + "/" + scenario.name + "-" + planner +
                           (modes.size() > 1 ? "-" + mode : "");
         }
-        TrialContext ctx{&scenario, planner, options, budget, max_steps,
-                         config.seed * 1000003ULL + static_cast<uint64_t>(trial), render_prefix,
-                         mode == "perception"};
+        TrialContext ctx{&scenario,
+                         planner,
+                         options,
+                         budget,
+                         max_steps,
+                         config.seed * 1000003ULL + static_cast<uint64_t>(trial),
+                         render_prefix,
+                         mode == "perception",
+                         net};
         return RunTrial(ctx);
       },
       "object search");
@@ -327,8 +370,7 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
           "\"median_sims_per_second\": %.1f, \"median_first_step_sims_per_second\": %.1f, "
           "\"wall_seconds\": %.1f, \"failed_trials\": %d%s%s%s%s}\n",
           JsonEscape(scenario.name).c_str(), planner.c_str(), mode.c_str(), config.trials,
-          config.time_ms,
-          static_cast<long long>(config.sims), scenario.robot.c_str(),
+          config.time_ms, static_cast<long long>(config.sims), scenario.robot.c_str(),
           static_cast<unsigned long long>(config.seed), config.threads, s.mean_return,
           s.ci95_return, s.mean_steps, s.ci95_steps, s.success_rate.value_or(0.0),
           s.median_sims_per_step, s.median_sims_per_second, s.median_first_step_sims_per_second,

@@ -122,8 +122,8 @@ json ApiRobot::TargetPhotosJson() const {
 }
 
 json RobotConfigJson(const RobotConfig& c) {
-  return {{"x", c.x}, {"y", c.y}, {"yaw", c.yaw}, {"lift", c.lift}, {"pan", c.pan},
-          {"tilt", c.tilt}};
+  return {{"x", c.x},       {"y", c.y},     {"yaw", c.yaw},
+          {"lift", c.lift}, {"pan", c.pan}, {"tilt", c.tilt}};
 }
 
 json DetectionsJson(const object_search::RealObservation& obs) {

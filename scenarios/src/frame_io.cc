@@ -15,8 +15,7 @@ cv::Mat FrameBgr(const Frame& frame) {
 }
 
 cv::Mat FrameDepth(const Frame& frame) {
-  return cv::Mat(frame.height, frame.width, CV_32F, const_cast<float*>(frame.depth.data()))
-      .clone();
+  return cv::Mat(frame.height, frame.width, CV_32F, const_cast<float*>(frame.depth.data())).clone();
 }
 
 pcl::PointCloud<pcl::PointXYZRGB>::Ptr FrameCloud(const Frame& frame, bool world_frame) {
@@ -31,8 +30,8 @@ pcl::PointCloud<pcl::PointXYZRGB>::Ptr FrameCloud(const Frame& frame, bool world
       const double y = (v + 0.5 - frame.cy) / frame.fy * z;
       pcl::PointXYZRGB p;
       if (world_frame) {
-        const Vec3 w = frame.pose.position + frame.pose.forward * z - frame.pose.left * x -
-                       frame.pose.up * y;
+        const Vec3 w =
+            frame.pose.position + frame.pose.forward * z - frame.pose.left * x - frame.pose.up * y;
         p.x = static_cast<float>(w.x());
         p.y = static_cast<float>(w.y());
         p.z = static_cast<float>(w.z());
@@ -92,10 +91,9 @@ cv::Mat RenderGridWorld(const object_search::World& world, int ppm) {
     const auto& o = world.objects[i];
     if (o.status == object_search::kRemoved) continue;
     const auto corners = o.box.Corners();
-    std::vector<cv::Point> poly = {px(corners[0].x(), corners[0].y()),
-                                   px(corners[1].x(), corners[1].y()),
-                                   px(corners[3].x(), corners[3].y()),
-                                   px(corners[2].x(), corners[2].y())};
+    std::vector<cv::Point> poly = {
+        px(corners[0].x(), corners[0].y()), px(corners[1].x(), corners[1].y()),
+        px(corners[3].x(), corners[3].y()), px(corners[2].x(), corners[2].y())};
     cv::Scalar color = o.status == object_search::kDeclaredTarget     ? cv::Scalar(0, 160, 0)
                        : o.status == object_search::kDeclaredObstacle ? cv::Scalar(0, 0, 0)
                                                                       : cv::Scalar(90, 90, 90);

@@ -1,12 +1,12 @@
 #include "npfkct/sim/scenario.h"
 
-#include "npfkct/sim/json_read.h"
-
 #include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <sstream>
+
+#include "npfkct/sim/json_read.h"
 
 namespace npfkct::sim {
 namespace {
@@ -23,15 +23,20 @@ using namespace json_read;  // NOLINT: the field readers
 Status ParseParams(const json& j, object_search::SearchParams* p) {
   const std::string path = "params.";
   if (!j.is_object()) return Err("params", "expected an object");
-  const std::pair<const char*, double*> reals[] = {
-      {"rMax", &p->r_max},           {"rCt", &p->r_ct},
-      {"rCo", &p->r_co},             {"rMin", &p->r_min},
-      {"rIll", &p->r_ill},           {"discount", &p->discount},
-      {"cO", &p->c_o},               {"etaStd", &p->eta_std},
-      {"nuP", &p->nu_p},             {"nuN", &p->nu_n},
-      {"declareThreshold", &p->declare_threshold},
-      {"guessOdds", &p->guess_odds}, {"guessSize", &p->guess_size},
-      {"gridFreeDelta", &p->grid_free_delta}};
+  const std::pair<const char*, double*> reals[] = {{"rMax", &p->r_max},
+                                                   {"rCt", &p->r_ct},
+                                                   {"rCo", &p->r_co},
+                                                   {"rMin", &p->r_min},
+                                                   {"rIll", &p->r_ill},
+                                                   {"discount", &p->discount},
+                                                   {"cO", &p->c_o},
+                                                   {"etaStd", &p->eta_std},
+                                                   {"nuP", &p->nu_p},
+                                                   {"nuN", &p->nu_n},
+                                                   {"declareThreshold", &p->declare_threshold},
+                                                   {"guessOdds", &p->guess_odds},
+                                                   {"guessSize", &p->guess_size},
+                                                   {"gridFreeDelta", &p->grid_free_delta}};
   std::set<std::string> known = {"nOdds", "maxSteps"};
   for (auto [key, field] : reals) {
     known.insert(key);
@@ -107,10 +112,10 @@ StatusOr<Scenario> ParseScenarioJson(const json& j, bool world_only) {
                                      {"robot", "room", "mapResolution", "furniture", "baseRegions",
                                       "discretePoses", "start", "params"}));
   } else {
-    NPFKCT_RETURN_IF_ERROR(CheckKeys(j, "",
-                                     {"name", "description", "robot", "room", "mapResolution",
-                                      "furniture", "baseRegions", "discretePoses", "objects",
-                                      "start", "noise", "params"}));
+    NPFKCT_RETURN_IF_ERROR(
+        CheckKeys(j, "",
+                  {"name", "description", "robot", "room", "mapResolution", "furniture",
+                   "baseRegions", "discretePoses", "objects", "start", "noise", "params"}));
   }
   Scenario sc;
   if (world_only) {
@@ -144,7 +149,8 @@ StatusOr<Scenario> ParseScenarioJson(const json& j, bool world_only) {
         CheckKeys(f, path, {"name", "center", "size", "yaw", "workspace", "color"}));
     Furniture fu;
     NPFKCT_RETURN_IF_ERROR(ReadString(f, "name", path, &fu.name, true));
-    if (!names.insert(fu.name).second) return Err(path + "name", "duplicate name '" + fu.name + "'");
+    if (!names.insert(fu.name).second)
+      return Err(path + "name", "duplicate name '" + fu.name + "'");
     Vec2 center;
     NPFKCT_RETURN_IF_ERROR(ReadVector<2>(f, "center", path, &center, true));
     NPFKCT_RETURN_IF_ERROR(ReadVector<3>(f, "size", path, &fu.box.size, true));
@@ -194,12 +200,13 @@ StatusOr<Scenario> ParseScenarioJson(const json& j, bool world_only) {
     const json& o = j.at("objects")[i];
     const std::string path = "objects[" + std::to_string(i) + "].";
     if (!o.is_object()) return Err(path.substr(0, path.size() - 1), "expected an object");
-    NPFKCT_RETURN_IF_ERROR(CheckKeys(o, path,
-                                     {"name", "on", "position", "z", "size", "yaw", "color",
-                                      "target", "moveable", "texture"}));
+    NPFKCT_RETURN_IF_ERROR(CheckKeys(
+        o, path,
+        {"name", "on", "position", "z", "size", "yaw", "color", "target", "moveable", "texture"}));
     SceneObject so;
     NPFKCT_RETURN_IF_ERROR(ReadString(o, "name", path, &so.name, true));
-    if (!names.insert(so.name).second) return Err(path + "name", "duplicate name '" + so.name + "'");
+    if (!names.insert(so.name).second)
+      return Err(path + "name", "duplicate name '" + so.name + "'");
     std::string on;
     NPFKCT_RETURN_IF_ERROR(ReadString(o, "on", path, &on, true));
     const Furniture* support = nullptr;
@@ -241,8 +248,8 @@ StatusOr<Scenario> ParseScenarioJson(const json& j, bool world_only) {
   }
 
   if (j.contains("start")) {
-    NPFKCT_RETURN_IF_ERROR(CheckKeys(j.at("start"), "start.",
-                                     {"x", "y", "yaw", "lift", "pan", "tilt"}));
+    NPFKCT_RETURN_IF_ERROR(
+        CheckKeys(j.at("start"), "start.", {"x", "y", "yaw", "lift", "pan", "tilt"}));
     NPFKCT_RETURN_IF_ERROR(ReadConfig(j.at("start"), "start.", &sc.start));
   }
   if (j.contains("noise")) {
@@ -287,8 +294,8 @@ StatusOr<Scenario> ParseWorldSpec(const nlohmann::json& j, const std::string& pr
   StatusOr<Scenario> s = ParseScenarioJson(j, /*world_only=*/true);
   if (!s.ok()) {
     const std::string& m = s.status().message();
-    return Status(s.status().code(), m.rfind("scenario: ", 0) == 0 ? prefix + m.substr(8)
-                                                                   : prefix + "." + m);
+    return Status(s.status().code(),
+                  m.rfind("scenario: ", 0) == 0 ? prefix + m.substr(8) : prefix + "." + m);
   }
   return s;
 }

@@ -60,9 +60,9 @@ Vec3 FaceNormalWorld(const Box& b, int face) {
 
 }  // namespace
 
-// A printed pattern: three coarse octaves of value noise in a palette drawn from the seed, with dark
-// contour lines, so that feature matching (SIFT) finds distinctive corners and blobs everywhere on
-// the face, and another seed prints a different picture.
+// A printed pattern: three coarse octaves of value noise in a palette drawn from the seed, with
+// dark contour lines, so that feature matching (SIFT) finds distinctive corners and blobs
+// everywhere on the face, and another seed prints a different picture.
 Color PatternColor(uint32_t seed, int face, double u, double v) {
   auto hash = [&](uint64_t a, uint64_t b, uint64_t c) {
     return HashMix(static_cast<uint64_t>(seed) * 0x9e3779b97f4a7c15ULL + face * 1000003ULL +
@@ -98,8 +98,8 @@ Color PatternColor(uint32_t seed, int face, double u, double v) {
 
 Simulator::Simulator(Scenario scenario, uint64_t seed) : scenario_(std::move(scenario)) {
   preset_ = object_search::RobotPreset::ByName(scenario_.robot).value();
-  occupancy_ = object_search::OccupancyMap(scenario_.room_min, scenario_.room_max,
-                                           scenario_.map_resolution);
+  occupancy_ =
+      object_search::OccupancyMap(scenario_.room_min, scenario_.room_max, scenario_.map_resolution);
   for (const Furniture& f : scenario_.furniture) occupancy_.AddBox(f.box);
   robot_ = scenario_.start;
   objects_ = scenario_.objects;
@@ -196,8 +196,7 @@ ExecutionOutcome Simulator::ExecuteMove(const RobotConfig& config,
 }
 
 ExecutionOutcome Simulator::ExecuteOnObject(int offset, const std::string& key, int8_t status,
-                                            const object_search::SearchParams& p,
-                                            const Box* seen) {
+                                            const object_search::SearchParams& p, const Box* seen) {
   ExecutionOutcome out;
   auto illegal = [&](const std::string& why) {
     out.reward = p.r_ill;
@@ -269,9 +268,9 @@ object_search::RealObservation Simulator::Observe(Rng& rng) const {
     d.key = o.name;
     d.box = o.box;
     d.box.center += scenario_.noise.box_estimate * Vec3(rng.Normal(), rng.Normal(), rng.Normal());
-    d.box.size = (d.box.size + scenario_.noise.box_estimate *
-                                   Vec3(rng.Normal(), rng.Normal(), rng.Normal()))
-                     .cwiseMax(0.01);
+    d.box.size =
+        (d.box.size + scenario_.noise.box_estimate * Vec3(rng.Normal(), rng.Normal(), rng.Normal()))
+            .cwiseMax(0.01);
     d.moveability = o.moveable ? 0.95 : 0.05;
     const auto corners = o.box.Corners();
     std::array<std::pair<double, int>, 8> by_distance;
@@ -338,7 +337,8 @@ Frame Simulator::Render(int width, int height) const {
         const Vec3 hit = f.pose.position + t * unit;
         best_t = t;
         const bool check = (static_cast<int>(std::floor(hit.x() * 2)) +
-                            static_cast<int>(std::floor(hit.y() * 2))) & 1;
+                            static_cast<int>(std::floor(hit.y() * 2))) &
+                           1;
         color = check ? Color{185, 185, 180} : Color{160, 160, 155};
       }
       for (const Item& item : items) {

@@ -17,7 +17,8 @@ TEST(ScenarioTest, ShippedScenariosLoad) {
     ASSERT_TRUE(world.ok()) << name << ": " << world.status().ToString();
     // Every discrete pose and base region center must be a feasible base pose.
     for (const auto& pose : s->discrete_poses) {
-      EXPECT_TRUE(world->BaseFeasible(pose.x, pose.y)) << name << " pose " << pose.x << "," << pose.y;
+      EXPECT_TRUE(world->BaseFeasible(pose.x, pose.y))
+          << name << " pose " << pose.x << "," << pose.y;
     }
   }
   auto loose1 = LoadScenario(Dir() + "/loose1.json");

@@ -23,8 +23,8 @@ void LookAtTable(Simulator* sim, const object_search::World& world, Rng& rng) {
   c.x = 0.45;
   c.lift = 0.2;
   c.tilt = 0.45;
-  ASSERT_FALSE(sim->Execute(HybridAction{kMoveKind, ObjectSearchModel::VecOf(c)}, world, rng)
-                   .illegal);
+  ASSERT_FALSE(
+      sim->Execute(HybridAction{kMoveKind, ObjectSearchModel::VecOf(c)}, world, rng).illegal);
 }
 
 TEST(SimulatorTest, SeedsReproduceTheWorld) {
@@ -118,8 +118,8 @@ TEST(SimulatorTest, MovesAreNoisyAndCollisionsIllegal) {
   EXPECT_EQ(sim.robot().tilt, 0.4);
   object_search::RobotConfig inside;
   inside.x = 1.6;  // the table
-  EXPECT_TRUE(sim.Execute(HybridAction{kMoveKind, ObjectSearchModel::VecOf(inside)}, world, rng)
-                  .illegal);
+  EXPECT_TRUE(
+      sim.Execute(HybridAction{kMoveKind, ObjectSearchModel::VecOf(inside)}, world, rng).illegal);
   EXPECT_NEAR(sim.robot().x, 0.4, 0.1);
   object_search::RobotConfig tilt = c;
   tilt.tilt = 1.2;  // beyond the joint limit

@@ -12,7 +12,8 @@ ApiError ApiError::From(Status status, std::string field) {
     const std::string& m = e.status.message();
     const size_t colon = m.find(": ");
     // A field path has no spaces: "world.furniture[0].size".
-    if (colon != std::string::npos && colon > 0 && m.substr(0, colon).find(' ') == std::string::npos) {
+    if (colon != std::string::npos && colon > 0 &&
+        m.substr(0, colon).find(' ') == std::string::npos) {
       e.field = m.substr(0, colon);
     }
   }

@@ -37,8 +37,8 @@ double Num(const json& j, const char* key, double fallback = 0.0) {
 }  // namespace
 
 json ConfigToJson(const object_search::RobotConfig& c) {
-  return {{"x", c.x}, {"y", c.y}, {"yaw", c.yaw}, {"lift", c.lift}, {"pan", c.pan},
-          {"tilt", c.tilt}};
+  return {{"x", c.x},       {"y", c.y},     {"yaw", c.yaw},
+          {"lift", c.lift}, {"pan", c.pan}, {"tilt", c.tilt}};
 }
 
 json BoxToJson(const Box& b) {
@@ -210,9 +210,7 @@ StatusOr<World> WorldFromJson(const json& j) {
   q.detection_max_step = Num(p, "detectionMaxStep", q.detection_max_step);
   q.face_odds_limit = Num(p, "faceOddsLimit", q.face_odds_limit);
   q.max_steps = static_cast<int>(Num(p, "maxSteps", q.max_steps));
-  auto box = [](const json& b, Box* out) {
-    return BoxFromJson(b, "snapshot box", out);
-  };
+  auto box = [](const json& b, Box* out) { return BoxFromJson(b, "snapshot box", out); };
   RETURN_IF_ERROR(Need(j.at("furniture").is_array(), "furniture"));
   for (const json& b : j.at("furniture")) {
     Box fb;
@@ -254,9 +252,8 @@ StatusOr<World> WorldFromJson(const json& j) {
     }
   }
   const json& g = j.at("grid");
-  RETURN_IF_ERROR(Need(g.is_object() && g.contains("workspaces") &&
-                           g.at("workspaces").is_array() && g.contains("logOdds") &&
-                           g.at("logOdds").is_array(),
+  RETURN_IF_ERROR(Need(g.is_object() && g.contains("workspaces") && g.at("workspaces").is_array() &&
+                           g.contains("logOdds") && g.at("logOdds").is_array(),
                        "grid"));
   std::vector<object_search::Workspace> workspaces;
   for (const json& ws : g.at("workspaces")) {
@@ -346,7 +343,8 @@ json ActionToJson(const HybridAction& a, const World& w) {
   json out = {{"type", kTypes[object_search::KindOffset(a.kind)]},
               {"objectId", i < static_cast<int>(w.objects.size()) ? w.objects[i].key : ""}};
   // Where the object is, as the robot last saw it: what it needs to act on it.
-  if (i > 0 && i < static_cast<int>(w.objects.size())) out["objectBox"] = BoxToJson(w.objects[i].box);
+  if (i > 0 && i < static_cast<int>(w.objects.size()))
+    out["objectBox"] = BoxToJson(w.objects[i].box);
   return out;
 }
 

@@ -28,8 +28,7 @@ void Metrics::Histogram::Observe(double v) {
 Metrics::Metrics() {
   planning_seconds_.bounds = LatencyBounds();
   planning_seconds_.counts.assign(planning_seconds_.bounds.size() + 1, 0);
-  overhead_seconds_.bounds = {0.0001, 0.00025, 0.0005, 0.001, 0.002, 0.005, 0.01, 0.025, 0.05,
-                              0.1};
+  overhead_seconds_.bounds = {0.0001, 0.00025, 0.0005, 0.001, 0.002, 0.005, 0.01, 0.025, 0.05, 0.1};
   overhead_seconds_.counts.assign(overhead_seconds_.bounds.size() + 1, 0);
 }
 
@@ -54,8 +53,8 @@ void Metrics::ObservePlan(double planning_seconds, double overhead_seconds, int6
   simulations_ += static_cast<uint64_t>(simulations);
 }
 
-void Metrics::RenderHistogram(std::string* out, const std::string& name,
-                              const std::string& labels, const Histogram& h) {
+void Metrics::RenderHistogram(std::string* out, const std::string& name, const std::string& labels,
+                              const Histogram& h) {
   uint64_t cumulative = 0;
   const std::string sep = labels.empty() ? "" : ",";
   for (size_t i = 0; i < h.bounds.size(); ++i) {

@@ -1,6 +1,7 @@
 #include "npfkct/server/server.h"
 
 #include <fcntl.h>
+#include <httplib.h>
 #include <sched.h>
 #include <spdlog/spdlog.h>
 #include <unistd.h>
@@ -10,12 +11,12 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <httplib.h>
 #include <opencv2/imgcodecs.hpp>
 #include <random>
 #include <sstream>
 
 #include "npfkct/server/codec.h"
+#include "npfkct/server/filter_samplers.h"
 #include "npfkct/sim/frame_io.h"
 #include "npfkct/sim/scenario.h"
 
@@ -246,14 +247,15 @@ struct Server::Impl {
   // ---- requests ----
 
   StatusOr<json> CreateSession(const json& body) {
-    if (Status s = CheckTopKeys(body, {"displayName", "world", "target", "planner", "seed",
-                                       "ttlSeconds"});
+    if (Status s =
+            CheckTopKeys(body, {"displayName", "world", "target", "planner", "seed", "ttlSeconds"});
         !s.ok()) {
       return s;
     }
     std::string display_name;
     if (body.contains("displayName")) {
-      if (!body.at("displayName").is_string() || body.at("displayName").get<std::string>().size() > 200) {
+      if (!body.at("displayName").is_string() ||
+          body.at("displayName").get<std::string>().size() > 200) {
         return InvalidArgumentError("displayName: expected a string of at most 200 characters");
       }
       display_name = body.at("displayName").get<std::string>();
@@ -296,7 +298,8 @@ struct Server::Impl {
         return InvalidArgumentError("planner." + s.message());
       }
       if (p.contains("name")) {
-        if (!p.at("name").is_string()) return InvalidArgumentError("planner.name: expected a string");
+        if (!p.at("name").is_string())
+          return InvalidArgumentError("planner.name: expected a string");
         spec.name = p.at("name").get<std::string>();
       }
       if (p.contains("particles")) {
@@ -347,7 +350,8 @@ struct Server::Impl {
           return InvalidArgumentError("seed: out of range");
         }
       } else {
-        return InvalidArgumentError("seed: expected a non-negative integer (or its decimal string)");
+        return InvalidArgumentError(
+            "seed: expected a non-negative integer (or its decimal string)");
       }
     }
     double ttl = options.session_ttl_seconds;
@@ -427,7 +431,8 @@ struct Server::Impl {
   }
 };
 
-Server::Server(ServerOptions options) : options_(std::move(options)) {}
+Server::Server(ServerOptions options)
+    : options_(std::move(options)), samplers_(FilterSamplerFactory()) {}
 
 Server::~Server() { Stop(); }
 
@@ -466,7 +471,7 @@ Status Server::Start() {
   // Wraps a handler: authentication, exceptions, metrics.
   auto wrap = [&im, fail](std::string method, std::string route, bool auth, auto handler) {
     return [&im, fail, method, route, auth, handler](const httplib::Request& req,
-                                                      httplib::Response& res) {
+                                                     httplib::Response& res) {
       const auto start = Clock::now();
       if (auth && !im.options.api_key.empty()) {
         const std::string header = req.get_header_value("Authorization");
@@ -493,23 +498,22 @@ Status Server::Start() {
                                 std::chrono::duration<double>(Clock::now() - start).count());
     };
   };
-  auto session_of = [&im, fail](const httplib::Request& req, httplib::Response& res)
-      -> std::shared_ptr<Session> {
+  auto session_of = [&im, fail](const httplib::Request& req,
+                                httplib::Response& res) -> std::shared_ptr<Session> {
     const std::string id = req.matches[1];
     std::shared_ptr<Session> s = ValidSessionId(id) ? im.Find(id) : nullptr;
     if (!s) fail(res, ApiError{NotFoundError("sessions/" + id + " not found"), ""});
     return s;
   };
 
-  http.Get("/healthz", wrap("GET", "/healthz", false,
-                            [reply](const httplib::Request&, httplib::Response& res) {
-                              reply(res, 200, {{"status", "SERVING"}});
-                            }));
-  http.Get("/metrics", wrap("GET", "/metrics", false,
-                            [&im](const httplib::Request&, httplib::Response& res) {
-                              res.set_content(im.metrics.Render(),
-                                              "text/plain; version=0.0.4; charset=utf-8");
-                            }));
+  http.Get("/healthz",
+           wrap("GET", "/healthz", false, [reply](const httplib::Request&, httplib::Response& res) {
+             reply(res, 200, {{"status", "SERVING"}});
+           }));
+  http.Get("/metrics",
+           wrap("GET", "/metrics", false, [&im](const httplib::Request&, httplib::Response& res) {
+             res.set_content(im.metrics.Render(), "text/plain; version=0.0.4; charset=utf-8");
+           }));
   http.Post("/v1/sessions",
             wrap("POST", "/v1/sessions", true,
                  [&im, reply, fail](const httplib::Request& req, httplib::Response& res) {
@@ -519,42 +523,43 @@ Status Server::Start() {
                    if (!created.ok()) return fail(res, ApiError::From(created.status()));
                    reply(res, 200, *created);
                  }));
-  http.Get("/v1/sessions",
-           wrap("GET", "/v1/sessions", true,
-                [&im, reply, fail](const httplib::Request& req, httplib::Response& res) {
-                  int page_size = 50;
-                  if (req.has_param("pageSize")) {
-                    const std::string v = req.get_param_value("pageSize");
-                    if (v.empty() || v.size() > 4 ||
-                        v.find_first_not_of("0123456789") != std::string::npos ||
-                        std::stoi(v) < 1 || std::stoi(v) > 1000) {
-                      return fail(res, ApiError{InvalidArgumentError(
-                                                    "pageSize: expected an integer in [1, 1000]"),
-                                                "pageSize"});
-                    }
-                    page_size = std::stoi(v);
-                  }
-                  const std::string token = req.get_param_value("pageToken");
-                  std::vector<std::shared_ptr<Session>> page;
-                  std::string next;
-                  {
-                    std::shared_lock lock(im.sessions_mutex);
-                    auto it = im.sessions.upper_bound(token);
-                    for (; it != im.sessions.end() && static_cast<int>(page.size()) < page_size;
-                         ++it) {
-                      page.push_back(it->second);
-                    }
-                    if (it != im.sessions.end() && !page.empty()) next = page.back()->id();
-                  }
-                  json out;
-                  out["sessions"] = json::array();
-                  for (const auto& s : page) {
-                    std::lock_guard<std::mutex> lock(s->mutex());
-                    out["sessions"].push_back(s->Resource());
-                  }
-                  if (!next.empty()) out["nextPageToken"] = next;
-                  reply(res, 200, out);
-                }));
+  http.Get(
+      "/v1/sessions",
+      wrap("GET", "/v1/sessions", true,
+           [&im, reply, fail](const httplib::Request& req, httplib::Response& res) {
+             int page_size = 50;
+             if (req.has_param("pageSize")) {
+               const std::string v = req.get_param_value("pageSize");
+               if (v.empty() || v.size() > 4 ||
+                   v.find_first_not_of("0123456789") != std::string::npos || std::stoi(v) < 1 ||
+                   std::stoi(v) > 1000) {
+                 return fail(
+                     res,
+                     ApiError{InvalidArgumentError("pageSize: expected an integer in [1, 1000]"),
+                              "pageSize"});
+               }
+               page_size = std::stoi(v);
+             }
+             const std::string token = req.get_param_value("pageToken");
+             std::vector<std::shared_ptr<Session>> page;
+             std::string next;
+             {
+               std::shared_lock lock(im.sessions_mutex);
+               auto it = im.sessions.upper_bound(token);
+               for (; it != im.sessions.end() && static_cast<int>(page.size()) < page_size; ++it) {
+                 page.push_back(it->second);
+               }
+               if (it != im.sessions.end() && !page.empty()) next = page.back()->id();
+             }
+             json out;
+             out["sessions"] = json::array();
+             for (const auto& s : page) {
+               std::lock_guard<std::mutex> lock(s->mutex());
+               out["sessions"].push_back(s->Resource());
+             }
+             if (!next.empty()) out["nextPageToken"] = next;
+             reply(res, 200, out);
+           }));
   http.Get(R"(/v1/sessions/([^/:]+))",
            wrap("GET", "/v1/sessions/{id}", true,
                 [&im, reply, session_of](const httplib::Request& req, httplib::Response& res) {
@@ -564,126 +569,126 @@ Status Server::Start() {
                   s->Touch();
                   reply(res, 200, s->Resource());
                 }));
-  http.Delete(R"(/v1/sessions/([^/:]+))",
-              wrap("DELETE", "/v1/sessions/{id}", true,
-                   [&im, reply, fail](const httplib::Request& req, httplib::Response& res) {
-                     const std::string id = req.matches[1];
-                     bool erased = false;
-                     if (ValidSessionId(id)) {
-                       std::unique_lock lock(im.sessions_mutex);
-                       erased = im.sessions.erase(id) > 0;
-                       im.metrics.SetSessions(static_cast<int>(im.sessions.size()));
-                     }
-                     if (!erased) {
-                       return fail(res, ApiError{NotFoundError("sessions/" + id + " not found"), ""});
-                     }
-                     im.Unpersist(id);
-                     spdlog::info("session {} deleted", id);
-                     reply(res, 200, json::object());
-                   }));
-  http.Post(R"(/v1/sessions/([^/:]+):plan)",
-            wrap("POST", "/v1/sessions/{id}:plan", true,
-                 [&im, reply, fail, session_of](const httplib::Request& req,
-                                                httplib::Response& res) {
-                   const auto start = Clock::now();
-                   auto body = ParseBody(req.body, true);
-                   if (!body.ok()) return fail(res, ApiError::From(body.status()));
-                   auto budget = im.ParseBudget(*body);
-                   if (!budget.ok()) return fail(res, ApiError::From(budget.status()));
-                   auto s = session_of(req, res);
-                   if (!s) return;
-                   std::lock_guard<std::mutex> lock(s->mutex());
-                   s->Touch();
-                   StatusOr<json> out = Status(StatusCode::kInternal, "not planned");
-                   {
-                     BatchScheduling batch;
-                     out = s->Plan(*budget);
-                   }
-                   if (!out.ok()) return fail(res, ApiError::From(out.status()));
-                   if (!im.StillLive(s->id(), s.get())) {
-                     return fail(res, ApiError{Status(StatusCode::kAborted,
-                                                      "the session was deleted while planning"),
-                                               ""});
-                   }
-                   if (Status st = im.Persist(*s); !st.ok()) return fail(res, ApiError{st, ""});
-                   const double total = std::chrono::duration<double>(Clock::now() - start).count();
-                   const double planning = s->last_planning_ms() / 1000.0;
-                   im.metrics.ObservePlan(planning, std::max(0.0, total - planning),
-                                          (*out)["stats"]["simulations"].get<int64_t>());
-                   reply(res, 200, *out);
-                 }));
-  http.Post(R"(/v1/sessions/([^/:]+):observe)",
-            wrap("POST", "/v1/sessions/{id}:observe", true,
-                 [&im, reply, fail, session_of](const httplib::Request& req,
-                                                httplib::Response& res) {
-                   auto body = ParseBody(req.body, false);
-                   if (!body.ok()) return fail(res, ApiError::From(body.status()));
-                   auto s = session_of(req, res);
-                   if (!s) return;
-                   std::lock_guard<std::mutex> lock(s->mutex());
-                   s->Touch();
-                   auto out = s->Observe(*body);
-                   if (!out.ok()) return fail(res, ApiError::From(out.status()));
-                   if (!im.StillLive(s->id(), s.get())) {
-                     return fail(res, ApiError{Status(StatusCode::kAborted,
-                                                      "the session was deleted meanwhile"),
-                                               ""});
-                   }
-                   if (Status st = im.Persist(*s); !st.ok()) return fail(res, ApiError{st, ""});
-                   reply(res, 200, *out);
-                 }));
-  http.Get(R"(/v1/sessions/([^/:]+)/belief)",
-           wrap("GET", "/v1/sessions/{id}/belief", true,
-                [&im, reply, fail, session_of](const httplib::Request& req,
-                                               httplib::Response& res) {
-                  const std::string format =
-                      req.has_param("format") ? req.get_param_value("format") : "json";
-                  if (format != "json" && format != "png") {
-                    return fail(res, ApiError{InvalidArgumentError(
-                                                  "format: expected 'json' or 'png'"),
-                                              "format"});
-                  }
-                  auto s = session_of(req, res);
-                  if (!s) return;
-                  std::lock_guard<std::mutex> lock(s->mutex());
-                  s->Touch();
-                  if (format == "json") return reply(res, 200, s->Belief());
-                  std::vector<uchar> png;
-                  cv::imencode(".png", sim::RenderGridWorld(s->world(), 150), png);
-                  res.set_content(std::string(png.begin(), png.end()), "image/png");
-                }));
+  http.Delete(
+      R"(/v1/sessions/([^/:]+))",
+      wrap("DELETE", "/v1/sessions/{id}", true,
+           [&im, reply, fail](const httplib::Request& req, httplib::Response& res) {
+             const std::string id = req.matches[1];
+             bool erased = false;
+             if (ValidSessionId(id)) {
+               std::unique_lock lock(im.sessions_mutex);
+               erased = im.sessions.erase(id) > 0;
+               im.metrics.SetSessions(static_cast<int>(im.sessions.size()));
+             }
+             if (!erased) {
+               return fail(res, ApiError{NotFoundError("sessions/" + id + " not found"), ""});
+             }
+             im.Unpersist(id);
+             spdlog::info("session {} deleted", id);
+             reply(res, 200, json::object());
+           }));
+  http.Post(
+      R"(/v1/sessions/([^/:]+):plan)",
+      wrap("POST", "/v1/sessions/{id}:plan", true,
+           [&im, reply, fail, session_of](const httplib::Request& req, httplib::Response& res) {
+             const auto start = Clock::now();
+             auto body = ParseBody(req.body, true);
+             if (!body.ok()) return fail(res, ApiError::From(body.status()));
+             auto budget = im.ParseBudget(*body);
+             if (!budget.ok()) return fail(res, ApiError::From(budget.status()));
+             auto s = session_of(req, res);
+             if (!s) return;
+             std::lock_guard<std::mutex> lock(s->mutex());
+             s->Touch();
+             StatusOr<json> out = Status(StatusCode::kInternal, "not planned");
+             {
+               BatchScheduling batch;
+               out = s->Plan(*budget);
+             }
+             if (!out.ok()) return fail(res, ApiError::From(out.status()));
+             if (!im.StillLive(s->id(), s.get())) {
+               return fail(res, ApiError{Status(StatusCode::kAborted,
+                                                "the session was deleted while planning"),
+                                         ""});
+             }
+             if (Status st = im.Persist(*s); !st.ok()) return fail(res, ApiError{st, ""});
+             const double total = std::chrono::duration<double>(Clock::now() - start).count();
+             const double planning = s->last_planning_ms() / 1000.0;
+             im.metrics.ObservePlan(planning, std::max(0.0, total - planning),
+                                    (*out)["stats"]["simulations"].get<int64_t>());
+             reply(res, 200, *out);
+           }));
+  http.Post(
+      R"(/v1/sessions/([^/:]+):observe)",
+      wrap("POST", "/v1/sessions/{id}:observe", true,
+           [&im, reply, fail, session_of](const httplib::Request& req, httplib::Response& res) {
+             auto body = ParseBody(req.body, false);
+             if (!body.ok()) return fail(res, ApiError::From(body.status()));
+             auto s = session_of(req, res);
+             if (!s) return;
+             std::lock_guard<std::mutex> lock(s->mutex());
+             s->Touch();
+             auto out = s->Observe(*body);
+             if (!out.ok()) return fail(res, ApiError::From(out.status()));
+             if (!im.StillLive(s->id(), s.get())) {
+               return fail(
+                   res,
+                   ApiError{Status(StatusCode::kAborted, "the session was deleted meanwhile"), ""});
+             }
+             if (Status st = im.Persist(*s); !st.ok()) return fail(res, ApiError{st, ""});
+             reply(res, 200, *out);
+           }));
+  http.Get(
+      R"(/v1/sessions/([^/:]+)/belief)",
+      wrap("GET", "/v1/sessions/{id}/belief", true,
+           [&im, reply, fail, session_of](const httplib::Request& req, httplib::Response& res) {
+             const std::string format =
+                 req.has_param("format") ? req.get_param_value("format") : "json";
+             if (format != "json" && format != "png") {
+               return fail(res, ApiError{InvalidArgumentError("format: expected 'json' or 'png'"),
+                                         "format"});
+             }
+             auto s = session_of(req, res);
+             if (!s) return;
+             std::lock_guard<std::mutex> lock(s->mutex());
+             s->Touch();
+             if (format == "json") return reply(res, 200, s->Belief());
+             std::vector<uchar> png;
+             cv::imencode(".png", sim::RenderGridWorld(s->world(), 150), png);
+             res.set_content(std::string(png.begin(), png.end()), "image/png");
+           }));
   // Errors produced by the HTTP layer itself (unknown routes, oversized bodies, bad requests).
-  http.set_error_handler(httplib::Server::HandlerWithResponse(
-      [](const httplib::Request& req, httplib::Response& res) {
-    if (!res.body.empty()) return httplib::Server::HandlerResponse::Unhandled;
-    const int code = res.status;
-    StatusCode status = StatusCode::kInvalidArgument;
-    std::string message = "bad request";
-    if (code == 404) {
-      status = StatusCode::kNotFound;
-      message = "no route for " + req.method + " " + req.path;
-    } else if (code == 413) {
-      status = StatusCode::kResourceExhausted;
-      message = "request body too large";
-    } else if (code >= 500) {
-      status = StatusCode::kInternal;
-      message = "internal error";
-    }
-    res.set_content(ErrorBody(ApiError{Status(status, message), ""}), "application/json");
-    res.status = code;
-    return httplib::Server::HandlerResponse::Handled;
-  }));
+  http.set_error_handler(
+      httplib::Server::HandlerWithResponse([](const httplib::Request& req, httplib::Response& res) {
+        if (!res.body.empty()) return httplib::Server::HandlerResponse::Unhandled;
+        const int code = res.status;
+        StatusCode status = StatusCode::kInvalidArgument;
+        std::string message = "bad request";
+        if (code == 404) {
+          status = StatusCode::kNotFound;
+          message = "no route for " + req.method + " " + req.path;
+        } else if (code == 413) {
+          status = StatusCode::kResourceExhausted;
+          message = "request body too large";
+        } else if (code >= 500) {
+          status = StatusCode::kInternal;
+          message = "internal error";
+        }
+        res.set_content(ErrorBody(ApiError{Status(status, message), ""}), "application/json");
+        res.status = code;
+        return httplib::Server::HandlerResponse::Handled;
+      }));
   http.set_exception_handler(
       [fail](const httplib::Request&, httplib::Response& res, std::exception_ptr) {
         fail(res, ApiError{InternalError("unexpected error"), ""});
       });
 
-  port_ = options_.port == 0 ? http.bind_to_any_port(options_.host)
-                             : (http.bind_to_port(options_.host, options_.port) ? options_.port
-                                                                                : -1);
+  port_ = options_.port == 0
+              ? http.bind_to_any_port(options_.host)
+              : (http.bind_to_port(options_.host, options_.port) ? options_.port : -1);
   if (port_ < 0) {
-    return Status(StatusCode::kUnavailable, "cannot bind " + options_.host + ":" +
-                                                std::to_string(options_.port));
+    return Status(StatusCode::kUnavailable,
+                  "cannot bind " + options_.host + ":" + std::to_string(options_.port));
   }
   im.serve_thread = std::thread([&im] { im.http.listen_after_bind(); });
   im.reaper_thread = std::thread([&im] {

@@ -8,6 +8,7 @@
 
 #include "npfkct/perception/perception.h"
 #include "npfkct/server/codec.h"
+#include "npfkct/server/filter_samplers.h"
 
 namespace npfkct::server {
 namespace {
@@ -54,8 +55,9 @@ StatusOr<perception::SensorFrame> FrameFromJson(const json& body,
                                 ? pc.at("frame").get<std::string>()
                                 : std::string(pc.contains("frame") ? "?" : "camera");
   if (where != "camera" && where != "map") {
-    return InvalidArgumentError("pointCloud.frame: expected \"camera\" (optical frame: x right, "
-                                "y down, z forward) or \"map\"");
+    return InvalidArgumentError(
+        "pointCloud.frame: expected \"camera\" (optical frame: x right, "
+        "y down, z forward) or \"map\"");
   }
   frame.cloud_in_map_frame = where == "map";
   if (pc.contains("fields") && !pc.at("fields").is_string()) {
@@ -73,7 +75,8 @@ StatusOr<perception::SensorFrame> FrameFromJson(const json& body,
     if (!c.is_object()) return InvalidArgumentError("camera: expected an object");
     for (auto it = c.begin(); it != c.end(); ++it) {
       static const std::set<std::string> kKeys = {"width", "height", "fx", "fy", "cx", "cy"};
-      if (!kKeys.count(it.key())) return InvalidArgumentError("camera." + it.key() + ": unknown field");
+      if (!kKeys.count(it.key()))
+        return InvalidArgumentError("camera." + it.key() + ": unknown field");
       if (!it.value().is_number()) {
         return InvalidArgumentError("camera." + it.key() + ": expected a number");
       }
@@ -84,8 +87,10 @@ StatusOr<perception::SensorFrame> FrameFromJson(const json& body,
       }
     }
     auto& in = frame.intrinsics;
-    if (c.contains("width")) in.width = static_cast<int>(std::clamp<int64_t>(c.at("width").get<int64_t>(), -1, 1 << 20));
-    if (c.contains("height")) in.height = static_cast<int>(std::clamp<int64_t>(c.at("height").get<int64_t>(), -1, 1 << 20));
+    if (c.contains("width"))
+      in.width = static_cast<int>(std::clamp<int64_t>(c.at("width").get<int64_t>(), -1, 1 << 20));
+    if (c.contains("height"))
+      in.height = static_cast<int>(std::clamp<int64_t>(c.at("height").get<int64_t>(), -1, 1 << 20));
     in.fx = c.value("fx", in.fx);
     in.fy = c.value("fy", in.fy);
     in.cx = c.value("cx", in.cx);
@@ -100,9 +105,8 @@ StatusOr<perception::SensorFrame> FrameFromJson(const json& body,
         return InvalidArgumentError("image." + it.key() + ": unknown field");
       }
     }
-    if (im.contains("encoding") &&
-        (!im.at("encoding").is_string() ||
-         (im.at("encoding") != "png" && im.at("encoding") != "jpeg"))) {
+    if (im.contains("encoding") && (!im.at("encoding").is_string() ||
+                                    (im.at("encoding") != "png" && im.at("encoding") != "jpeg"))) {
       return InvalidArgumentError("image.encoding: expected \"png\" or \"jpeg\"");
     }
     if (!im.contains("data") || !im.at("data").is_string()) {
@@ -186,9 +190,8 @@ Status TargetSpec::Validate() const {
 Session::~Session() = default;
 
 StatusOr<std::unique_ptr<Session>> Session::Create(std::string id, std::string display_name,
-                                                   World world, PlannerSpec spec,
-                                                   TargetSpec target, uint64_t seed,
-                                                   double ttl_seconds,
+                                                   World world, PlannerSpec spec, TargetSpec target,
+                                                   uint64_t seed, double ttl_seconds,
                                                    const SamplerFactory& samplers) {
   if (Status st = target.Validate(); !st.ok()) return st;
   std::unique_ptr<Session> s(new Session());
@@ -207,15 +210,20 @@ StatusOr<std::unique_ptr<Session>> Session::Create(std::string id, std::string d
 
 Status Session::Init(const SamplerFactory& samplers) {
   Reseed();
-  model_ = std::make_unique<object_search::ObjectSearchModel>(
-      std::make_shared<const World>(*world_));
+  model_ =
+      std::make_unique<object_search::ObjectSearchModel>(std::make_shared<const World>(*world_));
   std::shared_ptr<CandidateSampler<object_search::State>> sampler;
   if (samplers) {
     auto made = samplers(spec_, *model_);
     if (!made.ok()) return made.status();
     sampler = *made;
   }
-  auto planner = object_search::MakeSearchPlanner(spec_.name, *model_, spec_.options, sampler);
+  // Net_sam's "filter.*" options went to the sampler factory; the planner gets the rest.
+  std::vector<std::pair<std::string, double>> planner_options;
+  for (const auto& kv : spec_.options) {
+    if (!IsFilterOption(kv.first)) planner_options.push_back(kv);
+  }
+  auto planner = object_search::MakeSearchPlanner(spec_.name, *model_, planner_options, sampler);
   if (!planner.ok()) {
     const std::string& m = planner.status().message();
     if (m.rfind("unknown planner", 0) == 0) {
@@ -265,9 +273,8 @@ json Session::Resource() const {
   j["createTime"] = Rfc3339(create_time_);
   j["updateTime"] = Rfc3339(update_time_);
   j["ttlSeconds"] = ttl_seconds_;
-  j["planner"] = {{"name", spec_.name},
-                  {"particles", spec_.particles},
-                  {"options", spec_.options_json}};
+  j["planner"] = {
+      {"name", spec_.name}, {"particles", spec_.particles}, {"options", spec_.options_json}};
   if (!spec_.model_path.empty()) j["planner"]["modelPath"] = spec_.model_path;
   j["seed"] = std::to_string(seed_);
   j["target"] = {{"description", target_.description},
@@ -303,10 +310,10 @@ json Session::Snapshot() const {
   j["lastActionId"] = last_action_id_;
   if (state_ == State::kActionPending) {
     j["pendingActionId"] = pending_action_id_;
-    j["pendingAction"] = {{"kind", pending_action_.kind},
-                          {"x", std::vector<double>(pending_action_.x.data(),
-                                                    pending_action_.x.data() +
-                                                        pending_action_.x.size())}};
+    j["pendingAction"] = {
+        {"kind", pending_action_.kind},
+        {"x", std::vector<double>(pending_action_.x.data(),
+                                  pending_action_.x.data() + pending_action_.x.size())}};
   }
   j["world"] = WorldToJson(*world_);
   j["target"] = {{"description", target_.description}, {"photos", target_.photos}};
@@ -314,15 +321,15 @@ json Session::Snapshot() const {
     int next_id = 0;
     json tracks = json::array();
     for (const perception::TrackState& t : perception_->SaveTracks(&next_id)) {
-      tracks.push_back({{"id", t.id}, {"surface", t.surface}, {"points", FloatsToBase64(t.points)}});
+      tracks.push_back(
+          {{"id", t.id}, {"surface", t.surface}, {"points", FloatsToBase64(t.points)}});
     }
     j["perception"] = {{"nextId", next_id}, {"tracks", tracks}};
   }
   return j;
 }
 
-StatusOr<std::unique_ptr<Session>> Session::Restore(const json& j,
-                                                    const SamplerFactory& samplers) {
+StatusOr<std::unique_ptr<Session>> Session::Restore(const json& j, const SamplerFactory& samplers) {
   auto bad = [](const std::string& what) {
     return Status(StatusCode::kDataLoss, "snapshot: " + what);
   };
@@ -445,14 +452,10 @@ StatusOr<json> Session::Plan(const Budget& budget) {
   out["actionId"] = pending_action_id_;
   out["action"] = ActionToJson(d.action, *world_);
   out["expectedValue"] = d.value;
-  out["stats"] = {{"simulations", d.stats.simulations},
-                  {"elapsedMs", d.stats.elapsed_ms},
-                  {"teardownMs", d.stats.teardown_ms},
-                  {"treeNodes", d.stats.tree_nodes},
-                  {"maxDepth", d.stats.max_depth},
-                  {"rootActions", d.stats.root_actions},
-                  {"rootVisits", d.stats.root_visits},
-                  {"reusedVisits", d.stats.reused_visits},
+  out["stats"] = {{"simulations", d.stats.simulations}, {"elapsedMs", d.stats.elapsed_ms},
+                  {"teardownMs", d.stats.teardown_ms},  {"treeNodes", d.stats.tree_nodes},
+                  {"maxDepth", d.stats.max_depth},      {"rootActions", d.stats.root_actions},
+                  {"rootVisits", d.stats.root_visits},  {"reusedVisits", d.stats.reused_visits},
                   {"refinements", d.stats.refinements}};
   const CandidateStats cs = planner_->candidate_stats();
   if (cs.sampled > 0) {
@@ -465,9 +468,9 @@ StatusOr<json> Session::Plan(const Budget& budget) {
 
 StatusOr<json> Session::Observe(const json& body) {
   if (!body.is_object()) return InvalidArgumentError("body: expected a JSON object");
-  static const std::set<std::string> kKnown = {"actionId",   "succeeded",  "robotState",
-                                                "detections", "pointCloud", "image",
-                                                "camera",     "semanticScores"};
+  static const std::set<std::string> kKnown = {"actionId",   "succeeded",     "robotState",
+                                               "detections", "pointCloud",    "image",
+                                               "camera",     "semanticScores"};
   for (auto it = body.begin(); it != body.end(); ++it) {
     if (!kKnown.count(it.key())) return InvalidArgumentError(it.key() + ": unknown field");
   }
@@ -611,8 +614,8 @@ StatusOr<json> Session::Observe(const json& body) {
     }
     out["perception"] = {
         {"robotState", ConfigToJson(r.observation.achieved)},
-        {"registration", std::isfinite(r.fitness) ? (r.used_ransac ? "RANSAC_ICP" : "ICP")
-                                                  : "SKIPPED"},
+        {"registration",
+         std::isfinite(r.fitness) ? (r.used_ransac ? "RANSAC_ICP" : "ICP") : "SKIPPED"},
         {"fitness", std::isfinite(r.fitness) ? json(r.fitness) : json(nullptr)},
         {"clusters", r.clusters},
         {"detections", objects},

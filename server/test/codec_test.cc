@@ -62,12 +62,13 @@ TEST(CodecTest, ActionsAndObservationsNameTheField) {
   ASSERT_TRUE(a.ok());
   EXPECT_EQ(a->kind, object_search::RemoveKind(1));
   const json box = {{"center", {0.0, 0.0, 0.0}}, {"size", {1.0, 1.0, 1.0}}, {"yaw", 0.0}};
-  EXPECT_EQ(ActionToJson(*a, w), (json{{"type", "REMOVE"}, {"objectId", "box"}, {"objectBox", box}}));
+  EXPECT_EQ(ActionToJson(*a, w),
+            (json{{"type", "REMOVE"}, {"objectId", "box"}, {"objectBox", box}}));
   // The box the action carries is accepted back (clients echo actions).
   EXPECT_TRUE(ActionFromJson(ActionToJson(*a, w), "action", w).ok());
-  EXPECT_NE(ActionFromJson(json{{"type", "JUMP"}}, "action", w).status().message().find(
-                "action.type"),
-            std::string::npos);
+  EXPECT_NE(
+      ActionFromJson(json{{"type", "JUMP"}}, "action", w).status().message().find("action.type"),
+      std::string::npos);
   EXPECT_NE(ActionFromJson(json{{"type", "REMOVE"}, {"objectId", "nope"}}, "action", w)
                 .status()
                 .message()
@@ -107,8 +108,8 @@ TEST(CodecTest, ActionsAndObservationsNameTheField) {
 }
 
 TEST(CodecTest, ErrorBodiesFollowGoogleApiConventions) {
-  const json j = json::parse(ErrorBody(ApiError::From(InvalidArgumentError(
-      "world.furniture[0].size: expected 3 numbers"))));
+  const json j = json::parse(ErrorBody(
+      ApiError::From(InvalidArgumentError("world.furniture[0].size: expected 3 numbers"))));
   EXPECT_EQ(j["error"]["code"], 400);
   EXPECT_EQ(j["error"]["status"], "INVALID_ARGUMENT");
   EXPECT_EQ(j["error"]["details"][0]["fieldViolations"][0]["field"], "world.furniture[0].size");

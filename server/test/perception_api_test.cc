@@ -33,8 +33,8 @@ class PerceptionApiTest : public ServerTest {
  protected:
   // A session on Loose1 whose target photos come from the simulated scene.
   std::string CreateWithPhotos(const sim::ApiRobot& robot) {
-    return Create({{"target", {{"description", "the patterned box"},
-                               {"photos", robot.TargetPhotosJson()}}}});
+    return Create(
+        {{"target", {{"description", "the patterned box"}, {"photos", robot.TargetPhotosJson()}}}});
   }
   // Plans, executes in the simulator and returns the raw observation with its actionId.
   json PlanAndExecute(const std::string& base, sim::ApiRobot* robot, bool* terminal = nullptr) {
@@ -119,8 +119,8 @@ TEST_F(PerceptionApiTest, BadFramesGetErrorsNamingTheFieldAndChangeNothing) {
     std::string field;
   };
   const std::vector<Case> cases = {
-      {"raw data with detections",
-       [](json* b) { (*b)["detections"] = json::array(); }, "detections"},
+      {"raw data with detections", [](json* b) { (*b)["detections"] = json::array(); },
+       "detections"},
       {"an image alone", [](json* b) { b->erase("pointCloud"); }, "pointCloud"},
       {"an empty cloud", [](json* b) { (*b)["pointCloud"]["data"] = ""; }, "pointCloud.data"},
       {"a NaN point",
@@ -141,12 +141,14 @@ TEST_F(PerceptionApiTest, BadFramesGetErrorsNamingTheFieldAndChangeNothing) {
        "image.data"},
       {"an image in BMP", [&](json* b) { (*b)["image"]["data"] = Png(small, ".bmp"); },
        "image.data"},
-      {"an unknown encoding", [](json* b) { (*b)["image"]["encoding"] = "gif"; },
-       "image.encoding"},
+      {"an unknown encoding", [](json* b) { (*b)["image"]["encoding"] = "gif"; }, "image.encoding"},
       {"a negative focal length", [](json* b) { (*b)["camera"]["fx"] = -1; }, "camera"},
       {"a fractional width", [](json* b) { (*b)["camera"]["width"] = 640.5; }, "camera.width"},
       {"a semantic score out of range",
-       [](json* b) { (*b)["semanticScores"] = {{"obj-0", 1.5}}; }, "semanticScores.obj-0"},
+       [](json* b) {
+         (*b)["semanticScores"] = {{"obj-0", 1.5}};
+       },
+       "semanticScores.obj-0"},
   };
   for (const Case& c : cases) {
     json body = good;
@@ -170,8 +172,7 @@ TEST_F(PerceptionApiTest, BadFramesGetErrorsNamingTheFieldAndChangeNothing) {
   Reply bad = Post("/v1/sessions", {{"world", WorldOf("loose1")},
                                     {"target", {{"photos", {Png(small), "not an image"}}}}});
   EXPECT_EQ(bad.status, 400);
-  EXPECT_EQ(std::string(bad.body["error"]["message"]).rfind("target.photos[1]", 0), 0u)
-      << bad.raw;
+  EXPECT_EQ(std::string(bad.body["error"]["message"]).rfind("target.photos[1]", 0), 0u) << bad.raw;
 }
 
 TEST_F(PerceptionApiTest, TracksSurviveARestart) {

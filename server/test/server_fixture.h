@@ -20,8 +20,8 @@ inline json WorldOf(const std::string& scenario) {
   buffer << in.rdbuf();
   json s = json::parse(buffer.str());
   json world;
-  for (const char* key : {"robot", "room", "mapResolution", "furniture", "baseRegions",
-                          "discretePoses", "start"}) {
+  for (const char* key :
+       {"robot", "room", "mapResolution", "furniture", "baseRegions", "discretePoses", "start"}) {
     if (s.contains(key)) world[key] = s[key];
   }
   return world;

@@ -16,8 +16,8 @@ namespace {
 // An observation that reports what the robot saw after a move: one box with two faces.
 json Observation(const std::string& action_id, double tilt = 0.4) {
   return {{"actionId", action_id},
-          {"robotState", {{"x", 0.3}, {"y", 0.0}, {"yaw", 0.0}, {"lift", 0.2}, {"pan", 0.0},
-                          {"tilt", tilt}}},
+          {"robotState",
+           {{"x", 0.3}, {"y", 0.0}, {"yaw", 0.0}, {"lift", 0.2}, {"pan", 0.0}, {"tilt", tilt}}},
           {"detections",
            {{{"id", "box-1"},
              {"box", {{"center", {1.4, 0.1, 0.82}}, {"size", {0.12, 0.12, 0.14}}}},
@@ -139,17 +139,71 @@ TEST_F(ServerTest, BadInputGetsClearErrorsNamingTheField) {
   EXPECT_EQ(budget.body["error"]["details"][0]["fieldViolations"][0]["field"], "budget.timeMs");
   EXPECT_EQ(Post(base + ":plan", {{"budget", {{"timeMs", 1e9}}}}).status, 400);
   EXPECT_EQ(Post(base + ":plan", {{"budget", {{"simulations", 1.5}}}}).status, 400);
-  EXPECT_EQ(PostRaw(base + ":plan", "{\"budget\": ").body["error"]["message"], "body: not valid JSON");
+  EXPECT_EQ(PostRaw(base + ":plan", "{\"budget\": ").body["error"]["message"],
+            "body: not valid JSON");
   EXPECT_EQ(PostRaw(base + ":plan", std::string(200, '[') + std::string(200, ']')).status, 400);
   EXPECT_EQ(PostRaw(base + ":plan", "[1, 2]").status, 400);
-  EXPECT_EQ(Post("/v1/sessions/0123456789abcdef0123456789abcdef:plan", json::object()).status,
-            404);
+  EXPECT_EQ(Post("/v1/sessions/0123456789abcdef0123456789abcdef:plan", json::object()).status, 404);
   EXPECT_EQ(Post("/v1/sessions/../etc:plan", json::object()).status, 404);
   Reply unknown_route = Get("/v2/whatever");
   EXPECT_EQ(unknown_route.status, 404);
   EXPECT_EQ(unknown_route.body["error"]["status"], "NOT_FOUND");
   // The session is intact after all that.
   EXPECT_EQ(Post(base + ":plan", {{"budget", {{"simulations", 50}}}}).status, 200);
+}
+
+TEST_F(ServerTest, FilterModelIsLoadedAtCreationAndPlansWithNetSam) {
+  Start();
+  const json world = WorldOf("loose1");
+  // A missing or corrupt model file fails the creation, naming the field; no session is left.
+  const std::string corrupt = ::testing::TempDir() + "/npfkct_corrupt_model.pt";
+  std::ofstream(corrupt) << "not a model";
+  for (const std::string& path : {std::string("/nonexistent/filter.pt"), corrupt}) {
+    Reply r = Post("/v1/sessions",
+                   {{"world", world}, {"planner", {{"name", "npfkct"}, {"modelPath", path}}}});
+    EXPECT_EQ(r.status, 400) << r.raw;
+    EXPECT_EQ(r.body["error"]["status"], "INVALID_ARGUMENT");
+    EXPECT_EQ(r.body["error"]["message"].get<std::string>().rfind("planner.modelPath", 0), 0u)
+        << r.raw;
+  }
+  Reply other = Post(
+      "/v1/sessions",
+      {{"world", world}, {"planner", {{"name", "pomcp"}, {"modelPath", NPFKCT_FILTER_MODEL}}}});
+  EXPECT_EQ(other.status, 400);
+  // Net_sam's options: checked and named; they need a model.
+  const std::vector<std::pair<json, std::string>> bad_options = {
+      {{{"filter.explore", 1.5}}, "planner.options.filter.explore"},
+      {{{"filter.candidates", 2.5}}, "planner.options.filter.candidates"},
+      {{{"filter.magic", 1}}, "planner.options.filter.magic"},
+  };
+  for (const auto& [options, field] : bad_options) {
+    Reply r =
+        Post("/v1/sessions",
+             {{"world", world},
+              {"planner",
+               {{"name", "npfkct"}, {"modelPath", NPFKCT_FILTER_MODEL}, {"options", options}}}});
+    EXPECT_EQ(r.status, 400) << r.raw;
+    EXPECT_EQ(r.body["error"]["message"].get<std::string>().rfind(field, 0), 0u) << r.raw;
+  }
+  Reply no_model = Post(
+      "/v1/sessions", {{"world", world},
+                       {"planner", {{"name", "npfkct"}, {"options", {{"filter.explore", 0.5}}}}}});
+  EXPECT_EQ(no_model.status, 400) << no_model.raw;
+  EXPECT_EQ(Get("/v1/sessions").body["sessions"].size(), 0u);
+  // The shipped model: the plan's candidate statistics show the filter at work.
+  const std::string id = Create({{"planner",
+                                  {{"name", "npfkct"},
+                                   {"particles", 100},
+                                   {"modelPath", NPFKCT_FILTER_MODEL},
+                                   {"options", {{"filter.minKeep", 8}, {"k", 3}}}}}});
+  ASSERT_FALSE(id.empty());
+  Reply plan = Post("/v1/sessions/" + id + ":plan", {{"budget", {{"simulations", 200}}}});
+  ASSERT_EQ(plan.status, 200) << plan.raw;
+  const json& candidates = plan.body["stats"]["candidates"];
+  EXPECT_GT(candidates["sampled"].get<int>(), candidates["accepted"].get<int>()) << plan.raw;
+  EXPECT_GT(candidates["accepted"].get<int>(), 0);
+  EXPECT_EQ(Get("/v1/sessions/" + id).body["planner"]["modelPath"], NPFKCT_FILTER_MODEL);
+  std::remove(corrupt.c_str());
 }
 
 TEST_F(ServerTest, OversizedBodiesAreRejectedAsJson) {
@@ -169,8 +223,8 @@ TEST_F(ServerTest, BearerAuthentication) {
   EXPECT_EQ(anonymous.status, 401);
   EXPECT_EQ(anonymous.body["error"]["status"], "UNAUTHENTICATED");
   EXPECT_EQ(Get("/v1/sessions", {{"Authorization", "Bearer wrong"}}).status, 401);
-  Reply ok = Post("/v1/sessions", {{"world", WorldOf("loose1")}},
-                  {{"Authorization", "Bearer s3cret"}});
+  Reply ok =
+      Post("/v1/sessions", {{"world", WorldOf("loose1")}}, {{"Authorization", "Bearer s3cret"}});
   EXPECT_EQ(ok.status, 200);
   EXPECT_EQ(Get("/healthz").status, 200);  // health checks stay open
 }

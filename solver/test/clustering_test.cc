@@ -57,7 +57,8 @@ TEST(KMeansTest, PeriodicClusterAcrossTheSeam) {
   Rng rng(3);
   std::vector<ActionVec> pts;
   for (int i = 0; i < 50; ++i) pts.push_back(MakeActionVec({0.05 * i / 50.0}));
-  for (int i = 0; i < 50; ++i) pts.push_back(MakeActionVec({2 * std::numbers::pi - 0.05 * i / 50.0}));
+  for (int i = 0; i < 50; ++i)
+    pts.push_back(MakeActionVec({2 * std::numbers::pi - 0.05 * i / 50.0}));
   auto clusters = KMeans(box, pts, 1, rng);
   ASSERT_EQ(clusters.size(), 1u);
   EXPECT_LT(box.Distance(clusters[0].center, MakeActionVec({0.0})), 0.01);

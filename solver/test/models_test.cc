@@ -215,10 +215,9 @@ TEST(VdpTagTest, BeamsRewardsAndLikelihood) {
   EXPECT_GT(tag.ObservationLikelihood(look, truth, o),
             1e3 * tag.ObservationLikelihood(look, mirrored, o));
   // Without looking the beam is noisy (std 5) and the two states are hard to tell apart.
-  const double ratio = tag.ObservationLikelihood(HybridAction{VdpTag::kMove, MakeActionVec({0})},
-                                                 truth, o) /
-                       tag.ObservationLikelihood(HybridAction{VdpTag::kMove, MakeActionVec({0})},
-                                                 mirrored, o);
+  const double ratio =
+      tag.ObservationLikelihood(HybridAction{VdpTag::kMove, MakeActionVec({0})}, truth, o) /
+      tag.ObservationLikelihood(HybridAction{VdpTag::kMove, MakeActionVec({0})}, mirrored, o);
   EXPECT_LT(ratio, 10.0);
 }
 

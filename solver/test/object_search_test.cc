@@ -52,8 +52,8 @@ TEST(GeometryTest, FrustumMatchesHandComputedLimits) {
   EXPECT_TRUE(pose.position.isApprox(Vec3(0.15, 0.0, 1.08)));
   const double z = 1.08;
   EXPECT_TRUE(InFrustum(cam, pose, Vec3(1.0, 0.0, z)));
-  EXPECT_FALSE(InFrustum(cam, pose, Vec3(0.6, 0.0, z)));   // depth 0.45 < near 0.5
-  EXPECT_FALSE(InFrustum(cam, pose, Vec3(1.9, 0.0, z)));   // depth 1.75 > far 1.7
+  EXPECT_FALSE(InFrustum(cam, pose, Vec3(0.6, 0.0, z)));  // depth 0.45 < near 0.5
+  EXPECT_FALSE(InFrustum(cam, pose, Vec3(1.9, 0.0, z)));  // depth 1.75 > far 1.7
   // At depth 1: |lateral| <= tan 30 deg = 0.577, |vertical| <= 0.8 tan 30 deg = 0.462.
   EXPECT_TRUE(InFrustum(cam, pose, Vec3(1.15, 0.57, z)));
   EXPECT_FALSE(InFrustum(cam, pose, Vec3(1.15, 0.59, z)));

@@ -52,9 +52,9 @@ TEST(PomcpTest, RejectsBadBudgetsAndOptions) {
   bad.search.discount_horizon = 0.0;
   Pomcp<Tiger> bad_planner(tiger, bad);
   bad_planner.Reset(rng);
-  EXPECT_NE(bad_planner.Plan(Budget::Simulations(10), rng).status.message().find(
-                "discount_horizon"),
-            std::string::npos);
+  EXPECT_NE(
+      bad_planner.Plan(Budget::Simulations(10), rng).status.message().find("discount_horizon"),
+      std::string::npos);
   Pomcp<Tiger> empty(tiger, TigerOptions());
   EXPECT_EQ(empty.Plan(Budget::Simulations(10), rng).status.code(),
             StatusCode::kFailedPrecondition);

@@ -18,8 +18,8 @@ TEST(BoxSpaceTest, WeightedDistanceAndDiameter) {
 TEST(BoxSpaceTest, PeriodicDimensionWrapsAround) {
   BoxSpace box(MakeActionVec({-std::numbers::pi}), MakeActionVec({std::numbers::pi}));
   box.SetPeriodic(0);
-  EXPECT_NEAR(box.Distance(MakeActionVec({3.0}), MakeActionVec({-3.0})),
-              2 * std::numbers::pi - 6.0, 1e-12);
+  EXPECT_NEAR(box.Distance(MakeActionVec({3.0}), MakeActionVec({-3.0})), 2 * std::numbers::pi - 6.0,
+              1e-12);
   EXPECT_NEAR(box.Clamp(MakeActionVec({3.5}))[0], 3.5 - 2 * std::numbers::pi, 1e-12);
   EXPECT_NEAR(box.Diameter(), std::numbers::pi, 1e-12);
 }

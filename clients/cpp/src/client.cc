@@ -30,15 +30,15 @@ Client::Client(const std::string& url, const std::string& api_key, double timeou
 
 Client::~Client() = default;
 
-StatusOr<json> Client::Call(const std::string& method, const std::string& path,
-                            const json* body) {
-  httplib::Result r =
-      method == "POST"  ? impl_->http.Post(path.c_str(), impl_->headers,
-                                           body ? body->dump() : "{}", "application/json")
-      : method == "GET" ? impl_->http.Get(path.c_str(), impl_->headers)
-                        : impl_->http.Delete(path.c_str(), impl_->headers);
+StatusOr<json> Client::Call(const std::string& method, const std::string& path, const json* body) {
+  httplib::Result r = method == "POST"
+                          ? impl_->http.Post(path.c_str(), impl_->headers,
+                                             body ? body->dump() : "{}", "application/json")
+                      : method == "GET" ? impl_->http.Get(path.c_str(), impl_->headers)
+                                        : impl_->http.Delete(path.c_str(), impl_->headers);
   if (!r) {
-    return Status(StatusCode::kUnavailable, "cannot reach the server: " + httplib::to_string(r.error()));
+    return Status(StatusCode::kUnavailable,
+                  "cannot reach the server: " + httplib::to_string(r.error()));
   }
   json parsed = json::parse(r->body, nullptr, false);
   if (r->status >= 400) {

@@ -1,7 +1,7 @@
 #include "npfkct/solver/models/rock_sample.h"
 
-#include <cmath>
 #include <algorithm>
+#include <cmath>
 #include <cstdlib>
 
 namespace npfkct::models {
@@ -22,10 +22,9 @@ RockSample RockSample::Standard78() {
 }
 
 RockSample RockSample::Standard1111() {
-  return RockSample(11,
-                    {{0, 3}, {0, 7}, {1, 8}, {2, 4}, {3, 3}, {3, 8}, {4, 3}, {5, 8}, {6, 1},
-                     {9, 3}, {9, 9}},
-                    {0, 5});
+  return RockSample(
+      11, {{0, 3}, {0, 7}, {1, 8}, {2, 4}, {3, 3}, {3, 8}, {4, 3}, {5, 8}, {6, 1}, {9, 3}, {9, 9}},
+      {0, 5});
 }
 
 int RockSample::RockAt(int x, int y) const { return grid_[y * size_ + x]; }
@@ -117,8 +116,7 @@ void RockSample::RecordCheck(const State& before, int rock, Observation o, State
   }
 }
 
-void RockSample::Condition(const State& s, const Action& a, const Observation& o,
-                           State* sp) const {
+void RockSample::Condition(const State& s, const Action& a, const Observation& o, State* sp) const {
   if (a < kFirstCheck || s.terminal || (o != kGood && o != kBad)) return;
   RecordCheck(s, a - kFirstCheck, o, sp);
 }

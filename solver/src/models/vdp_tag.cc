@@ -123,8 +123,7 @@ void VdpTag::ActionKinds(const State&, std::vector<int>* out) const {
   out->assign({kMove, kMoveAndLook});
 }
 
-double VdpTag::ObservationLikelihood(const Action& a, const State& sp,
-                                     const Observation& o) const {
+double VdpTag::ObservationLikelihood(const Action& a, const State& sp, const Observation& o) const {
   const double rx = sp.tx - sp.ax, ry = sp.ty - sp.ay;
   const double dist = std::sqrt(rx * rx + ry * ry);
   const int beam = ActiveBeam(rx, ry);

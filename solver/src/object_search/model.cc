@@ -82,35 +82,45 @@ int ObjectSearchModel::CountPast(const std::array<float, 8>& odds, bool positive
   return n;
 }
 
+bool ObjectSearchModel::Sees(const CameraPose& pose, const State& s,
+                             const std::array<Box, 64>& boxes, int i) const {
+  const World& w = *world_;
+  const int n = static_cast<int>(s.objects.size());
+  if (s.objects[i].status == kRemoved) return false;
+  const Vec3& c = boxes[i].center;
+  if (!InFrustum(w.camera, pose, c)) return false;
+  for (const Box& f : w.furniture) {
+    if (f.BlocksSegment(pose.position, c)) return false;
+  }
+  for (int j = 0; j < n; ++j) {
+    if (j == i || s.objects[j].status == kRemoved) continue;
+    // A smaller object nested inside object i (a covered target) does not hide it.
+    if (boxes[j].size.prod() < boxes[i].size.prod() && boxes[i].Contains(boxes[j].center)) {
+      continue;
+    }
+    // The guessed target hides inside or under a real object it overlaps (covered target).
+    if (boxes[j].Contains(c) || boxes[j].BlocksSegment(pose.position, c)) return false;
+  }
+  return true;
+}
+
+bool ObjectSearchModel::SeesObject(const State& s, const RobotConfig& config, int i) const {
+  const int n = static_cast<int>(s.objects.size());
+  if (i < 0 || i >= n) return false;
+  std::array<Box, 64> boxes;
+  for (int j = 0; j < n; ++j) boxes[j] = ObjectBox(s, j);
+  return Sees(CameraPoseFor(world_->robot, config), s, boxes, i);
+}
+
 uint64_t ObjectSearchModel::VisibleObjects(const State& s, const RobotConfig& config,
                                            std::array<std::array<int, 4>, 64>* nearest) const {
-  const World& w = *world_;
-  const CameraPose pose = CameraPoseFor(w.robot, config);
+  const CameraPose pose = CameraPoseFor(world_->robot, config);
   const int n = static_cast<int>(s.objects.size());
   std::array<Box, 64> boxes;
   for (int i = 0; i < n; ++i) boxes[i] = ObjectBox(s, i);
   uint64_t visible = 0;
   for (int i = 0; i < n; ++i) {
-    if (s.objects[i].status == kRemoved) continue;
-    const Vec3& c = boxes[i].center;
-    if (!InFrustum(w.camera, pose, c)) continue;
-    bool blocked = false;
-    for (const Box& f : w.furniture) {
-      if (f.BlocksSegment(pose.position, c)) {
-        blocked = true;
-        break;
-      }
-    }
-    for (int j = 0; j < n && !blocked; ++j) {
-      if (j == i || s.objects[j].status == kRemoved) continue;
-      // A smaller object nested inside object i (a covered target) does not hide it.
-      if (boxes[j].size.prod() < boxes[i].size.prod() && boxes[i].Contains(boxes[j].center)) {
-        continue;
-      }
-      // The guessed target hides inside or under a real object it overlaps (covered target).
-      if (boxes[j].Contains(c) || boxes[j].BlocksSegment(pose.position, c)) blocked = true;
-    }
-    if (blocked) continue;
+    if (!Sees(pose, s, boxes, i)) continue;
     visible |= (uint64_t{1} << i);
     if (nearest != nullptr) {
       const auto corners = boxes[i].Corners();

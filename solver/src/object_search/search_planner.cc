@@ -78,7 +78,8 @@ class DiscretePlanner final : public SearchPlanner {
     out.value = d.value;
     out.stats = d.stats;
     if (d.status.ok()) out.action = discrete_.ToHybrid(d.action);
-    for (const auto& r : d.root) out.root.push_back({discrete_.ToHybrid(r.action), r.visits, r.value});
+    for (const auto& r : d.root)
+      out.root.push_back({discrete_.ToHybrid(r.action), r.visits, r.value});
     return out;
   }
   void AdvanceTo(const HybridAction& a, const Observation& o,
@@ -111,7 +112,7 @@ class DiscretePlanner final : public SearchPlanner {
 }  // namespace
 
 const std::vector<std::string>& SearchPlannerNames() {
-  static const std::vector<std::string> names = {"npfkct", "kct",     "pomcp", "gpomcp",
+  static const std::vector<std::string> names = {"npfkct",  "kct",     "pomcp", "gpomcp",
                                                  "pomcpow", "vomcpow", "advt"};
   return names;
 }

@@ -28,7 +28,8 @@ Status SearchParams::Validate() const {
     return InvalidArgumentError("rewards must satisfy r_max > r_ct > r_co > 0 > r_min");
   }
   if (!(r_ill < 0.0)) return InvalidArgumentError("r_ill must be < 0");
-  if (!(discount > 0.0 && discount < 1.0)) return InvalidArgumentError("discount must be in (0, 1)");
+  if (!(discount > 0.0 && discount < 1.0))
+    return InvalidArgumentError("discount must be in (0, 1)");
   if (!(c_o > 0.0) || !finite(c_o)) return InvalidArgumentError("c_o must be > 0");
   if (!(eta_std >= 0.0) || !finite(eta_std)) return InvalidArgumentError("eta_std must be >= 0");
   if (!(nu_n <= nu_p) || !finite(nu_n) || !finite(nu_p)) {
@@ -39,7 +40,8 @@ Status SearchParams::Validate() const {
     return InvalidArgumentError("declare_threshold must be > 0");
   }
   if (!finite(guess_odds)) return InvalidArgumentError("guess_odds must be finite");
-  if (!(guess_size > 0.0) || !finite(guess_size)) return InvalidArgumentError("guess_size must be > 0");
+  if (!(guess_size > 0.0) || !finite(guess_size))
+    return InvalidArgumentError("guess_size must be > 0");
   if (!(guess_moveability >= 0.0 && guess_moveability <= 1.0)) {
     return InvalidArgumentError("guess_moveability must be in [0, 1]");
   }
@@ -94,8 +96,10 @@ bool OccupancyMap::DiscFree(double x, double y, double radius) const {
     for (int ix = std::max(0, x0); ix <= std::min(nx_ - 1, x1); ++ix) {
       if (!occupied_[iy * nx_ + ix]) continue;
       // Distance from the disc center to the cell square.
-      const double cx = std::clamp(x, min_.x() + ix * resolution_, min_.x() + (ix + 1) * resolution_);
-      const double cy = std::clamp(y, min_.y() + iy * resolution_, min_.y() + (iy + 1) * resolution_);
+      const double cx =
+          std::clamp(x, min_.x() + ix * resolution_, min_.x() + (ix + 1) * resolution_);
+      const double cy =
+          std::clamp(y, min_.y() + iy * resolution_, min_.y() + (iy + 1) * resolution_);
       if ((cx - x) * (cx - x) + (cy - y) * (cy - y) < radius * radius) return false;
     }
   }
@@ -199,8 +203,7 @@ std::vector<RobotConfig> World::ManualConfigurations() const {
     }
   }
   std::vector<RobotConfig> out;
-  const double lifts[3] = {robot.lift_min, 0.5 * (robot.lift_min + robot.lift_max),
-                           robot.lift_max};
+  const double lifts[3] = {robot.lift_min, 0.5 * (robot.lift_min + robot.lift_max), robot.lift_max};
   const double pans[3] = {robot.pan_min, 0.5 * (robot.pan_min + robot.pan_max), robot.pan_max};
   const double tilts[3] = {0.0, 0.5 * robot.tilt_max, robot.tilt_max};
   for (const RobotConfig& pose : poses) {
@@ -295,8 +298,8 @@ Status ApplyRealObservation(World* world, const RealObservation& observation) {
   }
   const CameraPose pose = CameraPoseFor(world->robot, world->robot_config);
   world->grid.UpdateFromView(world->camera, pose, world->Occluders(), 0.5 * p.guess_size,
-                             static_cast<float>(p.grid_free_delta),
-                             static_cast<float>(p.grid_min), static_cast<float>(p.grid_max));
+                             static_cast<float>(p.grid_free_delta), static_cast<float>(p.grid_min),
+                             static_cast<float>(p.grid_max));
   ++world->steps;
   return OkStatus();
 }

@@ -12,12 +12,12 @@
 //   5. moveability from size and reach.
 #pragma once
 
-#include <opencv2/core.hpp>
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
 
 #include <map>
 #include <memory>
+#include <opencv2/core.hpp>
 #include <string>
 #include <vector>
 
@@ -53,30 +53,31 @@ struct SensorFrame {
 
 /// Settings of the pipeline; defaults suit the Fetch head camera at 0.5-4 m.
 struct PerceptionOptions {
-  double voxel = 0.01;                 ///< Downsampling leaf (m).
-  double icp_max_distance = 0.15;      ///< ICP correspondence distance (m).
+  double voxel = 0.01;             ///< Downsampling leaf (m).
+  double icp_max_distance = 0.15;  ///< ICP correspondence distance (m).
   int icp_iterations = 80;
-  double icp_good_fitness = 2.5e-4;    ///< Mean squared distance (m^2) below which ICP is trusted.
-  double ransac_voxel = 0.03;          ///< Leaf for the RANSAC fallback.
-  double max_correction = 0.5;         ///< Larger pose corrections are rejected (m).
+  double icp_good_fitness = 2.5e-4;  ///< Mean squared distance (m^2) below which ICP is trusted.
+  double ransac_voxel = 0.03;        ///< Leaf for the RANSAC fallback.
+  double max_correction = 0.5;       ///< Larger pose corrections are rejected (m).
   /// Registration runs only when the visible structure constrains the pose: the smallest
   /// eigenvalue of the point-to-plane system must exceed this fraction of the largest.
   double min_structure = 1e-5;
-  double map_distance = 0.015;         ///< Points this close to the map are the map's (m).
-  double workspace_margin = 0.02;      ///< Objects must stand on a workspace, within this (m).
-  double max_object_height = 0.6;      ///< Points higher above a surface are ignored (m).
-  double cluster_tolerance = 0.02;     ///< Euclidean clustering distance (m).
+  double map_distance = 0.015;      ///< Points this close to the map are the map's (m).
+  double workspace_margin = 0.02;   ///< Objects must stand on a workspace, within this (m).
+  double max_object_height = 0.6;   ///< Points higher above a surface are ignored (m).
+  double cluster_tolerance = 0.02;  ///< Euclidean clustering distance (m).
   int min_cluster_points = 40;
   int max_cluster_points = 200000;
-  double association_gate = 3.0;       ///< Mahalanobis gate for matching a cluster to a track.
-  double association_distance = 0.03;  ///< Gate on the mean distance of points to a track's box (m).
-  double sift_ratio = 0.75;            ///< Lowe's ratio test.
-  int min_features = 12;               ///< Fewer keypoints than this: colour matching instead.
+  double association_gate = 3.0;  ///< Mahalanobis gate for matching a cluster to a track.
+  double association_distance =
+      0.03;                  ///< Gate on the mean distance of points to a track's box (m).
+  double sift_ratio = 0.75;  ///< Lowe's ratio test.
+  int min_features = 12;     ///< Fewer keypoints than this: colour matching instead.
   /// Fraction of a region's keypoints that a view of the target matches consistently; fewer
   /// than expected is evidence against the target.
   double match_threshold = 0.08;
-  int min_inliers = 6;                 ///< Consistent matches that mean "target".
-  double gripper_max = 0.25;           ///< Largest graspable horizontal extent (m).
+  int min_inliers = 6;        ///< Consistent matches that mean "target".
+  double gripper_max = 0.25;  ///< Largest graspable horizontal extent (m).
 
   Status Validate() const;
 };
@@ -88,7 +89,7 @@ struct StageTimings {
 
 /// What one frame gave.
 struct PerceptionResult {
-  object_search::RealObservation observation;  ///< Corrected pose and detections.
+  object_search::RealObservation observation;                ///< Corrected pose and detections.
   Eigen::Matrix4d correction = Eigen::Matrix4d::Identity();  ///< Map-frame pose correction.
   bool used_ransac = false;
   /// ICP mean squared distance after registration; NaN when the view did not constrain the pose

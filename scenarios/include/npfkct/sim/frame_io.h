@@ -3,10 +3,10 @@
 // figure 5). Only executables and the perception/server layers include this header.
 #pragma once
 
-#include <opencv2/core.hpp>
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
 
+#include <opencv2/core.hpp>
 #include <string>
 
 #include "npfkct/sim/simulator.h"

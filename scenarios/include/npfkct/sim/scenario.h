@@ -4,10 +4,9 @@
 
 #include <array>
 #include <cstdint>
+#include <nlohmann/json_fwd.hpp>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json_fwd.hpp>
 
 #include "npfkct/solver/object_search/world.h"
 #include "npfkct/solver/status.h"
@@ -25,8 +24,8 @@ using Color = std::array<uint8_t, 3>;
 /// A piece of furniture of the prior map; its top may be a workspace.
 struct Furniture {
   std::string name;
-  Box box;                   ///< Stands on the floor: center.z = size.z / 2.
-  bool workspace = false;    ///< Whether objects may stand on its top.
+  Box box;                 ///< Stands on the floor: center.z = size.z / 2.
+  bool workspace = false;  ///< Whether objects may stand on its top.
   Color color = {140, 110, 80};
 };
 
@@ -43,11 +42,11 @@ struct SceneObject {
 
 /// Noise of the simulated robot and sensors.
 struct SimNoise {
-  double pose_xy = 0.02;        ///< Std of the base position after a move (m).
-  double pose_yaw = 0.02;       ///< Std of the base yaw after a move (rad).
-  double object_jitter = 0.0;   ///< Std of the objects' placement per seed (m).
-  double box_estimate = 0.005;  ///< Std of detected box centers and sizes (m).
-  double detection = 0.08;      ///< Std of a face's detection score.
+  double pose_xy = 0.02;          ///< Std of the base position after a move (m).
+  double pose_yaw = 0.02;         ///< Std of the base yaw after a move (rad).
+  double object_jitter = 0.0;     ///< Std of the objects' placement per seed (m).
+  double box_estimate = 0.005;    ///< Std of detected box centers and sizes (m).
+  double detection = 0.08;        ///< Std of a face's detection score.
   double false_detection = 0.03;  ///< Probability that a face's detection is flipped.
   /// Std of the base pose the robot reports with raw frames (its localization error; m, rad),
   /// which perception's registration corrects.

@@ -17,11 +17,11 @@ namespace npfkct::sim {
 
 /// What executing one action did in the true world.
 struct ExecutionOutcome {
-  double reward = 0.0;     ///< The paper's reward table applied to the true scene.
-  bool terminal = false;   ///< The target was removed.
-  bool success = false;    ///< A discrete action succeeded (declaration correct, removal done).
-  bool illegal = false;    ///< The action was illegal in the true world.
-  std::string detail;      ///< Human-readable account ("declared box3 obstacle", ...).
+  double reward = 0.0;    ///< The paper's reward table applied to the true scene.
+  bool terminal = false;  ///< The target was removed.
+  bool success = false;   ///< A discrete action succeeded (declaration correct, removal done).
+  bool illegal = false;   ///< The action was illegal in the true world.
+  std::string detail;     ///< Human-readable account ("declared box3 obstacle", ...).
 };
 
 /// A camera frame rendered by ray casting: 8-bit RGB (row-major, 3 bytes per pixel), depth in
@@ -61,8 +61,7 @@ class Simulator {
   /// Executes `action` chosen with knowledge `world` (which maps object indices to scene
   /// objects by key). Moves get pose noise; declarations and removals are judged against the
   /// truth.
-  ExecutionOutcome Execute(const HybridAction& action, const object_search::World& world,
-                           Rng& rng);
+  ExecutionOutcome Execute(const HybridAction& action, const object_search::World& world, Rng& rng);
   /// Executes a move to `config` (pose noise added; collisions and joint limits are illegal).
   ExecutionOutcome ExecuteMove(const RobotConfig& config, const object_search::SearchParams& p,
                                Rng& rng);
@@ -70,8 +69,7 @@ class Simulator {
   /// made up, the one standing where the robot saw box `seen`): `offset` 0 declares it the
   /// target, 1 an obstacle, 2 removes it; `status` is what the robot has declared it so far.
   ExecutionOutcome ExecuteOnObject(int offset, const std::string& name, int8_t status,
-                                   const object_search::SearchParams& p,
-                                   const Box* seen = nullptr);
+                                   const object_search::SearchParams& p, const Box* seen = nullptr);
   /// The scene object named `key` or, failing that, the one not removed whose center is nearest
   /// to `seen`'s, within kSameObjectDistance; -1 when none.
   int FindObject(const std::string& key, const Box* seen = nullptr) const;

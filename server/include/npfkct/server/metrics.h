@@ -40,7 +40,7 @@ class Metrics {
                               const Histogram& h);
 
   mutable std::mutex mutex_;
-  std::map<std::string, uint64_t> requests_;         // labels -> count
+  std::map<std::string, uint64_t> requests_;          // labels -> count
   std::map<std::string, Histogram> request_seconds_;  // route labels -> histogram
   Histogram planning_seconds_;
   Histogram overhead_seconds_;

@@ -62,7 +62,7 @@ class Server {
   /// Sessions restored from the state directory at Start().
   int restored_sessions() const { return restored_; }
 
-  /// Installs the factory of NPF-kCT candidate samplers (the neural filter's hook).
+  /// Replaces the factory of NPF-kCT candidate samplers (default: FilterSamplerFactory()).
   void SetSamplerFactory(SamplerFactory factory) { samplers_ = std::move(factory); }
 
  private:

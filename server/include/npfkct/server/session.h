@@ -5,10 +5,10 @@
 #include <chrono>
 #include <cstdint>
 #include <functional>
-#include <set>
 #include <memory>
 #include <mutex>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <string>
 #include <utility>
 #include <vector>
@@ -50,8 +50,9 @@ struct PlannerSpec {
 };
 
 /// Supplies NPF-kCT's candidate sampler for a session (the neural filter when one is loaded).
-using SamplerFactory = std::function<StatusOr<std::shared_ptr<CandidateSampler<object_search::State>>>(
-    const PlannerSpec& spec, const object_search::ObjectSearchModel& model)>;
+using SamplerFactory =
+    std::function<StatusOr<std::shared_ptr<CandidateSampler<object_search::State>>>(
+        const PlannerSpec& spec, const object_search::ObjectSearchModel& model)>;
 
 /// A session. Every method must be called with mutex() held.
 class Session {

@@ -90,9 +90,9 @@ class Advt {
     if (belief_.empty()) return Fail(std::move(d), FailedPreconditionError("belief is empty"));
     if constexpr (!HasObservationLikelihood<M>) {
       if (options_.observations.enabled) {
-        return Fail(std::move(d), InvalidArgumentError(
-                                      "observations.enabled needs the model's observation "
-                                      "likelihood; use exact observation matching"));
+        return Fail(std::move(d),
+                    InvalidArgumentError("observations.enabled needs the model's observation "
+                                         "likelihood; use exact observation matching"));
       }
     }
     if (!options_.search.reuse_tree && tree_.root >= 0) {

@@ -72,11 +72,11 @@ struct BeliefUpdateOptions {
 /// What a belief update did.
 struct BeliefUpdateSummary {
   BeliefHealth health = BeliefHealth::kHealthy;
-  int num_particles = 0;            ///< Particles after the update.
-  int consistent = 0;               ///< Particles consistent with the observation.
-  int reinvigorated = 0;            ///< Particles produced by reinvigoration.
+  int num_particles = 0;             ///< Particles after the update.
+  int consistent = 0;                ///< Particles consistent with the observation.
+  int reinvigorated = 0;             ///< Particles produced by reinvigoration.
   double effective_sample_size = 0;  ///< ESS right after weighting (before resampling).
-  int64_t simulations = 0;          ///< Calls of the generative model.
+  int64_t simulations = 0;           ///< Calls of the generative model.
 };
 
 /// A belief represented by weighted particles.
@@ -293,8 +293,8 @@ class ParticleBelief {
 
   template <GenerativeModel M>
   BeliefUpdateSummary Deplete(const M& model, const typename M::Action& a,
-                              const typename M::Observation& o, std::vector<State> predicted,
-                              int n, Rng& rng, BeliefUpdateSummary summary) {
+                              const typename M::Observation& o, std::vector<State> predicted, int n,
+                              Rng& rng, BeliefUpdateSummary summary) {
     std::vector<State> fresh;
     const int max_tries = n * 4;
     for (int i = 0; i < max_tries && !predicted.empty() && static_cast<int>(fresh.size()) < n;

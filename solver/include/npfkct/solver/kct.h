@@ -164,9 +164,9 @@ class KCenterTree {
     if (belief_.empty()) return Fail(std::move(d), FailedPreconditionError("belief is empty"));
     if constexpr (!HasObservationLikelihood<M>) {
       if (options_.observations.enabled) {
-        return Fail(std::move(d), InvalidArgumentError(
-                                      "observations.enabled needs the model's observation "
-                                      "likelihood; use exact observation matching"));
+        return Fail(std::move(d),
+                    InvalidArgumentError("observations.enabled needs the model's observation "
+                                         "likelihood; use exact observation matching"));
       }
     }
     if (!options_.search.reuse_tree && tree_.root >= 0) {
@@ -322,11 +322,11 @@ class KCenterTree {
   // Per action node: the sphere's range (the center is action.x) and the episodes that chose it.
   struct Sphere {
     double range = 0.0;
-    std::vector<uint32_t> ids;      // episode ids, increasing
-    std::vector<double> returns;    // discounted return from the node
-    std::vector<double> rewards;    // immediate reward
-    std::vector<int32_t> entries;   // children entry reached, -1 when terminal
-    std::vector<float> points;      // executed point, dim floats per record (continuous kinds)
+    std::vector<uint32_t> ids;     // episode ids, increasing
+    std::vector<double> returns;   // discounted return from the node
+    std::vector<double> rewards;   // immediate reward
+    std::vector<int32_t> entries;  // children entry reached, -1 when terminal
+    std::vector<float> points;     // executed point, dim floats per record (continuous kinds)
   };
   using Tree = BeliefTree<M, Sphere>;
 
@@ -375,7 +375,8 @@ class KCenterTree {
           points.push_back(p);
         }
       }
-      if (batch.empty()) break;
+      // A sampler that returns fewer than asked (the neural filter) has nothing more to offer.
+      if (static_cast<int>(batch.size()) < options_.num_candidates) break;
     }
     candidate_stats_.elapsed_ms += MillisSince(t0);
     if (points.empty()) {
@@ -458,8 +459,8 @@ class KCenterTree {
     double best_score = -std::numeric_limits<double>::infinity();
     for (int ai : on.actions) {
       const auto& an = tree_.act[ai];
-      const double score = Ucb1(an.q / scale_, an.n, log_n, options_.w1) +
-                           options_.w2 * an.data.range;
+      const double score =
+          Ucb1(an.q / scale_, an.n, log_n, options_.w1) + options_.w2 * an.data.range;
       if (score > best_score) {
         best_score = score;
         best = ai;
@@ -497,8 +498,7 @@ class KCenterTree {
   }
 
   // Episode_simulation (algorithm 2). Returns the discounted return of the episode from `node`.
-  double Simulate(const State& s, int node, int depth, uint32_t episode, Rng& rng,
-                  Status* status) {
+  double Simulate(const State& s, int node, int depth, uint32_t episode, Rng& rng, Status* status) {
     if (IsTerminalState(model_, s) || depth >= options_.search.max_depth ||
         std::pow(model_.Discount(), depth) < options_.search.discount_horizon) {
       return 0.0;

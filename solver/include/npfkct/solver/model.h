@@ -16,10 +16,12 @@
 //                                const Observation&) const;           // POMCPOW-style planners
 //   Action RolloutAction(const State&, Rng&) const;                   // default: uniform legal
 //   double MinReward() const; double MaxReward() const;              // UCB scale (c = max - min)
-//   bool Reinvigorate(const State& near, const Action&,               // a particle near `near` that
+//   bool Reinvigorate(const State& near, const Action&,               // a particle near `near`
+//   that
 //                     const Observation&, Rng&, State* out) const;    // is consistent with (a, o)
-//   double HeuristicValue(const State&) const;                        // leaf value instead of rollout
-//   void Condition(const State& s, const Action&, const Observation&, // rewrite history kept in s'
+//   double HeuristicValue(const State&) const;                        // leaf value instead of
+//   rollout void Condition(const State& s, const Action&, const Observation&, // rewrite history
+//   kept in s'
 //                  State* sp) const;                                  // for the real observation
 //
 // Discrete-action models (Action = int) add
@@ -29,8 +31,9 @@
 //
 // Hybrid/continuous-action models (Action = HybridAction) add
 //   void ActionKinds(const State&, std::vector<int>*) const;          // legal kinds at a state
-//   const BoxSpace& KindSpace(int kind) const;                        // dim 0: purely discrete kind
-//   bool IsFeasible(const State&, const Action&) const;               // optional reasonability check
+//   const BoxSpace& KindSpace(int kind) const;                        // dim 0: purely discrete
+//   kind bool IsFeasible(const State&, const Action&) const;               // optional
+//   reasonability check
 #pragma once
 
 #include <array>
@@ -62,35 +65,32 @@ concept GenerativeModel = requires(const M& m, Rng& rng, const typename M::State
   typename M::Action;
   typename M::Observation;
   { m.SampleInitialState(rng) } -> std::convertible_to<typename M::State>;
-  {
-    m.Step(s, a, rng)
-  } -> std::same_as<StepResult<typename M::State, typename M::Observation>>;
+  { m.Step(s, a, rng) } -> std::same_as<StepResult<typename M::State, typename M::Observation>>;
   { m.Discount() } -> std::convertible_to<double>;
 };
 
 /// A generative model whose actions are the integers [0, NumActions()).
 template <class M>
 concept DiscreteActionModel = GenerativeModel<M> && std::same_as<typename M::Action, int> &&
-                              requires(const M& m) {
-                                { m.NumActions() } -> std::convertible_to<int>;
-                              };
+    requires(const M& m) {
+  { m.NumActions() } -> std::convertible_to<int>;
+};
 
 /// A generative model whose actions are hybrid: a kind and a point of that kind's box.
 template <class M>
-concept HybridActionModel =
-    GenerativeModel<M> && std::same_as<typename M::Action, HybridAction> &&
+concept HybridActionModel = GenerativeModel<M> && std::same_as<typename M::Action, HybridAction> &&
     requires(const M& m, const typename M::State& s, std::vector<int>* kinds, int kind) {
-      { m.ActionKinds(s, kinds) };
-      { m.KindSpace(kind) } -> std::convertible_to<const BoxSpace&>;
-    };
+  {m.ActionKinds(s, kinds)};
+  { m.KindSpace(kind) } -> std::convertible_to<const BoxSpace&>;
+};
 
 /// A model that can evaluate Z(o | a, s').
 template <class M>
-concept HasObservationLikelihood =
-    requires(const M& m, const typename M::Action& a, const typename M::State& s,
-             const typename M::Observation& o) {
-      { m.ObservationLikelihood(a, s, o) } -> std::convertible_to<double>;
-    };
+concept HasObservationLikelihood = requires(const M& m, const typename M::Action& a,
+                                            const typename M::State& s,
+                                            const typename M::Observation& o) {
+  { m.ObservationLikelihood(a, s, o) } -> std::convertible_to<double>;
+};
 
 /// Whether the state is terminal (false when the model does not say).
 template <GenerativeModel M>
@@ -130,7 +130,9 @@ double RewardRange(const M& m, double fallback) {
 /// Whether a hybrid action passes the model's reasonability check (true when it has none).
 template <GenerativeModel M>
 bool IsFeasibleAction(const M& m, const typename M::State& s, const typename M::Action& a) {
-  if constexpr (requires { { m.IsFeasible(s, a) } -> std::convertible_to<bool>; }) {
+  if constexpr (requires {
+                  { m.IsFeasible(s, a) } -> std::convertible_to<bool>;
+                }) {
     return m.IsFeasible(s, a);
   } else {
     return true;
@@ -152,7 +154,9 @@ inline uint64_t HashMix(uint64_t x) {
 /// `uint64_t Hash() const` member.
 template <class O>
 uint64_t HashObservation(const O& o) {
-  if constexpr (requires { { o.Hash() } -> std::convertible_to<uint64_t>; }) {
+  if constexpr (requires {
+                  { o.Hash() } -> std::convertible_to<uint64_t>;
+                }) {
     return o.Hash();
   } else if constexpr (std::is_integral_v<O>) {
     return HashMix(static_cast<uint64_t>(o));

@@ -42,8 +42,8 @@ Status SetOptionFromString(Options* o, std::string_view assignment) {
   if (value.empty() || end != value.c_str() + value.size()) {
     if (value == "true") return SetOption(o, assignment.substr(0, eq), 1.0);
     if (value == "false") return SetOption(o, assignment.substr(0, eq), 0.0);
-    return InvalidArgumentError("option " + std::string(assignment.substr(0, eq)) +
-                                ": '" + value + "' is not a number");
+    return InvalidArgumentError("option " + std::string(assignment.substr(0, eq)) + ": '" + value +
+                                "' is not a number");
   }
   return SetOption(o, assignment.substr(0, eq), v);
 }

@@ -105,10 +105,10 @@ struct RootActionStat {
 /// What a planner recommends.
 template <class Action>
 struct Decision {
-  Status status;                ///< OK, or why no action could be chosen.
-  Action action{};              ///< The recommended action.
-  double value = 0.0;           ///< Estimated value of the action at the root.
-  SearchStats stats;            ///< How the search went.
+  Status status;                             ///< OK, or why no action could be chosen.
+  Action action{};                           ///< The recommended action.
+  double value = 0.0;                        ///< Estimated value of the action at the root.
+  SearchStats stats;                         ///< How the search went.
   std::vector<RootActionStat<Action>> root;  ///< Per-action root statistics.
 };
 
@@ -183,7 +183,9 @@ double Rollout(const M& model, typename M::State s, int depth, const SearchOptio
   while (depth < options.max_depth && horizon_discount >= options.discount_horizon) {
     if (IsTerminalState(model, s)) break;
     typename M::Action a;
-    if constexpr (requires { { model.RolloutAction(s, rng) } -> std::same_as<typename M::Action>; }) {
+    if constexpr (requires {
+                    { model.RolloutAction(s, rng) } -> std::same_as<typename M::Action>;
+                  }) {
       a = model.RolloutAction(s, rng);
     } else {
       a = UniformRandomAction(model, s, rng, scratch);
@@ -204,7 +206,9 @@ double Rollout(const M& model, typename M::State s, int depth, const SearchOptio
 template <GenerativeModel M>
 double LeafEstimate(const M& model, const typename M::State& s, int depth,
                     const SearchOptions& options, Rng& rng, std::vector<int>* scratch) {
-  if constexpr (requires { { model.HeuristicValue(s) } -> std::convertible_to<double>; }) {
+  if constexpr (requires {
+                  { model.HeuristicValue(s) } -> std::convertible_to<double>;
+                }) {
     if (options.leaf_value == SearchOptions::LeafValue::kHeuristic) {
       return IsTerminalState(model, s) ? 0.0 : model.HeuristicValue(s);
     }

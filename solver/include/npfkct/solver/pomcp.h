@@ -76,7 +76,8 @@ class Pomcp {
       ClearTree();
       d.stats.teardown_ms = MillisSince(t0);
     }
-    if (root_ >= 0 && obs_[root_].num_actions > 0 && !RootMatchesLegalActions(belief_.Sample(rng))) {
+    if (root_ >= 0 && obs_[root_].num_actions > 0 &&
+        !RootMatchesLegalActions(belief_.Sample(rng))) {
       const auto t0 = Clock::now();
       ClearTree();
       d.stats.teardown_ms += MillisSince(t0);
@@ -280,7 +281,8 @@ class Pomcp {
       stack.pop_back();
       const ObsNode& src = obs_[old_o];
       obs[new_o].first_action = static_cast<int>(act.size());
-      for (int i = 0; i < src.num_actions; ++i) act.push_back(std::move(act_[src.first_action + i]));
+      for (int i = 0; i < src.num_actions; ++i)
+        act.push_back(std::move(act_[src.first_action + i]));
       for (int i = 0; i < src.num_actions; ++i) {
         ActNode& an = act[obs[new_o].first_action + i];
         for (int k = 0; k < an.children.size(); ++k) {

@@ -56,8 +56,8 @@ struct PomcpowOptions {
 /// POMCPOW over a generative model with an observation likelihood. Discrete-action models
 /// (Action = int) and hybrid-action models are both supported. The model must outlive the planner.
 template <GenerativeModel M>
-  requires HasObservationLikelihood<M> && (DiscreteActionModel<M> || HybridActionModel<M>)
-class Pomcpow {
+requires HasObservationLikelihood<M> &&
+    (DiscreteActionModel<M> || HybridActionModel<M>)class Pomcpow {
  public:
   using State = typename M::State;
   using Action = typename M::Action;

@@ -46,9 +46,8 @@ class Rng {
   /// Uniform integer in [0, n); n must be positive.
   int64_t UniformInt(int64_t n) {
     // Lemire's multiply-shift; the bias for n << 2^64 is negligible for planning purposes.
-    return static_cast<int64_t>((static_cast<unsigned __int128>((*this)()) *
-                                 static_cast<unsigned __int128>(n)) >>
-                                64);
+    return static_cast<int64_t>(
+        (static_cast<unsigned __int128>((*this)()) * static_cast<unsigned __int128>(n)) >> 64);
   }
   /// True with probability p.
   bool Bernoulli(double p) { return Uniform() < p; }

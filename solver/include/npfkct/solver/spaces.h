@@ -62,7 +62,8 @@ class BoxSpace {
   ActionVec SampleUniform(Rng& rng) const;
   /// A point drawn uniformly from the metric ball of `radius` around `center`, intersected with
   /// the box (rejection sampling; after `max_tries` misses the last draw is clamped into the box).
-  ActionVec SampleInBall(const ActionVec& center, double radius, Rng& rng, int max_tries = 32) const;
+  ActionVec SampleInBall(const ActionVec& center, double radius, Rng& rng,
+                         int max_tries = 32) const;
   /// A point drawn from the isotropic Gaussian (in metric units) of standard deviation `stddev`
   /// around `center`, clamped into the box.
   ActionVec SampleGaussian(const ActionVec& center, double stddev, Rng& rng) const;

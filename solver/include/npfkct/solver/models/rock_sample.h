@@ -25,9 +25,9 @@ class RockSample {
     int8_t x = 0;
     int8_t y = 0;
     bool terminal = false;
-    uint16_t good = 0;       ///< Bit i: rock i is good.
-    uint16_t collected = 0;  ///< Bit i: rock i has been sampled.
-    uint16_t certain = 0;    ///< Bit i: rock i was checked from distance 0.
+    uint16_t good = 0;                         ///< Bit i: rock i is good.
+    uint16_t collected = 0;                    ///< Bit i: rock i has been sampled.
+    uint16_t certain = 0;                      ///< Bit i: rock i was checked from distance 0.
     std::array<int8_t, kMaxRocks> evidence{};  ///< #good - #bad observations per rock.
     std::array<int8_t, kMaxRocks> measured{};  ///< Checks per rock.
     /// Log-odds that rock i is good given its check observations (the posterior, since rocks are

@@ -32,8 +32,8 @@ class VdpTag {
 
   /// Rollout policy of the leaf estimate.
   enum class Rollout {
-    kRandom,     ///< Uniform random kind and heading (POMCPOW paper, 2018).
-    kToNextMl,   ///< Head for the target's noise-free next position, never look (VPW paper, 2021).
+    kRandom,    ///< Uniform random kind and heading (POMCPOW paper, 2018).
+    kToNextMl,  ///< Head for the target's noise-free next position, never look (VPW paper, 2021).
   };
 
   explicit VdpTag(Rollout rollout = Rollout::kRandom);

@@ -17,9 +17,9 @@ struct Workspace {
   std::string name;
   Vec2 center = Vec2::Zero();
   double yaw = 0.0;
-  double length = 1.0;  ///< Extent along the workspace's x axis.
-  double width = 1.0;   ///< Extent along its y axis.
-  double height = 0.75; ///< Height of the surface above the floor.
+  double length = 1.0;   ///< Extent along the workspace's x axis.
+  double width = 1.0;    ///< Extent along its y axis.
+  double height = 0.75;  ///< Height of the surface above the floor.
 
   /// Whether the (x, y) point lies on the surface (with `margin` added to every side).
   bool ContainsXY(const Vec2& p, double margin = 0.0) const;

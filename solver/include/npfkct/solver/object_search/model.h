@@ -106,6 +106,9 @@ class ObjectSearchModel {
   /// 4 face grids nearest to the camera.
   uint64_t VisibleObjects(const State& s, const RobotConfig& config,
                           std::array<std::array<int, 4>, 64>* nearest) const;
+  /// Whether the camera at `config` sees object i's center unoccluded in state s (object 0: the
+  /// guessed target at s.target); the rule VisibleObjects applies to every object.
+  bool SeesObject(const State& s, const RobotConfig& config, int i) const;
   /// The observation key of a real step, from the objects detected (their indices in the world)
   /// and the odds before the update, by the same rule as the simulated observations.
   Observation RealObservationKey(const std::vector<int>& detected) const;
@@ -120,6 +123,7 @@ class ObjectSearchModel {
 
  private:
   void Observe(State* s, Rng& rng, Observation* o) const;
+  bool Sees(const CameraPose& pose, const State& s, const std::array<Box, 64>& boxes, int i) const;
 
   std::shared_ptr<const World> world_;
   SearchRollout rollout_;

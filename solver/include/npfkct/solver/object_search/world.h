@@ -24,11 +24,11 @@ enum ObjectStatus : int8_t {
 
 /// Parameters of the object-search POMDP (paper section 3 and appendix J).
 struct SearchParams {
-  double r_max = 1e5;    ///< Removing the declared target (terminal).
-  double r_ct = 5e4;     ///< Correctly declaring the target.
-  double r_co = 1e4;     ///< Correctly declaring an obstacle.
-  double r_min = -1.0;   ///< Every action (a removal costs 2 r_min).
-  double r_ill = -1e3;   ///< Illegal actions.
+  double r_max = 1e5;   ///< Removing the declared target (terminal).
+  double r_ct = 5e4;    ///< Correctly declaring the target.
+  double r_co = 1e4;    ///< Correctly declaring an obstacle.
+  double r_min = -1.0;  ///< Every action (a removal costs 2 r_min).
+  double r_ill = -1e3;  ///< Illegal actions.
   double discount = 0.9;
   /// Face-grid update in the belief tree: +-c_o + eta, eta ~ N(0, eta_std^2).
   double c_o = 0.8;
@@ -99,9 +99,9 @@ struct BaseRegion {
 
 /// What is known of one object (object 0 is the guessed target and has no fixed box).
 struct ObjectKnowledge {
-  std::string key;       ///< Caller's identifier (perception cluster id, simulator name).
-  Box box;               ///< Estimated oriented bounding box.
-  double moveability = 1.0;  ///< Probability that the robot can remove it.
+  std::string key;              ///< Caller's identifier (perception cluster id, simulator name).
+  Box box;                      ///< Estimated oriented bounding box.
+  double moveability = 1.0;     ///< Probability that the robot can remove it.
   std::array<float, 8> odds{};  ///< Face-grid log-odds (the box's 8 corners).
   int8_t status = kUpdating;
 };
@@ -132,15 +132,15 @@ struct World {
   RobotPreset robot = RobotPreset::Fetch();
   CameraModel camera;
   SearchParams params;
-  std::vector<Box> furniture;        ///< Static occluders of the prior map.
-  OccupancyMap occupancy;            ///< Where the base may not stand.
+  std::vector<Box> furniture;            ///< Static occluders of the prior map.
+  OccupancyMap occupancy;                ///< Where the base may not stand.
   std::vector<BaseRegion> base_regions;  ///< Candidate base rectangles (A_c's base part).
   /// Manually chosen base poses (x, y, yaw) of the discrete baselines (POMCP, GPOMCP).
   std::vector<RobotConfig> discrete_poses;
-  GridWorld grid;                    ///< Odds of the target's position.
+  GridWorld grid;                        ///< Odds of the target's position.
   std::vector<ObjectKnowledge> objects;  ///< objects[0] is the guessed target.
-  RobotConfig robot_config;          ///< The robot's current configuration.
-  int steps = 0;                     ///< Real steps taken.
+  RobotConfig robot_config;              ///< The robot's current configuration.
+  int steps = 0;                         ///< Real steps taken.
 
   /// A world with the given map parts, object 0 (the guessed target) only, and the robot at
   /// `start`. The grid world's sampler is built.

@@ -1,0 +1,66 @@
+// The trained neural process filter and Net_sam (paper algorithm 5): candidate configurations
+// scored by the network, those with mu > beta* sigma kept as NPF-kCT's candidates. libtorch stays
+// behind this header.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "npfkct/filter/features.h"
+#include "npfkct/solver/candidates.h"
+#include "npfkct/solver/status.h"
+
+namespace npfkct::filter {
+
+/// Settings of Net_sam.
+struct FilterOptions {
+  int candidates = 1000;    ///< Configurations scored per call.
+  double confidence = 0.5;  ///< C_threshold: beta* = sqrt(2 log(1 / (1 - C))).
+  int context = 16;         ///< Configurations scored exactly to condition the network.
+  int placements = 64;      ///< Target placements per exact score.
+  int min_keep = 16;        ///< When fewer pass, the best min_keep by mu - beta* sigma.
+  /// Share of the candidates returned that are uniform ones the filter did not keep, so that the
+  /// hyperspheres still cover views the score g does not value (views of known objects' faces).
+  double explore = 0.0;
+  /// Checks every field; the message names the offending one.
+  Status Validate() const;
+  /// beta* of the confidence.
+  double Beta() const;
+};
+
+/// The network's prediction of the score of each query.
+struct Prediction {
+  std::vector<float> mu;
+  std::vector<float> sigma;
+};
+
+/// A trained filter network loaded from a file written by npfkct-train. Thread-safe.
+class NeuralFilter {
+ public:
+  ~NeuralFilter();
+  /// Loads a model; a missing, truncated or foreign file is INVALID_ARGUMENT saying why.
+  static StatusOr<std::shared_ptr<NeuralFilter>> Load(const std::string& path);
+  /// Predicts the scores of `queries` (n x kQueryDim) in `scene`, conditioned on context queries
+  /// (m >= 1 rows of kQueryDim) with their exact scores.
+  Prediction Predict(const SceneFeatures& scene, const std::vector<float>& context_queries,
+                     const std::vector<float>& context_scores,
+                     const std::vector<float>& queries) const;
+  const std::string& path() const { return path_; }
+
+  struct Impl;
+
+ private:
+  NeuralFilter() = default;
+  std::unique_ptr<Impl> impl_;
+  std::string path_;
+};
+
+/// Net_sam as NPF-kCT's candidate sampler for the object-search model: move candidates come from
+/// the filter, discrete kinds (zero-dimensional) are passed through uniformly. `model` must outlive
+/// it. Invalid options are INVALID_ARGUMENT naming the field.
+StatusOr<std::shared_ptr<CandidateSampler<State>>> MakeNetSam(
+    std::shared_ptr<const NeuralFilter> filter, const ObjectSearchModel& model,
+    FilterOptions options = {});
+
+}  // namespace npfkct::filter

@@ -1,0 +1,183 @@
+#include "npfkct/filter/filter.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <mutex>
+#include <numeric>
+
+#include "network.h"
+
+namespace npfkct::filter {
+
+struct NeuralFilter::Impl {
+  NpNet net{nullptr};
+};
+
+namespace {
+
+using object_search::kMoveKind;
+
+// Inference runs on the calling thread: one libtorch intra-op thread.
+void SingleThreaded() {
+  static std::once_flag once;
+  std::call_once(once, [] { torch::set_num_threads(1); });
+}
+
+torch::Tensor FromVector(const std::vector<float>& v, std::vector<int64_t> shape) {
+  return torch::from_blob(const_cast<float*>(v.data()), shape, torch::kFloat32);
+}
+
+class NetSam final : public CandidateSampler<State> {
+ public:
+  NetSam(std::shared_ptr<const NeuralFilter> filter, const ObjectSearchModel& model,
+         FilterOptions options)
+      : filter_(std::move(filter)), model_(model), options_(options) {}
+
+  Status Sample(const ParticleBelief<State>& belief, int kind, const BoxSpace& box, int count,
+                Rng& rng, std::vector<ActionVec>* out, CandidateStats* stats) override {
+    const auto t0 = std::chrono::steady_clock::now();
+    if (kind != kMoveKind || belief.size() == 0) {
+      UniformCandidateSampler<State> uniform;
+      return uniform.Sample(belief, kind, box, count, rng, out, stats);
+    }
+    const World& w = model_.world();
+    const State& s = belief.Sample(rng);
+    const std::vector<Vec3> placements = SamplePlacements(w, options_.placements, rng);
+    const SceneFeatures scene = SceneOf(w, rng);
+    // Context: configurations scored exactly, half aimed at a placement, as in training.
+    std::vector<float> cq(static_cast<size_t>(options_.context) * kQueryDim);
+    std::vector<float> cs(options_.context);
+    std::vector<std::pair<double, ActionVec>> known_good;
+    for (int i = 0; i < options_.context; ++i) {
+      const RobotConfig c = SampleConfig(model_, placements, i % 2 == 0, rng);
+      QueryOf(w, c, s.objects[0].odds, &cq[static_cast<size_t>(i) * kQueryDim]);
+      const double g = VisibilityScore(model_, s, c, placements);
+      cs[i] = static_cast<float>(g);
+      const ActionVec x = ObjectSearchModel::VecOf(c);
+      if (g > kEfficientScore && box.Contains(x)) known_good.push_back({g, x});
+    }
+    // Candidates: uniform configurations with a feasible base, scored by the network.
+    std::vector<RobotConfig> configs(options_.candidates);
+    std::vector<float> q(static_cast<size_t>(options_.candidates) * kQueryDim);
+    for (int i = 0; i < options_.candidates; ++i) {
+      configs[i] = SampleConfig(model_, placements, false, rng);
+      QueryOf(w, configs[i], s.objects[0].odds, &q[static_cast<size_t>(i) * kQueryDim]);
+    }
+    const Prediction p = filter_->Predict(scene, cq, cs, q);
+    const double beta = options_.Beta();
+    std::vector<std::pair<double, int>> ranked(options_.candidates);
+    for (int i = 0; i < options_.candidates; ++i) ranked[i] = {p.mu[i] - beta * p.sigma[i], i};
+    std::sort(ranked.begin(), ranked.end(),
+              [](const auto& a, const auto& b) { return a.first > b.first; });
+    // Keep mu > beta* sigma, best first; the exactly scored efficient context configurations
+    // join them; at least min_keep, at most count.
+    std::sort(known_good.begin(), known_good.end(),
+              [](const auto& a, const auto& b) { return a.first > b.first; });
+    // A share of `count` stays uniform (exploration); the kept ones fill the rest.
+    const int explore = static_cast<int>(std::lround(options_.explore * count));
+    const int filtered = std::max(1, count - explore);
+    std::vector<bool> used(options_.candidates, false);
+    int added = 0;
+    for (const auto& [g, x] : known_good) {
+      if (added >= filtered) break;
+      out->push_back(x);
+      ++added;
+    }
+    for (const auto& [score, i] : ranked) {
+      if (added >= filtered) break;
+      if (score <= 0.0 && added >= options_.min_keep) break;
+      out->push_back(box.Clamp(ObjectSearchModel::VecOf(configs[i])));
+      used[i] = true;
+      ++added;
+    }
+    for (int i = 0; i < options_.candidates && added < count && explore > 0; ++i) {
+      if (used[i]) continue;
+      out->push_back(box.Clamp(ObjectSearchModel::VecOf(configs[i])));
+      ++added;
+      if (added >= filtered + explore) break;
+    }
+    if (stats != nullptr) {
+      stats->sampled += options_.candidates + options_.context;
+      stats->accepted += added;
+      stats->elapsed_ms +=
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    }
+    return OkStatus();
+  }
+
+ private:
+  std::shared_ptr<const NeuralFilter> filter_;
+  const ObjectSearchModel& model_;
+  FilterOptions options_;
+};
+
+}  // namespace
+
+Status FilterOptions::Validate() const {
+  if (candidates < 1) return InvalidArgumentError("candidates must be >= 1");
+  if (!(confidence > 0.0 && confidence < 1.0)) {
+    return InvalidArgumentError("confidence must be in (0, 1)");
+  }
+  if (context < 1) return InvalidArgumentError("context must be >= 1");
+  if (placements < 1) return InvalidArgumentError("placements must be >= 1");
+  if (min_keep < 1) return InvalidArgumentError("min_keep must be >= 1");
+  if (!(explore >= 0.0 && explore < 1.0)) return InvalidArgumentError("explore must be in [0, 1)");
+  return OkStatus();
+}
+
+double FilterOptions::Beta() const { return std::sqrt(2.0 * std::log(1.0 / (1.0 - confidence))); }
+
+NeuralFilter::~NeuralFilter() = default;
+
+StatusOr<std::shared_ptr<NeuralFilter>> NeuralFilter::Load(const std::string& path) {
+  SingleThreaded();
+  auto net = LoadNet(path);
+  if (!net.ok()) return net.status();
+  std::shared_ptr<NeuralFilter> f(new NeuralFilter());
+  f->impl_ = std::make_unique<Impl>();
+  f->impl_->net = *std::move(net);
+  f->path_ = path;
+  return f;
+}
+
+Prediction NeuralFilter::Predict(const SceneFeatures& scene,
+                                 const std::vector<float>& context_queries,
+                                 const std::vector<float>& context_scores,
+                                 const std::vector<float>& queries) const {
+  torch::InferenceMode guard;
+  const int64_t m = static_cast<int64_t>(context_scores.size());
+  const int64_t n = static_cast<int64_t>(queries.size() / kQueryDim);
+  Prediction out;
+  if (n == 0 || m == 0) {
+    // Without context the latent path is undefined: every query passes.
+    out.mu.assign(n, 1.0f);
+    out.sigma.assign(n, static_cast<float>(kMinSigma));
+    return out;
+  }
+  NpNet& net = impl_->net;
+  const torch::Tensor sc =
+      net->EncodeScene(FromVector(scene.points, {1, kPoints, kPointDim}),
+                       FromVector(scene.image, {1, kImageChannels, kImageSize, kImageSize}));
+  const torch::Tensor xc = net->EncodeQuery(FromVector(context_queries, {1, m, kQueryDim}));
+  const torch::Tensor yc = FromVector(context_scores, {1, m, 1});
+  const torch::Tensor xt = net->EncodeQuery(FromVector(queries, {1, n, kQueryDim}));
+  const torch::Tensor z = net->Latent(sc, xc, yc).first;
+  auto [mu, sigma] = net->Decode(sc, xt, net->Deterministic(sc, xc, yc, xt), z);
+  mu = mu.contiguous();
+  sigma = sigma.contiguous();
+  out.mu.assign(mu.data_ptr<float>(), mu.data_ptr<float>() + n);
+  out.sigma.assign(sigma.data_ptr<float>(), sigma.data_ptr<float>() + n);
+  return out;
+}
+
+StatusOr<std::shared_ptr<CandidateSampler<State>>> MakeNetSam(
+    std::shared_ptr<const NeuralFilter> filter, const ObjectSearchModel& model,
+    FilterOptions options) {
+  if (Status s = options.Validate(); !s.ok()) return s;
+  if (!filter) return InvalidArgumentError("filter: no model loaded");
+  return std::shared_ptr<CandidateSampler<State>>(
+      std::make_shared<NetSam>(std::move(filter), model, options));
+}
+
+}  // namespace npfkct::filter

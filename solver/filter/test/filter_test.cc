@@ -1,0 +1,363 @@
+#include "npfkct/filter/filter.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <numbers>
+#include <numeric>
+#include <string>
+
+#include "npfkct/filter/dataset.h"
+#include "npfkct/filter/features.h"
+#include "npfkct/filter/train.h"
+#include "npfkct/sim/scenario.h"
+#include "npfkct/sim/simulator.h"
+
+namespace npfkct::filter {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string ScenarioPath(const std::string& name) {
+  return std::string(NPFKCT_SCENARIO_DIR) + "/" + name + ".json";
+}
+
+std::string TempPath(const std::string& name) {
+  return (fs::temp_directory_path() /
+          ("npfkct_filter_test_" + std::to_string(::getpid()) + "_" + name))
+      .string();
+}
+
+// The world of a scenario after one real step from its first manual configuration.
+World SceneWorld(const std::string& name, uint64_t seed = 1) {
+  auto sc = sim::LoadScenario(ScenarioPath(name));
+  EXPECT_TRUE(sc.ok()) << sc.status().ToString();
+  sim::Simulator simulator(*sc, seed);
+  World w = *simulator.InitialWorld();
+  Rng rng(seed);
+  simulator.ExecuteMove(w.ManualConfigurations()[0], w.params, rng);
+  EXPECT_TRUE(object_search::ApplyRealObservation(&w, simulator.Observe(rng)).ok());
+  return w;
+}
+
+GenerateOptions SmallGeneration(int samples, uint64_t seed) {
+  GenerateOptions o;
+  for (const char* n : {"loose1", "hidden1", "complex1"}) o.scenarios.push_back(ScenarioPath(n));
+  o.samples = samples;
+  o.queries_per_sample = 24;
+  o.placements = 32;
+  o.seed = seed;
+  return o;
+}
+
+TEST(FeaturesTest, SceneHasTheDocumentedShapeAndRange) {
+  const World w = SceneWorld("complex1");
+  Rng rng(3);
+  const SceneFeatures f = SceneOf(w, rng);
+  ASSERT_EQ(f.points.size(), static_cast<size_t>(kPoints * kPointDim));
+  ASSERT_EQ(f.image.size(), static_cast<size_t>(kImageChannels * kImageSize * kImageSize));
+  double feasible = 0, furniture = 0, odds = 0;
+  for (int i = 0; i < kImageSize * kImageSize; ++i) {
+    for (int c = 0; c < kImageChannels; ++c) {
+      const float v = f.image[c * kImageSize * kImageSize + i];
+      ASSERT_GE(v, 0.0f);
+      ASSERT_LE(v, 1.0f);
+    }
+    odds += f.image[i];
+    furniture += f.image[kImageSize * kImageSize + i];
+    feasible += f.image[3 * kImageSize * kImageSize + i];
+  }
+  EXPECT_GT(odds, 0.0);
+  EXPECT_GT(furniture, 0.0);
+  EXPECT_GT(feasible, 0.0);
+  EXPECT_LT(feasible, kImageSize * kImageSize);
+  // Objects were seen in the first step, so the cloud is not empty and lies in the scene.
+  ASSERT_GT(w.objects.size(), 1u);
+  double norm = 0;
+  for (int k = 0; k < kPoints; ++k) {
+    EXPECT_LE(std::abs(f.points[k * kPointDim]), 1.0f);
+    EXPECT_LE(std::abs(f.points[k * kPointDim + 1]), 1.0f);
+    norm += std::abs(f.points[k * kPointDim + 2]);
+  }
+  EXPECT_GT(norm, 0.0);
+}
+
+TEST(FeaturesTest, EmptySceneHasAZeroCloud) {
+  auto sc = sim::LoadScenario(ScenarioPath("loose1"));
+  ASSERT_TRUE(sc.ok());
+  const World w = *sim::InitialWorld(*sc);
+  ASSERT_EQ(w.objects.size(), 1u);
+  Rng rng(1);
+  const SceneFeatures f = SceneOf(w, rng);
+  for (float v : f.points) ASSERT_EQ(v, 0.0f);
+}
+
+TEST(FeaturesTest, QueryEncodesConfigurationAndOdds) {
+  const World w = SceneWorld("loose1");
+  RobotConfig c;
+  c.x = w.base_regions[0].min.x();
+  c.y = w.base_regions[0].min.y();
+  c.yaw = std::numbers::pi / 2;
+  c.lift = w.robot.lift_max;
+  c.pan = 0.0;
+  c.tilt = w.robot.tilt_min;
+  std::array<float, 8> odds{};
+  odds[3] = static_cast<float>(w.params.face_odds_limit);
+  std::vector<float> q(kQueryDim);
+  QueryOf(w, c, odds, q.data());
+  EXPECT_NEAR(q[2], 0.0, 1e-6);   // cos yaw
+  EXPECT_NEAR(q[3], 1.0, 1e-6);   // sin yaw
+  EXPECT_NEAR(q[4], 1.0, 1e-6);   // lift at its maximum
+  EXPECT_NEAR(q[5], 0.0, 1e-6);   // pan centred
+  EXPECT_NEAR(q[6], -1.0, 1e-6);  // tilt at its minimum
+  EXPECT_NEAR(q[kConfigDim + 3], 1.0, 1e-6);
+  EXPECT_NEAR(q[kConfigDim + 0], 0.0, 1e-6);
+}
+
+TEST(FeaturesTest, ScoreCountsVisiblePlacements) {
+  const World w = SceneWorld("loose1");
+  ObjectSearchModel model(std::make_shared<const World>(w));
+  Rng rng(5);
+  const State s = model.SampleInitialState(rng);
+  const std::vector<Vec3> placements = SamplePlacements(w, 64, rng);
+  // Aimed configurations see their placement; turning the base around sees nothing.
+  int aimed_seen = 0;
+  for (int i = 0; i < 20; ++i) {
+    const std::vector<Vec3> one = {placements[i]};
+    RobotConfig c = SampleConfig(model, one, true, rng);
+    EXPECT_TRUE(w.BaseFeasible(c.x, c.y));
+    const double g = VisibilityScore(model, s, c, one);
+    EXPECT_TRUE(g == 0.0 || g == 1.0);
+    aimed_seen += g > 0;
+    c.yaw = object_search::WrapAngle(c.yaw + std::numbers::pi);
+    EXPECT_EQ(VisibilityScore(model, s, c, one), 0.0);
+  }
+  EXPECT_GE(aimed_seen, 10);
+  // The score over many placements is their visible fraction.
+  const RobotConfig c = SampleConfig(model, placements, true, rng);
+  int seen = 0;
+  State t = s;
+  for (const Vec3& p : placements) {
+    t.target = p;
+    seen += model.SeesObject(t, c, 0);
+  }
+  EXPECT_DOUBLE_EQ(VisibilityScore(model, s, c, placements), seen / 64.0);
+  EXPECT_EQ(VisibilityScore(model, s, c, {}), 0.0);
+}
+
+TEST(DatasetTest, GeneratesWritesAndReadsBack) {
+  auto data = GenerateDataset(SmallGeneration(12, 4));
+  ASSERT_TRUE(data.ok()) << data.status().ToString();
+  ASSERT_EQ(data->samples.size(), 12u);
+  int efficient = 0, useless = 0;
+  for (const Sample& s : data->samples) {
+    ASSERT_EQ(s.num_queries(), 24);
+    for (float g : s.scores) {
+      ASSERT_GE(g, 0.0f);
+      ASSERT_LE(g, 1.0f);
+      efficient += g > kEfficientScore;
+      useless += g == 0.0f;
+    }
+  }
+  // Both classes occur: the data can teach the difference.
+  EXPECT_GT(efficient, 10);
+  EXPECT_GT(useless, 10);
+  const std::string path = TempPath("data.bin");
+  ASSERT_TRUE(WriteDataset(*data, path).ok());
+  auto back = ReadDataset(path);
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  ASSERT_EQ(back->samples.size(), 12u);
+  EXPECT_EQ(back->samples[5].scores, data->samples[5].scores);
+  EXPECT_EQ(back->samples[5].queries, data->samples[5].queries);
+  EXPECT_EQ(back->samples[5].scene.points, data->samples[5].scene.points);
+  for (size_t i = 0; i < back->samples[5].scene.image.size(); ++i) {
+    ASSERT_NEAR(back->samples[5].scene.image[i], data->samples[5].scene.image[i], 0.5 / 255 + 1e-6);
+  }
+  // The same seed generates the same data.
+  auto again = GenerateDataset(SmallGeneration(12, 4));
+  ASSERT_TRUE(again.ok());
+  EXPECT_EQ(again->samples[11].scores, data->samples[11].scores);
+
+  // A truncated file and a foreign file are rejected with the reason.
+  const auto size = fs::file_size(path);
+  fs::resize_file(path, size - 100);
+  auto truncated = ReadDataset(path);
+  ASSERT_FALSE(truncated.ok());
+  EXPECT_NE(truncated.status().message().find("truncated"), std::string::npos);
+  std::ofstream(path, std::ios::trunc) << "hello world, not a dataset";
+  auto foreign = ReadDataset(path);
+  ASSERT_FALSE(foreign.ok());
+  EXPECT_NE(foreign.status().message().find("magic"), std::string::npos);
+  fs::remove(path);
+  EXPECT_FALSE(ReadDataset(path).ok());
+}
+
+TEST(DatasetTest, OptionsNameTheBadField) {
+  GenerateOptions o = SmallGeneration(1, 1);
+  o.queries_per_sample = 1;
+  EXPECT_NE(o.Validate().message().find("queries_per_sample"), std::string::npos);
+  o = SmallGeneration(1, 1);
+  o.scenarios = {"/nonexistent/scenario.json"};
+  auto data = GenerateDataset(o);
+  ASSERT_FALSE(data.ok());
+  EXPECT_NE(data.status().message().find("scenarios"), std::string::npos);
+  FilterOptions f;
+  EXPECT_TRUE(f.Validate().ok());
+  EXPECT_NEAR(f.Beta(), std::sqrt(2.0 * std::log(2.0)), 1e-12);
+  f.confidence = 1.0;
+  EXPECT_NE(f.Validate().message().find("confidence"), std::string::npos);
+  f = FilterOptions();
+  f.context = 0;
+  EXPECT_NE(f.Validate().message().find("context"), std::string::npos);
+  TrainOptions t;
+  t.max_context = 0;
+  EXPECT_NE(t.Validate().message().find("max_context"), std::string::npos);
+}
+
+TEST(FilterTest, MissingOrCorruptModelIsAClearError) {
+  auto missing = NeuralFilter::Load("/nonexistent/filter.pt");
+  ASSERT_FALSE(missing.ok());
+  EXPECT_EQ(missing.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(missing.status().message().find("/nonexistent/filter.pt"), std::string::npos);
+  const std::string path = TempPath("corrupt.pt");
+  std::ofstream(path, std::ios::trunc) << "PK\x03\x04 this is not a torch archive";
+  auto corrupt = NeuralFilter::Load(path);
+  ASSERT_FALSE(corrupt.ok());
+  EXPECT_EQ(corrupt.status().code(), StatusCode::kInvalidArgument);
+  // A truncated copy of the real model.
+  fs::copy_file(NPFKCT_FILTER_MODEL, path, fs::copy_options::overwrite_existing);
+  fs::resize_file(path, fs::file_size(path) / 2);
+  auto truncated = NeuralFilter::Load(path);
+  ASSERT_FALSE(truncated.ok());
+  EXPECT_EQ(truncated.status().code(), StatusCode::kInvalidArgument);
+  fs::remove(path);
+}
+
+TEST(FilterTest, ShippedModelSeparatesEfficientFromUseless) {
+  auto filter = NeuralFilter::Load(NPFKCT_FILTER_MODEL);
+  ASSERT_TRUE(filter.ok()) << filter.status().ToString();
+  // Scenes the model has not seen (another seed), at the production context size.
+  GenerateOptions g = SmallGeneration(30, 987654);
+  g.queries_per_sample = 64;
+  g.placements = 64;
+  auto test = GenerateDataset(g);
+  ASSERT_TRUE(test.ok());
+  auto m = EvaluateFilter(**filter, *test, FilterOptions());
+  ASSERT_TRUE(m.ok()) << m.status().ToString();
+  EXPECT_GT(m->efficient, 100);
+  EXPECT_GE(m->accuracy, 0.95);
+  EXPECT_GE(m->specificity, 0.5);
+  EXPECT_GE(m->dropped_useless, 0.3);
+  EXPECT_LT(m->mean_abs_error, 0.15);
+}
+
+TEST(FilterTest, NetSamReturnsBetterCandidatesThanUniform) {
+  auto filter = NeuralFilter::Load(NPFKCT_FILTER_MODEL);
+  ASSERT_TRUE(filter.ok()) << filter.status().ToString();
+  const World w = SceneWorld("complex1", 3);
+  ObjectSearchModel model(std::make_shared<const World>(w));
+  Rng rng(11);
+  std::vector<State> particles;
+  for (int i = 0; i < 100; ++i) particles.push_back(model.SampleInitialState(rng));
+  ParticleBelief<State> belief(particles);
+  auto netsam = MakeNetSam(*filter, model);
+  ASSERT_TRUE(netsam.ok());
+  const BoxSpace& box = model.KindSpace(object_search::kMoveKind);
+  std::vector<ActionVec> kept, uniform;
+  CandidateStats stats;
+  ASSERT_TRUE(
+      (*netsam)->Sample(belief, object_search::kMoveKind, box, 256, rng, &kept, &stats).ok());
+  ASSERT_FALSE(kept.empty());
+  EXPECT_LE(kept.size(), 256u);
+  EXPECT_EQ(stats.accepted, static_cast<int>(kept.size()));
+  EXPECT_GT(stats.sampled, stats.accepted);
+  for (const ActionVec& x : kept) EXPECT_TRUE(box.Contains(x));
+  UniformCandidateSampler<State> u;
+  ASSERT_TRUE(u.Sample(belief, object_search::kMoveKind, box, 256, rng, &uniform, nullptr).ok());
+  // Exact scores against fresh placements, averaged over belief samples.
+  const auto placements = SamplePlacements(w, 128, rng);
+  auto mean_score = [&](const std::vector<ActionVec>& xs) {
+    double sum = 0;
+    for (const ActionVec& x : xs) {
+      sum += VisibilityScore(model, belief.Sample(rng), ObjectSearchModel::ConfigOf(x), placements);
+    }
+    return sum / xs.size();
+  };
+  const double k = mean_score(kept), un = mean_score(uniform);
+  EXPECT_GT(k, 3.0 * un) << "kept " << k << " uniform " << un;
+  // The network alone ranks uniform candidates: its top 10% score far above the average.
+  const State& s = belief.Sample(rng);
+  const SceneFeatures scene = SceneOf(w, rng);
+  std::vector<float> cq(16 * kQueryDim), cs(16), q(500 * kQueryDim);
+  for (int i = 0; i < 16; ++i) {
+    const RobotConfig c = SampleConfig(model, placements, i % 2 == 0, rng);
+    QueryOf(w, c, s.objects[0].odds, &cq[i * kQueryDim]);
+    cs[i] = static_cast<float>(VisibilityScore(model, s, c, placements));
+  }
+  std::vector<double> exact(500);
+  for (int i = 0; i < 500; ++i) {
+    const RobotConfig c = SampleConfig(model, placements, false, rng);
+    QueryOf(w, c, s.objects[0].odds, &q[i * kQueryDim]);
+    exact[i] = VisibilityScore(model, s, c, placements);
+  }
+  const Prediction p = (*filter)->Predict(scene, cq, cs, q);
+  std::vector<int> order(500);
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return p.mu[a] > p.mu[b]; });
+  double top = 0, all = 0;
+  for (int i = 0; i < 500; ++i) {
+    all += exact[i] / 500;
+    if (i < 50) top += exact[order[i]] / 50;
+  }
+  EXPECT_GT(top, 3.0 * all) << "top " << top << " all " << all;
+  // Discrete kinds pass through.
+  std::vector<ActionVec> discrete;
+  ASSERT_TRUE((*netsam)->Sample(belief, 1, model.KindSpace(1), 3, rng, &discrete, nullptr).ok());
+  EXPECT_EQ(discrete.size(), 3u);
+  // Bad options are refused.
+  FilterOptions bad;
+  bad.candidates = 0;
+  EXPECT_FALSE(MakeNetSam(*filter, model, bad).ok());
+}
+
+TEST(TrainTest, TrainsSavesTheBestEpochAndReloads) {
+  auto train = GenerateDataset(SmallGeneration(24, 21));
+  auto val = GenerateDataset(SmallGeneration(8, 22));
+  ASSERT_TRUE(train.ok() && val.ok());
+  TrainOptions o;
+  o.epochs = 2;
+  o.batch = 8;
+  o.min_context = 4;
+  o.max_context = 12;
+  o.eval_context = 8;
+  const std::string path = TempPath("model.pt");
+  int steps = 0;
+  auto report = TrainFilter(*train, *val, o, path, [&](int, int, int, double) { ++steps; });
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  EXPECT_EQ(report->epochs.size(), 2u);
+  EXPECT_EQ(steps, 2 * 3);
+  EXPECT_GE(report->best_epoch, 1);
+  EXPECT_TRUE(std::isfinite(report->best_val_loss));
+  auto filter = NeuralFilter::Load(path);
+  ASSERT_TRUE(filter.ok()) << filter.status().ToString();
+  const Sample& s = val->samples[0];
+  const std::vector<float> cq(s.queries.begin(), s.queries.begin() + 8 * kQueryDim);
+  const std::vector<float> cs(s.scores.begin(), s.scores.begin() + 8);
+  const std::vector<float> q(s.queries.begin() + 8 * kQueryDim, s.queries.end());
+  const Prediction p = (*filter)->Predict(s.scene, cq, cs, q);
+  ASSERT_EQ(p.mu.size(), 16u);
+  for (size_t i = 0; i < p.mu.size(); ++i) {
+    EXPECT_GE(p.mu[i], 0.0f);
+    EXPECT_LE(p.mu[i], 1.0f);
+    EXPECT_GE(p.sigma[i], 0.02f - 1e-6f);
+  }
+  // Bad training inputs are refused before any work.
+  o.max_context = 100;
+  EXPECT_FALSE(TrainFilter(*train, *val, o, path).ok());
+  fs::remove(path);
+}
+
+}  // namespace
+}  // namespace npfkct::filter
