@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The main job: builds npfkct, starts the planning server and drives the simulated Fetch robot
-# through the Loose1 scenario over HTTP, printing each step and the outcome.
+# through the Loose1 scenario over HTTP, printing each step and the outcome. The npfkct planner
+# uses the shipped neural filter model (MODEL= to plan without it, MODEL=path for another).
 # Usage: scripts/run.sh [scenario.json] [planner]
 set -euo pipefail
 NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -10,6 +11,9 @@ BUILD_DIR="${BUILD_DIR:-$NPFKCT_ROOT/build}"
 npfkct_build "$BUILD_DIR" >/dev/null
 SCENARIO="${1:-$NPFKCT_ROOT/scenarios/data/loose1.json}"
 PLANNER="${2:-npfkct}"
+MODEL="${MODEL-$NPFKCT_ROOT/solver/filter/model/filter.pt}"
+FILTER_ARGS=()
+if [ "$PLANNER" = npfkct ] && [ -n "$MODEL" ]; then FILTER_ARGS=(--model-path "$MODEL"); fi
 
 LOG="$(mktemp)"
 "$BUILD_DIR/server/npfkct-server" --port 0 >"$LOG" 2>&1 &
@@ -21,6 +25,7 @@ for _ in $(seq 100); do
 done
 PORT="$(sed -n 's/^listening on .*:\([0-9]*\)$/\1/p' "$LOG")"
 [ -n "$PORT" ] || { cat "$LOG"; echo "the server did not start" >&2; exit 1; }
-echo "npfkct-server on port $PORT; driving $(basename "$SCENARIO") with $PLANNER"
+echo "npfkct-server on port $PORT; driving $(basename "$SCENARIO") with $PLANNER" \
+  "${FILTER_ARGS[@]:+(neural filter $(basename "$MODEL"))}"
 "$BUILD_DIR/scenarios/npfkct-drive" --server "http://127.0.0.1:$PORT" --scenario "$SCENARIO" \
-  --planner "$PLANNER" --budget-ms 1000
+  --planner "$PLANNER" "${FILTER_ARGS[@]}" --budget-ms 1000

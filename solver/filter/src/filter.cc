@@ -37,7 +37,8 @@ class NetSam final : public CandidateSampler<State> {
   Status Sample(const ParticleBelief<State>& belief, int kind, const BoxSpace& box, int count,
                 Rng& rng, std::vector<ActionVec>* out, CandidateStats* stats) override {
     const auto t0 = std::chrono::steady_clock::now();
-    if (kind != kMoveKind || belief.size() == 0) {
+    // Discrete kinds, and a belief without the guessed target, get uniform candidates.
+    if (kind != kMoveKind || belief.size() == 0 || belief.particles()[0].objects.empty()) {
       UniformCandidateSampler<State> uniform;
       return uniform.Sample(belief, kind, box, count, rng, out, stats);
     }
