@@ -22,14 +22,10 @@ Sample MakeSample(const ObjectSearchModel& model, const GenerateOptions& o, Rng&
   const State s = model.SampleInitialState(rng);
   const std::vector<Vec3> placements = SamplePlacements(w, o.placements, rng);
   out.scene = SceneOf(w, rng);
-  out.queries.resize(static_cast<size_t>(o.queries_per_sample) * kQueryDim);
-  out.scores.resize(o.queries_per_sample);
-  for (int q = 0; q < o.queries_per_sample; ++q) {
-    // Even queries look at a placement, odd ones are uniform: both kinds are in every context.
-    const RobotConfig c = SampleConfig(model, placements, q % 2 == 0, rng);
-    QueryOf(w, c, s.objects[0].odds, &out.queries[static_cast<size_t>(q) * kQueryDim]);
-    out.scores[q] = static_cast<float>(VisibilityScore(model, s, c, placements));
-  }
+  // Aimed and uniform queries alternate, so both kinds are in every context drawn from them.
+  ScoredConfigs scored = ScoreConfigs(model, s, placements, o.queries_per_sample, rng);
+  out.queries = std::move(scored.queries);
+  out.scores = std::move(scored.scores);
   return out;
 }
 

@@ -190,4 +190,19 @@ RobotConfig SampleConfig(const ObjectSearchModel& model, const std::vector<Vec3>
   return c;
 }
 
+ScoredConfigs ScoreConfigs(const ObjectSearchModel& model, const State& s,
+                           const std::vector<Vec3>& placements, int n, Rng& rng) {
+  ScoredConfigs out;
+  out.configs.reserve(n);
+  out.queries.resize(static_cast<size_t>(n) * kQueryDim);
+  out.scores.resize(n);
+  for (int i = 0; i < n; ++i) {
+    out.configs.push_back(SampleConfig(model, placements, i % 2 == 0, rng));
+    QueryOf(model.world(), out.configs[i], s.objects[0].odds,
+            &out.queries[static_cast<size_t>(i) * kQueryDim]);
+    out.scores[i] = static_cast<float>(VisibilityScore(model, s, out.configs[i], placements));
+  }
+  return out;
+}
+
 }  // namespace npfkct::filter

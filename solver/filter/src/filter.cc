@@ -47,16 +47,13 @@ class NetSam final : public CandidateSampler<State> {
     const std::vector<Vec3> placements = SamplePlacements(w, options_.placements, rng);
     const SceneFeatures scene = SceneOf(w, rng);
     // Context: configurations scored exactly, half aimed at a placement, as in training.
-    std::vector<float> cq(static_cast<size_t>(options_.context) * kQueryDim);
-    std::vector<float> cs(options_.context);
+    const ScoredConfigs context = ScoreConfigs(model_, s, placements, options_.context, rng);
     std::vector<std::pair<double, ActionVec>> known_good;
     for (int i = 0; i < options_.context; ++i) {
-      const RobotConfig c = SampleConfig(model_, placements, i % 2 == 0, rng);
-      QueryOf(w, c, s.objects[0].odds, &cq[static_cast<size_t>(i) * kQueryDim]);
-      const double g = VisibilityScore(model_, s, c, placements);
-      cs[i] = static_cast<float>(g);
-      const ActionVec x = ObjectSearchModel::VecOf(c);
-      if (g > kEfficientScore && box.Contains(x)) known_good.push_back({g, x});
+      const ActionVec x = ObjectSearchModel::VecOf(context.configs[i]);
+      if (context.scores[i] > kEfficientScore && box.Contains(x)) {
+        known_good.push_back({context.scores[i], x});
+      }
     }
     // Candidates: uniform configurations with a feasible base, scored by the network.
     std::vector<RobotConfig> configs(options_.candidates);
@@ -65,7 +62,7 @@ class NetSam final : public CandidateSampler<State> {
       configs[i] = SampleConfig(model_, placements, false, rng);
       QueryOf(w, configs[i], s.objects[0].odds, &q[static_cast<size_t>(i) * kQueryDim]);
     }
-    const Prediction p = filter_->Predict(scene, cq, cs, q);
+    const Prediction p = filter_->Predict(scene, context.queries, context.scores, q);
     const double beta = options_.Beta();
     std::vector<std::pair<double, int>> ranked(options_.candidates);
     for (int i = 0; i < options_.candidates; ++i) ranked[i] = {p.mu[i] - beta * p.sigma[i], i};

@@ -290,19 +290,20 @@ TEST(FilterTest, NetSamReturnsBetterCandidatesThanUniform) {
   // The network alone ranks uniform candidates: its top 10% score far above the average.
   const State& s = belief.Sample(rng);
   const SceneFeatures scene = SceneOf(w, rng);
-  std::vector<float> cq(16 * kQueryDim), cs(16), q(500 * kQueryDim);
+  const ScoredConfigs context = ScoreConfigs(model, s, placements, 16, rng);
+  ASSERT_EQ(context.queries.size(), 16u * kQueryDim);
   for (int i = 0; i < 16; ++i) {
-    const RobotConfig c = SampleConfig(model, placements, i % 2 == 0, rng);
-    QueryOf(w, c, s.objects[0].odds, &cq[i * kQueryDim]);
-    cs[i] = static_cast<float>(VisibilityScore(model, s, c, placements));
+    EXPECT_EQ(context.scores[i],
+              static_cast<float>(VisibilityScore(model, s, context.configs[i], placements)));
   }
+  std::vector<float> q(500 * kQueryDim);
   std::vector<double> exact(500);
   for (int i = 0; i < 500; ++i) {
     const RobotConfig c = SampleConfig(model, placements, false, rng);
     QueryOf(w, c, s.objects[0].odds, &q[i * kQueryDim]);
     exact[i] = VisibilityScore(model, s, c, placements);
   }
-  const Prediction p = (*filter)->Predict(scene, cq, cs, q);
+  const Prediction p = (*filter)->Predict(scene, context.queries, context.scores, q);
   std::vector<int> order(500);
   std::iota(order.begin(), order.end(), 0);
   std::sort(order.begin(), order.end(), [&](int a, int b) { return p.mu[a] > p.mu[b]; });

@@ -55,6 +55,19 @@ std::vector<Vec3> SamplePlacements(const World& world, int count, Rng& rng);
 double VisibilityScore(const ObjectSearchModel& model, const State& s, const RobotConfig& config,
                        const std::vector<Vec3>& placements);
 
+/// Configurations scored exactly, with their queries.
+struct ScoredConfigs {
+  std::vector<RobotConfig> configs;
+  std::vector<float> queries;  ///< configs.size() x kQueryDim.
+  std::vector<float> scores;   ///< VisibilityScore of each.
+};
+
+/// `n` configurations drawn by SampleConfig, even ones aimed at a placement and odd ones uniform
+/// (the mix of the training data and of Net_sam's context), with their queries (object 0's odds
+/// of `s`) and exact scores against `placements`.
+ScoredConfigs ScoreConfigs(const ObjectSearchModel& model, const State& s,
+                           const std::vector<Vec3>& placements, int n, Rng& rng);
+
 /// A configuration whose base is feasible in `world`: uniform over the action box (up to 64
 /// draws; the last draw otherwise), or, when `aimed`, looking at one of `placements` from a base
 /// 0.6-1.6 m away. The action box is the model's move space.
