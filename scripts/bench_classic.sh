@@ -6,9 +6,7 @@
 set -euo pipefail
 NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 source "$NPFKCT_ROOT/scripts/deps.sh"
-npfkct_install_deps
-BUILD_DIR="${BUILD_DIR:-$NPFKCT_ROOT/build}"
-npfkct_build "$BUILD_DIR" >/dev/null
+npfkct_prepare
 BENCH="$BUILD_DIR/scenarios/npfkct-bench"
 OUT="${OUT:-$NPFKCT_ROOT/bench/results/classic.jsonl}"
 mkdir -p "$(dirname "$OUT")"

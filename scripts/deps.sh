@@ -36,3 +36,11 @@ npfkct_build() {
   cmake -S "$NPFKCT_ROOT" -B "$build_dir" -DCMAKE_BUILD_TYPE=Release "$@"
   cmake --build "$build_dir" -j "$(nproc)"
 }
+
+# The start of every script that runs a built program: installs what is missing, then builds
+# BUILD_DIR (default build/) quietly. Needs NPFKCT_ROOT.
+npfkct_prepare() {
+  npfkct_install_deps
+  BUILD_DIR="${BUILD_DIR:-$NPFKCT_ROOT/build}"
+  npfkct_build "$BUILD_DIR" >/dev/null
+}

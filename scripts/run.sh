@@ -6,9 +6,7 @@
 set -euo pipefail
 NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 source "$NPFKCT_ROOT/scripts/deps.sh"
-npfkct_install_deps
-BUILD_DIR="${BUILD_DIR:-$NPFKCT_ROOT/build}"
-npfkct_build "$BUILD_DIR" >/dev/null
+npfkct_prepare
 SCENARIO="${1:-$NPFKCT_ROOT/scenarios/data/loose1.json}"
 PLANNER="${2:-npfkct}"
 MODEL="${MODEL-$NPFKCT_ROOT/solver/filter/model/filter.pt}"

@@ -7,14 +7,12 @@
 set -euo pipefail
 NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 source "$NPFKCT_ROOT/scripts/deps.sh"
-npfkct_install_deps
-BUILD_DIR="${BUILD_DIR:-$NPFKCT_ROOT/build}"
+npfkct_prepare
 DATA_DIR="${DATA_DIR:-$BUILD_DIR/filter-data}"
 MODEL="${MODEL:-$NPFKCT_ROOT/solver/filter/model/filter.pt}"
 EPOCHS="${EPOCHS:-30}"
 TRAIN_SAMPLES="${TRAIN_SAMPLES:-6000}"
 RESULTS="$NPFKCT_ROOT/bench/results"
-npfkct_build "$BUILD_DIR" >/dev/null
 TRAIN="$BUILD_DIR/solver/filter/npfkct-train"
 mkdir -p "$DATA_DIR" "$RESULTS" "$(dirname "$MODEL")"
 "$TRAIN" generate --out "$DATA_DIR/train.bin" --samples "$TRAIN_SAMPLES" --seed 1
