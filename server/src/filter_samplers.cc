@@ -1,7 +1,6 @@
 #include "npfkct/server/filter_samplers.h"
 
 #include <algorithm>
-#include <cmath>
 #include <map>
 #include <mutex>
 
@@ -17,33 +16,9 @@ namespace {
 Status ApplyFilterOptions(const PlannerSpec& spec, filter::FilterOptions* o) {
   for (const auto& [key, value] : spec.options) {
     if (!IsFilterOption(key)) continue;
-    const std::string name = key.substr(7);
-    auto integer = [&](int* out) {
-      if (value != std::floor(value) || std::abs(value) > 1e6) {
-        return InvalidArgumentError("planner.options." + key + ": expected an integer");
-      }
-      *out = static_cast<int>(value);
-      return OkStatus();
-    };
-    Status s;
-    if (name == "candidates") {
-      s = integer(&o->candidates);
-    } else if (name == "context") {
-      s = integer(&o->context);
-    } else if (name == "placements") {
-      s = integer(&o->placements);
-    } else if (name == "min_keep") {
-      s = integer(&o->min_keep);
-    } else if (name == "confidence") {
-      o->confidence = value;
-    } else if (name == "explore") {
-      o->explore = value;
-    } else {
-      return InvalidArgumentError("planner.options." + key +
-                                  ": unknown filter option (candidates, confidence, context, "
-                                  "placements, minKeep, explore)");
+    if (Status s = filter::SetOption(o, key.substr(7), value); !s.ok()) {
+      return InvalidArgumentError("planner.options." + key + ": " + s.message());
     }
-    if (!s.ok()) return s;
   }
   if (Status s = o->Validate(); !s.ok()) {
     return InvalidArgumentError("planner.options.filter." + s.message());

@@ -175,6 +175,7 @@ TEST_F(ServerTest, FilterModelIsLoadedAtCreationAndPlansWithNetSam) {
       {{{"filter.explore", 1.5}}, "planner.options.filter.explore"},
       {{{"filter.candidates", 2.5}}, "planner.options.filter.candidates"},
       {{{"filter.magic", 1}}, "planner.options.filter.magic"},
+      {{{"filter.candidates", 1e8}}, "planner.options.filter.candidates"},
   };
   for (const auto& [options, field] : bad_options) {
     Reply r =

@@ -4,74 +4,18 @@
 #include <functional>
 #include <map>
 
+#include "npfkct/solver/option_table.h"
+
 namespace npfkct {
 namespace {
 
-template <class O>
-using Setter = std::function<Status(O*, double)>;
-
-template <class O>
-Setter<O> Real(double O::*field) {
-  return [field](O* o, double v) {
-    o->*field = v;
-    return OkStatus();
-  };
-}
-template <class O>
-Setter<O> Int(int O::*field) {
-  return [field](O* o, double v) {
-    if (v != std::floor(v) || std::abs(v) > 1e9) return InvalidArgumentError("not an integer");
-    o->*field = static_cast<int>(v);
-    return OkStatus();
-  };
-}
-template <class O>
-Setter<O> Bool(bool O::*field) {
-  return [field](O* o, double v) {
-    if (v != 0.0 && v != 1.0) return InvalidArgumentError("not a boolean (0 or 1)");
-    o->*field = v != 0.0;
-    return OkStatus();
-  };
-}
-// A setter of a nested struct's field.
-template <class O, class Inner>
-Setter<O> Nested(Inner O::*member, Setter<Inner> inner) {
-  return [member, inner](O* o, double v) { return inner(&(o->*member), v); };
-}
-
-template <class O>
-Status Apply(const std::map<std::string, Setter<O>, std::less<>>& table, O* o, std::string_view key,
-             double value) {
-  auto it = table.find(key);
-  if (it == table.end()) {
-    // Allow the bare leaf name when exactly one nested key ends with it.
-    const std::string suffix = "." + std::string(key);
-    int matches = 0;
-    for (auto j = table.begin(); j != table.end(); ++j) {
-      if (j->first.size() > suffix.size() &&
-          j->first.compare(j->first.size() - suffix.size(), suffix.size(), suffix) == 0) {
-        it = j;
-        ++matches;
-      }
-    }
-    if (matches != 1) return InvalidArgumentError("unknown option '" + std::string(key) + "'");
-  }
-  if (std::isnan(value) && it->first.find("exploration_c") == std::string::npos &&
-      it->first.find("value_scale") == std::string::npos) {
-    return InvalidArgumentError("option " + it->first + ": value must be a number");
-  }
-  if (std::isinf(value)) return InvalidArgumentError("option " + it->first + ": value is infinite");
-  Status s = it->second(o, value);
-  if (!s.ok()) return InvalidArgumentError("option " + it->first + ": " + s.message());
-  return OkStatus();
-}
-
-template <class O>
-std::vector<std::string> Keys(const std::map<std::string, Setter<O>, std::less<>>& table) {
-  std::vector<std::string> keys;
-  for (const auto& [k, v] : table) keys.push_back(k);
-  return keys;
-}
+using option_table::Apply;
+using option_table::Bool;
+using option_table::Int;
+using option_table::Keys;
+using option_table::Nested;
+using option_table::Real;
+using option_table::Setter;
 
 Setter<SearchOptions> LeafValue() {
   return [](SearchOptions* o, double v) {

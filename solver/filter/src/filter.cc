@@ -1,12 +1,12 @@
 #include "npfkct/filter/filter.h"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <mutex>
 #include <numeric>
 
 #include "network.h"
+#include "npfkct/solver/option_table.h"
 
 namespace npfkct::filter {
 
@@ -36,7 +36,6 @@ class NetSam final : public CandidateSampler<State> {
 
   Status Sample(const ParticleBelief<State>& belief, int kind, const BoxSpace& box, int count,
                 Rng& rng, std::vector<ActionVec>* out, CandidateStats* stats) override {
-    const auto t0 = std::chrono::steady_clock::now();
     // Discrete kinds, and a belief without the guessed target, get uniform candidates.
     if (kind != kMoveKind || belief.size() == 0 || belief.particles()[0].objects.empty()) {
       UniformCandidateSampler<State> uniform;
@@ -93,13 +92,11 @@ class NetSam final : public CandidateSampler<State> {
       if (used[i]) continue;
       out->push_back(box.Clamp(ObjectSearchModel::VecOf(configs[i])));
       ++added;
-      if (added >= filtered + explore) break;
     }
+    // The caller (kCT's EnsureSpheres) times the call into stats->elapsed_ms.
     if (stats != nullptr) {
       stats->sampled += options_.candidates + options_.context;
       stats->accepted += added;
-      stats->elapsed_ms +=
-          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     }
     return OkStatus();
   }
@@ -113,15 +110,34 @@ class NetSam final : public CandidateSampler<State> {
 }  // namespace
 
 Status FilterOptions::Validate() const {
-  if (candidates < 1) return InvalidArgumentError("candidates must be >= 1");
+  // Upper bounds keep one request from asking for gigabytes of candidates.
+  if (candidates < 1 || candidates > 100000) {
+    return InvalidArgumentError("candidates must be in [1, 100000]");
+  }
   if (!(confidence > 0.0 && confidence < 1.0)) {
     return InvalidArgumentError("confidence must be in (0, 1)");
   }
-  if (context < 1) return InvalidArgumentError("context must be >= 1");
-  if (placements < 1) return InvalidArgumentError("placements must be >= 1");
+  if (context < 1 || context > 1000) return InvalidArgumentError("context must be in [1, 1000]");
+  if (placements < 1 || placements > 10000) {
+    return InvalidArgumentError("placements must be in [1, 10000]");
+  }
   if (min_keep < 1) return InvalidArgumentError("min_keep must be >= 1");
   if (!(explore >= 0.0 && explore < 1.0)) return InvalidArgumentError("explore must be in [0, 1)");
   return OkStatus();
+}
+
+Status SetOption(FilterOptions* o, std::string_view key, double value) {
+  using option_table::Int;
+  using option_table::Real;
+  static const auto* table = new option_table::Table<FilterOptions>{
+      {"candidates", Int(&FilterOptions::candidates)},
+      {"confidence", Real(&FilterOptions::confidence)},
+      {"context", Int(&FilterOptions::context)},
+      {"placements", Int(&FilterOptions::placements)},
+      {"min_keep", Int(&FilterOptions::min_keep)},
+      {"explore", Real(&FilterOptions::explore)},
+  };
+  return option_table::Apply(*table, o, key, value);
 }
 
 double FilterOptions::Beta() const { return std::sqrt(2.0 * std::log(1.0 / (1.0 - confidence))); }

@@ -1,19 +1,15 @@
 #include "npfkct/filter/train.h"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <numeric>
 #include <random>
 
 #include "network.h"
+#include "npfkct/solver/planner.h"
 
 namespace npfkct::filter {
 namespace {
-
-double Seconds(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 // KL(N(mq, sq) || N(mp, sp)) summed over the latent dimensions: [B].
 torch::Tensor Kl(const torch::Tensor& mq, const torch::Tensor& sq, const torch::Tensor& mp,
@@ -80,7 +76,7 @@ StatusOr<TrainReport> TrainFilter(const Dataset& train, const Dataset& val,
   std::vector<int> order(n);
   std::iota(order.begin(), order.end(), 0);
   for (int epoch = 1; epoch <= options.epochs; ++epoch) {
-    const auto t0 = std::chrono::steady_clock::now();
+    const auto t0 = Clock::now();
     std::shuffle(order.begin(), order.end(), gen);
     double running = 0.0;
     for (int step = 0; step < steps; ++step) {
@@ -113,7 +109,7 @@ StatusOr<TrainReport> TrainFilter(const Dataset& train, const Dataset& val,
     e.epoch = epoch;
     e.train_loss = running;
     e.val_loss = ValidationLoss(net, val, options.eval_context);
-    e.seconds = Seconds(t0);
+    e.seconds = MillisSince(t0) / 1000.0;
     report.epochs.push_back(e);
     if (e.val_loss < report.best_val_loss) {
       report.best_val_loss = e.val_loss;

@@ -211,6 +211,18 @@ TEST(DatasetTest, OptionsNameTheBadField) {
   f = FilterOptions();
   f.context = 0;
   EXPECT_NE(f.Validate().message().find("context"), std::string::npos);
+  f = FilterOptions();
+  f.candidates = 100000000;
+  EXPECT_NE(f.Validate().message().find("candidates"), std::string::npos);
+  // By name, as the server sets them.
+  f = FilterOptions();
+  EXPECT_TRUE(SetOption(&f, "min_keep", 8).ok());
+  EXPECT_EQ(f.min_keep, 8);
+  EXPECT_TRUE(SetOption(&f, "explore", 0.25).ok());
+  EXPECT_EQ(f.explore, 0.25);
+  EXPECT_NE(SetOption(&f, "candidates", 2.5).message().find("candidates"), std::string::npos);
+  EXPECT_NE(SetOption(&f, "magic", 1).message().find("magic"), std::string::npos);
+  EXPECT_FALSE(SetOption(&f, "confidence", std::nan("")).ok());
   TrainOptions t;
   t.max_context = 0;
   EXPECT_NE(t.Validate().message().find("max_context"), std::string::npos);

@@ -7,7 +7,6 @@
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
-#include <chrono>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -21,6 +20,7 @@
 #include "npfkct/sim/scenario.h"
 #include "npfkct/sim/simulator.h"
 #include "npfkct/solver/belief.h"
+#include "npfkct/solver/planner.h"
 
 namespace {
 
@@ -51,10 +51,6 @@ int Fail(const npfkct::Status& s) {
 double Median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
   return v.empty() ? 0.0 : v[v.size() / 2];
-}
-
-double Ms(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
 }  // namespace
@@ -195,10 +191,10 @@ int main(int argc, char** argv) {
     auto sampler = MakeNetSam(*filter, model, fo);
     if (!sampler.ok()) return Fail(sampler.status());
     for (int r = 0; r < runs + 3; ++r) {
-      auto t0 = std::chrono::steady_clock::now();
+      auto t0 = Clock::now();
       const Prediction p = (*filter)->Predict(scene, context.queries, context.scores, q);
-      const double ms = Ms(t0);
-      t0 = std::chrono::steady_clock::now();
+      const double ms = MillisSince(t0);
+      t0 = Clock::now();
       std::vector<ActionVec> out;
       CandidateStats stats;
       if (Status st =
@@ -207,19 +203,19 @@ int main(int argc, char** argv) {
           !st.ok()) {
         return Fail(st);
       }
-      const double ns = Ms(t0);
-      t0 = std::chrono::steady_clock::now();
+      const double ns = MillisSince(t0);
+      t0 = Clock::now();
       const SceneFeatures encoded = SceneOf(*world, rng);
-      const double sc_ms = Ms(t0);
+      const double sc_ms = MillisSince(t0);
       if (encoded.points.empty()) return Fail(InternalError("no scene features"));
       if (r < 3) continue;  // warm-up
       network.push_back(ms);
       netsam.push_back(ns);
       scene_ms.push_back(sc_ms);
       if (r < 3 + 5) {
-        t0 = std::chrono::steady_clock::now();
+        t0 = Clock::now();
         for (const auto& c : configs) VisibilityScore(model, s, c, placements);
-        exact.push_back(Ms(t0));
+        exact.push_back(MillisSince(t0));
       }
     }
     std::snprintf(line, sizeof(line),

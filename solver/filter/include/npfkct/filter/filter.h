@@ -5,6 +5,7 @@
 
 #include <memory>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "npfkct/filter/features.h"
@@ -28,6 +29,11 @@ struct FilterOptions {
   /// beta* of the confidence.
   double Beta() const;
 };
+
+/// Sets FilterOptions field `key` (snake_case: candidates, confidence, context, placements,
+/// min_keep, explore) to `value`; unknown keys and non-integers for integer fields are
+/// INVALID_ARGUMENT naming the key (Validate() checks the ranges).
+Status SetOption(FilterOptions* o, std::string_view key, double value);
 
 /// The network's prediction of the score of each query.
 struct Prediction {
