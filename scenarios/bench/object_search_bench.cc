@@ -12,11 +12,11 @@
 
 #include "episode_runner.h"
 #include "npfkct/filter/filter.h"
+#include "npfkct/object_search/search_planner.h"
 #include "npfkct/perception/perception.h"
 #include "npfkct/sim/frame_io.h"
 #include "npfkct/sim/scenario.h"
 #include "npfkct/sim/simulator.h"
-#include "npfkct/solver/object_search/search_planner.h"
 
 namespace npfkct::bench {
 namespace {
@@ -166,7 +166,7 @@ EpisodeResult RunTrial(const TrialContext& ctx) {
     if (d.action.kind != object_search::kMoveKind && outcome.success) {
       const int object = object_search::KindObject(d.action.kind);
       const int offset = object_search::KindOffset(d.action.kind);
-      if (eyes && offset == 2) eyes->Removed(world.objects[object].key);
+      if (eyes && offset == object_search::kRemoveOffset) eyes->Removed(world.objects[object].key);
       (void)object_search::ApplyDiscreteOutcome(&world, object, offset, true);
     }
     if (outcome.terminal) {

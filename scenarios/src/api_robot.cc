@@ -19,7 +19,7 @@ ExecutionOutcome ApiRobot::Execute(const json& action) {
   outcome.detail = "looked";
   auto malformed = [&](const std::string& why) {
     outcome = ExecutionOutcome{};
-    outcome.reward = params.r_ill;
+    outcome.reward = object_search::RewardOf(params, object_search::ActionOutcome::kIllegal);
     outcome.illegal = true;
     outcome.detail = why;
     return outcome;

@@ -7,12 +7,14 @@
 namespace npfkct::sim {
 namespace {
 
+using object_search::ActionOutcome;
 using object_search::kDeclaredObstacle;
 using object_search::kDeclaredTarget;
 using object_search::KindObject;
 using object_search::KindOffset;
 using object_search::kMoveKind;
 using object_search::ObjectSearchModel;
+using object_search::RewardOf;
 
 // Ray-box hit with the face that was entered (0/1: -x/+x, 2/3: -y/+y, 4/5: -z/+z) and the hit
 // point in the box frame.
@@ -128,7 +130,7 @@ ExecutionOutcome Simulator::Execute(const HybridAction& action, const object_sea
   if (action.kind == kMoveKind) {
     if (action.x.size() != 6 || !action.x.allFinite()) {
       ExecutionOutcome out;
-      out.reward = world.params.r_ill;
+      out.reward = RewardOf(world.params, ActionOutcome::kIllegal);
       out.illegal = true;
       out.detail = "malformed move";
       return out;
@@ -138,7 +140,7 @@ ExecutionOutcome Simulator::Execute(const HybridAction& action, const object_sea
   const int i = KindObject(action.kind);
   if (action.kind < 1 || i < 1 || i >= static_cast<int>(world.objects.size())) {
     ExecutionOutcome out;
-    out.reward = world.params.r_ill;
+    out.reward = RewardOf(world.params, ActionOutcome::kIllegal);
     out.illegal = true;
     out.detail = "no such object";
     return out;
@@ -170,7 +172,7 @@ ExecutionOutcome Simulator::ExecuteMove(const RobotConfig& config,
                                         const object_search::SearchParams& p, Rng& rng) {
   ExecutionOutcome out;
   auto illegal = [&](const std::string& why) {
-    out.reward = p.r_ill;
+    out.reward = RewardOf(p, ActionOutcome::kIllegal);
     out.illegal = true;
     out.detail = why;
     return out;
@@ -189,7 +191,7 @@ ExecutionOutcome Simulator::ExecuteMove(const RobotConfig& config,
   c.y += scenario_.noise.pose_xy * rng.Normal();
   c.yaw = object_search::WrapAngle(c.yaw + scenario_.noise.pose_yaw * rng.Normal());
   if (occupancy_.DiscFree(c.x, c.y, preset_.footprint_radius)) robot_ = c;
-  out.reward = p.r_min;
+  out.reward = RewardOf(p, ActionOutcome::kMoved);
   out.success = true;
   out.detail = "moved";
   return out;
@@ -199,7 +201,7 @@ ExecutionOutcome Simulator::ExecuteOnObject(int offset, const std::string& key, 
                                             const object_search::SearchParams& p, const Box* seen) {
   ExecutionOutcome out;
   auto illegal = [&](const std::string& why) {
-    out.reward = p.r_ill;
+    out.reward = RewardOf(p, ActionOutcome::kIllegal);
     out.illegal = true;
     out.detail = why;
     return out;
@@ -208,15 +210,15 @@ ExecutionOutcome Simulator::ExecuteOnObject(int offset, const std::string& key, 
   if (scene < 0 || removed_[scene]) return illegal("object '" + key + "' is not in the scene");
   const SceneObject& o = objects_[scene];
   switch (offset) {
-    case 0:
+    case object_search::kDeclareTargetOffset:
       if (!o.target) return illegal("declared " + key + " the target wrongly");
-      out.reward = p.r_ct;
+      out.reward = RewardOf(p, ActionOutcome::kDeclaredTarget);
       out.success = true;
       out.detail = "declared " + key + " the target";
       return out;
-    case 1:
+    case object_search::kDeclareObstacleOffset:
       if (o.target) return illegal("declared the target " + key + " an obstacle");
-      out.reward = p.r_co;
+      out.reward = RewardOf(p, ActionOutcome::kDeclaredObstacle);
       out.success = true;
       out.detail = "declared " + key + " an obstacle";
       return out;
@@ -224,7 +226,7 @@ ExecutionOutcome Simulator::ExecuteOnObject(int offset, const std::string& key, 
       if (!o.moveable) return illegal(key + " cannot be moved");
       if (status == kDeclaredTarget && o.target) {
         removed_[scene] = true;
-        out.reward = p.r_max;
+        out.reward = RewardOf(p, ActionOutcome::kRemovedTarget);
         out.terminal = true;
         out.success = true;
         out.detail = "removed the target " + key;
@@ -232,7 +234,7 @@ ExecutionOutcome Simulator::ExecuteOnObject(int offset, const std::string& key, 
       }
       if (status == kDeclaredObstacle && !o.target) {
         removed_[scene] = true;
-        out.reward = 2.0 * p.r_min;
+        out.reward = RewardOf(p, ActionOutcome::kRemovedObstacle);
         out.success = true;
         out.detail = "removed obstacle " + key;
         return out;

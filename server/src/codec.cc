@@ -3,8 +3,8 @@
 #include <cctype>
 #include <cmath>
 
+#include "npfkct/object_search/model.h"
 #include "npfkct/sim/json_read.h"
-#include "npfkct/solver/object_search/model.h"
 
 namespace npfkct::server {
 namespace {

@@ -524,25 +524,18 @@ StatusOr<json> Session::Observe(const json& body) {
   bool done = false;
   double reward = 0.0;
   const auto& p = next.params;
-  if (!is_move) {
+  using object_search::ActionOutcome;
+  ActionOutcome outcome = succeeded ? ActionOutcome::kMoved : ActionOutcome::kIllegal;
+  if (!is_move && succeeded) {
     const int object = object_search::KindObject(pending_action_.kind);
     const int offset = object_search::KindOffset(pending_action_.kind);
-    if (succeeded) {
-      if (offset == 2 && next.objects[object].status == object_search::kDeclaredTarget) {
-        done = true;
-        reward = p.r_max;
-      } else {
-        reward = offset == 0 ? p.r_ct : offset == 1 ? p.r_co : 2.0 * p.r_min;
-      }
-      if (Status s = object_search::ApplyDiscreteOutcome(&next, object, offset, true); !s.ok()) {
-        return s;
-      }
-    } else {
-      reward = p.r_ill;
+    outcome = object_search::SuccessfulOutcome(offset, next.objects[object].status);
+    done = outcome == ActionOutcome::kRemovedTarget;
+    if (Status s = object_search::ApplyDiscreteOutcome(&next, object, offset, true); !s.ok()) {
+      return s;
     }
-  } else {
-    reward = succeeded ? p.r_min : p.r_ill;
   }
+  reward = object_search::RewardOf(p, outcome);
   // Raw data: the perception pipeline turns the frame into the corrected pose and detections.
   // Its tracks are restored if anything below fails, so a rejected observation changes nothing.
   std::vector<perception::TrackState> saved_tracks;
@@ -552,7 +545,8 @@ StatusOr<json> Session::Observe(const json& body) {
     perception::Perception& perceiver = Perceiver();
     saved_tracks = perceiver.SaveTracks(&saved_next_id);
     if (!is_move && succeeded &&
-        object_search::KindOffset(pending_action_.kind) == 2) {  // the object left the scene
+        object_search::KindOffset(pending_action_.kind) ==
+            object_search::kRemoveOffset) {  // the object left the scene
       perceiver.DropTrack(world_->objects[object_search::KindObject(pending_action_.kind)].key);
     }
     auto result = perceiver.Process(*frame);

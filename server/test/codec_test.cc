@@ -2,9 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include "npfkct/object_search/model.h"
 #include "npfkct/server/api_error.h"
 #include "npfkct/sim/scenario.h"
-#include "npfkct/solver/object_search/model.h"
 
 namespace npfkct::server {
 namespace {

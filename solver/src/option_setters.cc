@@ -98,6 +98,7 @@ const std::map<std::string, Setter<PomcpowOptions>, std::less<>>& PomcpowTable()
         {"voo.proposal_stddev", Nested(&PomcpowOptions::voo, Real(&VooOptions::proposal_stddev))},
         {"voo.accept_radius", Nested(&PomcpowOptions::voo, Real(&VooOptions::accept_radius))},
         {"voo.max_tries", Nested(&PomcpowOptions::voo, Int(&VooOptions::max_tries))},
+        {"feasibility_tries", Int(&PomcpowOptions::feasibility_tries)},
     };
     AddSearch(t);
     AddWidening(t);
@@ -114,6 +115,7 @@ const std::map<std::string, Setter<AdvtOptions>, std::less<>>& AdvtTable() {
         {"split_coefficient", Real(&AdvtOptions::split_coefficient)},
         {"diameter_samples", Int(&AdvtOptions::diameter_samples)},
         {"walk_steps", Int(&AdvtOptions::walk_steps)},
+        {"feasibility_tries", Int(&AdvtOptions::feasibility_tries)},
         {"backup",
          [](AdvtOptions* o, double v) {
            if (v != 0.0 && v != 1.0) return InvalidArgumentError("0 (Monte Carlo) or 1 (max)");

@@ -9,8 +9,8 @@
 #include <opencv2/core.hpp>
 #include <string>
 
+#include "npfkct/object_search/world.h"
 #include "npfkct/sim/simulator.h"
-#include "npfkct/solver/object_search/world.h"
 
 namespace npfkct::sim {
 

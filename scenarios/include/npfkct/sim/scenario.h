@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "npfkct/solver/object_search/world.h"
+#include "npfkct/object_search/world.h"
 #include "npfkct/solver/status.h"
 
 namespace npfkct::sim {

@@ -8,8 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "npfkct/object_search/model.h"
 #include "npfkct/sim/scenario.h"
-#include "npfkct/solver/object_search/model.h"
 #include "npfkct/solver/rng.h"
 #include "npfkct/solver/spaces.h"
 

@@ -4,7 +4,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "npfkct/solver/object_search/world.h"
+#include "npfkct/object_search/world.h"
 #include "npfkct/solver/spaces.h"
 #include "npfkct/solver/status.h"
 

@@ -13,10 +13,10 @@
 #include <utility>
 #include <vector>
 
+#include "npfkct/object_search/model.h"
+#include "npfkct/object_search/search_planner.h"
 #include "npfkct/server/api_error.h"
 #include "npfkct/solver/candidates.h"
-#include "npfkct/solver/object_search/model.h"
-#include "npfkct/solver/object_search/search_planner.h"
 #include "npfkct/solver/planner.h"
 
 namespace npfkct::perception {

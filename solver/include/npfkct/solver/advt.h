@@ -37,6 +37,9 @@ struct AdvtOptions {
   Backup backup = Backup::kMax;
   /// Observation branching.
   ObservationWidening observations;
+  /// Draws spent to find a cell representative that passes the model's reasonability check (1: no
+  /// check).
+  int feasibility_tries = 1;
 
   /// Checks every option; the message names the offending one.
   Status Validate() const {
@@ -44,6 +47,7 @@ struct AdvtOptions {
     if (!std::isnan(exploration_c) && !(exploration_c >= 0.0 && std::isfinite(exploration_c))) {
       return InvalidArgumentError("exploration_c must be >= 0 (or NaN for the reward range)");
     }
+    if (feasibility_tries < 1) return InvalidArgumentError("feasibility_tries must be >= 1");
     if (!(diameter_coefficient >= 0.0) || !std::isfinite(diameter_coefficient)) {
       return InvalidArgumentError("diameter_coefficient must be >= 0");
     }
@@ -80,13 +84,18 @@ class Advt {
   const ParticleBelief<State>& belief() const { return belief_; }
   const AdvtOptions& options() const { return options_; }
 
-  /// Searches from the current belief within `budget` and recommends an action.
+  /// Plans within a budget of its own (a condition created here, which nobody can cancel).
   Decision<Action> Plan(const Budget& budget, Rng& rng) {
-    const auto start = Clock::now();
+    TerminationCondition stop(budget);
+    return Plan(stop, rng);
+  }
+
+  /// Searches from the current belief within `budget` and recommends an action.
+  Decision<Action> Plan(const TerminationCondition& stop, Rng& rng) {
     Decision<Action> d;
     d.stats.budget_exhausted = false;
     if (Status s = options_.Validate(); !s.ok()) return Fail(std::move(d), std::move(s));
-    if (Status s = budget.Validate(); !s.ok()) return Fail(std::move(d), std::move(s));
+    if (Status s = stop.budget().Validate(); !s.ok()) return Fail(std::move(d), std::move(s));
     if (belief_.empty()) return Fail(std::move(d), FailedPreconditionError("belief is empty"));
     if constexpr (!HasObservationLikelihood<M>) {
       if (options_.observations.enabled) {
@@ -103,7 +112,6 @@ class Advt {
     if (tree_.root < 0) tree_.root = tree_.NewObsNode();
     max_depth_ = 0;
     d.stats.reused_visits = tree_.obs[tree_.root].n;
-    TerminationCondition stop(budget, start);
     int64_t sims = 0;
     while (!stop.ShouldStop(sims)) {
       const State& s = belief_.Sample(rng);
@@ -120,8 +128,7 @@ class Advt {
     }
     if (best < 0) best = tree_.obs[tree_.root].actions.front();
     FillRootStats(tree_, best, max_depth_, &d);
-    d.stats.elapsed_ms = MillisSince(start);
-    return d;
+    return FinishSearch(std::move(d), stop);
   }
 
   /// Updates the belief with the real step (a, o) and keeps the matching subtree.
@@ -247,12 +254,25 @@ class Advt {
     for (int kind : scratch_) {
       HybridAction a;
       a.kind = kind;
-      a.x = model_.KindSpace(kind).SampleUniform(rng);
+      a.x = SampleFeasiblePoint(model_, s, kind, options_.feasibility_tries, rng);
       tree_.NewActNode(node, std::move(a));
     }
   }
 
-  void MaybeSplit(int node, int ai, Rng& rng) {
+  // A point of the cell that passes the reasonability check in s (up to feasibility_tries walks;
+  // the last walk's point when none passes).
+  ActionVec SampleFeasibleInCell(const State& s, const BoxSpace& box, const Cell& cell,
+                                 const ActionVec& rep, int kind, Rng& rng) const {
+    ActionVec x = SampleInCell(box, cell, rep, rng);
+    for (int t = 1;
+         t < options_.feasibility_tries && !IsFeasibleAction(model_, s, HybridAction{kind, x});
+         ++t) {
+      x = SampleInCell(box, cell, rep, rng);
+    }
+    return x;
+  }
+
+  void MaybeSplit(int node, int ai, const State& s, Rng& rng) {
     for (int depth = 0; depth < 64; ++depth) {
       const BoxSpace& box = model_.KindSpace(tree_.act[ai].action.kind);
       if (box.dim() == 0) return;
@@ -264,7 +284,8 @@ class Advt {
         return;
       }
       const ActionVec rep = tree_.act[ai].action.x;
-      const ActionVec fresh = SampleInCell(box, tree_.act[ai].data, rep, rng);
+      const ActionVec fresh =
+          SampleFeasibleInCell(s, box, tree_.act[ai].data, rep, tree_.act[ai].action.kind, rng);
       if (box.SquaredDistance(fresh, rep) == 0.0) return;
       Cell sibling;
       sibling.constraints = tree_.act[ai].data.constraints;
@@ -335,7 +356,7 @@ class Advt {
     auto& an = tree_.act[ai];
     ++an.n;
     an.q += (total - an.q) / static_cast<double>(an.n);
-    MaybeSplit(node, ai, rng);
+    MaybeSplit(node, ai, s, rng);
     return options_.backup == AdvtOptions::Backup::kMax ? BestLeafValue(node) : total;
   }
 

@@ -48,13 +48,30 @@ struct VooOptions {
   }
 };
 
+/// A uniform point of `kind`'s box that passes the model's reasonability check in state s: up to
+/// `tries` draws, the last one kept when none passes (1: no check).
+template <HybridActionModel M>
+ActionVec SampleFeasiblePoint(const M& model, const typename M::State& s, int kind, int tries,
+                              Rng& rng) {
+  HybridAction a;
+  a.kind = kind;
+  const BoxSpace& box = model.KindSpace(kind);
+  a.x = box.SampleUniform(rng);
+  for (int t = 1; t < tries && box.dim() > 0 && !IsFeasibleAction(model, s, a); ++t) {
+    a.x = box.SampleUniform(rng);
+  }
+  return a.x;
+}
+
 /// Draws a new hybrid action for a node that already holds `existing`: a legal kind chosen
 /// uniformly among those still open (a kind without continuous part is open until it is present),
-/// and a uniform point of its box. Returns false when no kind is open.
+/// and a uniform point of its box that passes the reasonability check in s (up to
+/// `feasibility_tries` draws). Returns false when no kind is open.
 template <HybridActionModel M>
 bool SampleUniformNewAction(const M& model, const typename M::State& s,
                             const std::vector<const HybridAction*>& existing, Rng& rng,
-                            std::vector<int>* scratch, HybridAction* out) {
+                            std::vector<int>* scratch, HybridAction* out,
+                            int feasibility_tries = 1) {
   model.ActionKinds(s, scratch);
   auto is_closed = [&](int kind) {
     if (model.KindSpace(kind).dim() > 0) return false;
@@ -64,17 +81,19 @@ bool SampleUniformNewAction(const M& model, const typename M::State& s,
   scratch->erase(std::remove_if(scratch->begin(), scratch->end(), is_closed), scratch->end());
   if (scratch->empty()) return false;
   out->kind = (*scratch)[rng.UniformInt(static_cast<int64_t>(scratch->size()))];
-  out->x = model.KindSpace(out->kind).SampleUniform(rng);
+  out->x = SampleFeasiblePoint(model, s, out->kind, feasibility_tries, rng);
   return true;
 }
 
 /// Voronoi optimistic sampling around `best` (an element of `existing`): Gaussian proposals of the
 /// same kind, accepted when inside best's Voronoi cell among `existing` or within accept_radius of
-/// best; after max_tries the proposal closest to best is returned.
+/// best; after max_tries the proposal closest to best is returned. With `check_feasible`, only
+/// proposals that pass the model's reasonability check in state s count as inside.
 template <HybridActionModel M>
-HybridAction SampleVoronoiAround(const M& model, const HybridAction& best,
+HybridAction SampleVoronoiAround(const M& model, const typename M::State& s,
+                                 const HybridAction& best,
                                  const std::vector<const HybridAction*>& existing,
-                                 const VooOptions& options, Rng& rng) {
+                                 const VooOptions& options, Rng& rng, bool check_feasible = false) {
   const BoxSpace& box = model.KindSpace(best.kind);
   HybridAction closest = best;
   double closest_dist = std::numeric_limits<double>::infinity();
@@ -86,7 +105,8 @@ HybridAction SampleVoronoiAround(const M& model, const HybridAction& best,
       proposal.x[i] += options.proposal_stddev * box.scale()[i] * rng.Normal();
     }
     proposal.x = box.WrapPeriodic(proposal.x);
-    const bool inside = box.Contains(proposal.x);
+    const bool inside =
+        box.Contains(proposal.x) && (!check_feasible || IsFeasibleAction(model, s, proposal));
     const double d = box.Distance(proposal.x, best.x);
     if (inside && d < closest_dist) {
       closest = proposal;

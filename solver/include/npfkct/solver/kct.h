@@ -154,13 +154,18 @@ class KCenterTree {
   /// The root sphere the last decision came from (kind, center, range).
   Hypersphere last_sphere() const { return last_sphere_; }
 
-  /// Plans within `budget` (algorithm 1, lines 3-18) and recommends an executable action.
+  /// Plans within a budget of its own (a condition created here, which nobody can cancel).
   Decision<Action> Plan(const Budget& budget, Rng& rng) {
-    const auto start = Clock::now();
+    TerminationCondition stop(budget);
+    return Plan(stop, rng);
+  }
+
+  /// Plans within `budget` (algorithm 1, lines 3-18) and recommends an executable action.
+  Decision<Action> Plan(const TerminationCondition& stop, Rng& rng) {
     Decision<Action> d;
     d.stats.budget_exhausted = false;
     if (Status s = options_.Validate(); !s.ok()) return Fail(std::move(d), std::move(s));
-    if (Status s = budget.Validate(); !s.ok()) return Fail(std::move(d), std::move(s));
+    if (Status s = stop.budget().Validate(); !s.ok()) return Fail(std::move(d), std::move(s));
     if (belief_.empty()) return Fail(std::move(d), FailedPreconditionError("belief is empty"));
     if constexpr (!HasObservationLikelihood<M>) {
       if (options_.observations.enabled) {
@@ -193,7 +198,6 @@ class KCenterTree {
     }
     d.stats.reused_visits = tree_.obs[tree_.root].n;
 
-    TerminationCondition stop(budget, start);
     int64_t sims = 0;
     while (!stop.ShouldStop(sims)) {
       const State& s = belief_.Sample(rng);
@@ -230,8 +234,7 @@ class KCenterTree {
     const auto& an = tree_.act[best];
     last_sphere_ = {an.action.kind, an.action.x, an.data.range};
     last_entry_ = best;
-    d.stats.elapsed_ms = MillisSince(start);
-    return d;
+    return FinishSearch(std::move(d), stop);
   }
 
   /// Filtering (algorithm 1, line 20): updates the belief with the executed action and the real

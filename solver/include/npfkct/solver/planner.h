@@ -2,6 +2,9 @@
 // their statistics, rollouts, and the observation-children table of search trees.
 #pragma once
 
+#include <pthread.h>
+#include <time.h>
+
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -27,63 +30,143 @@ inline double MillisSince(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
 }
 
-/// How much search one planning call may spend. At least one limit must be set. Time is wall
-/// clock from the moment Plan() is entered until it returns, tree teardown included.
+/// CPU time consumed so far by the calling thread, in milliseconds (CLOCK_THREAD_CPUTIME_ID).
+inline double ThreadCpuMillis() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return 1e3 * static_cast<double>(ts.tv_sec) + 1e-6 * static_cast<double>(ts.tv_nsec);
+}
+
+/// How much search one planning call may spend; the search stops at the first limit reached. At
+/// least one limit must be set. Limits count from the creation of the TerminationCondition that
+/// carries them, so the teardown of the previous tree is included.
+///
+///   Budget b = Budget::Cpu(1000);         // 1 s of the planning thread's CPU time
+///   b.max_simulations = 50000;            // ... or 50,000 simulations, whichever comes first
 struct Budget {
-  /// Wall-clock limit in milliseconds; 0 means no time limit.
-  double time_ms = 1000.0;
+  /// Wall-clock limit in milliseconds; 0 means no wall-clock limit.
+  double time_ms = 0.0;
   /// Limit on simulations (episodes from the root); 0 means no limit.
   int64_t max_simulations = 0;
+  /// Limit on the CPU time of the planning thread (CLOCK_THREAD_CPUTIME_ID) in milliseconds; 0
+  /// means none. Unlike wall time it does not shrink when other work shares the core, so results
+  /// measured under CPU budgets repeat on a loaded machine.
+  double cpu_ms = 0.0;
 
-  /// A budget of `ms` milliseconds.
-  static Budget Time(double ms) { return Budget{ms, 0}; }
+  /// A budget of `ms` milliseconds of wall-clock time.
+  static Budget Time(double ms) { return Budget{ms, 0, 0.0}; }
+  /// A budget of `ms` milliseconds of the planning thread's CPU time.
+  static Budget Cpu(double ms) { return Budget{0.0, 0, ms}; }
   /// A budget of `n` simulations and no time limit.
-  static Budget Simulations(int64_t n) { return Budget{0.0, n}; }
+  static Budget Simulations(int64_t n) { return Budget{0.0, n, 0.0}; }
 
   /// Rejects negative or non-finite limits and a budget with no limit at all.
   Status Validate() const {
     if (!std::isfinite(time_ms) || time_ms < 0.0) {
       return InvalidArgumentError("budget.time_ms must be a finite number >= 0");
     }
+    if (!std::isfinite(cpu_ms) || cpu_ms < 0.0) {
+      return InvalidArgumentError("budget.cpu_ms must be a finite number >= 0");
+    }
     if (max_simulations < 0) return InvalidArgumentError("budget.max_simulations must be >= 0");
-    if (time_ms == 0.0 && max_simulations == 0) {
-      return InvalidArgumentError("budget: set time_ms and/or max_simulations");
+    if (time_ms == 0.0 && cpu_ms == 0.0 && max_simulations == 0) {
+      return InvalidArgumentError("budget: set time_ms, cpu_ms and/or max_simulations");
     }
     return OkStatus();
   }
 };
 
-/// Decides when a search stops: after the budget's time or simulations, or when an external
-/// cancel flag is raised (like OMPL's PlannerTerminationCondition).
+/// Decides when a search stops: after the budget's wall time, CPU time or simulations, when
+/// Terminate() was called (from any thread), or when the optional extra condition holds. Like
+/// OMPL's PlannerTerminationCondition it is owned by the caller and passed to Plan(), so a caller
+/// that deletes a session, notices a disconnect or shuts down can stop a running search:
+///
+///   TerminationCondition stop(Budget::Cpu(500));   // created in the thread that will plan
+///   std::thread watchdog([&] { if (client_gone()) stop.Terminate(); });
+///   Decision d = planner.Plan(stop, rng);          // d.status is CANCELLED after Terminate()
+///
+/// Time counts from construction. A CPU budget reads the CPU clock of the thread that constructed
+/// the condition, so construct it in the planning thread.
 class TerminationCondition {
  public:
-  /// Counts time from `start`. `cancel` may be null.
-  TerminationCondition(const Budget& budget, Clock::time_point start,
-                       const std::atomic<bool>* cancel = nullptr)
-      : max_sims_(budget.max_simulations), cancel_(cancel) {
-    has_deadline_ = budget.time_ms > 0.0;
-    deadline_ = start + std::chrono::duration_cast<Clock::duration>(
-                            std::chrono::duration<double, std::milli>(budget.time_ms));
+  /// Counts from now. `also_stop`, when given, is polled at most every `poll_ms` of wall time
+  /// (e.g. "the client closed its connection") and stops the search when it returns true.
+  explicit TerminationCondition(const Budget& budget, std::function<bool()> also_stop = {},
+                                double poll_ms = 5.0)
+      : budget_(budget), also_stop_(std::move(also_stop)), poll_ms_(poll_ms) {
+    start_ = Clock::now();
+    pthread_getcpuclockid(pthread_self(), &cpu_clock_);
+    cpu_start_ms_ = CpuNowMs();
+    deadline_ = start_ + std::chrono::duration_cast<Clock::duration>(
+                             std::chrono::duration<double, std::milli>(budget.time_ms));
   }
+  TerminationCondition(const TerminationCondition&) = delete;
+  TerminationCondition& operator=(const TerminationCondition&) = delete;
+
+  /// Asks the search to stop at its next check. Safe to call from any thread.
+  void Terminate() const { terminated_.store(true, std::memory_order_relaxed); }
+  /// Whether Terminate() was called or the extra condition fired (a cancellation, not a budget).
+  bool cancelled() const { return terminated_.load(std::memory_order_relaxed); }
+  const Budget& budget() const { return budget_; }
 
   /// Whether the search must stop after `simulations` completed simulations.
   bool ShouldStop(int64_t simulations) const {
-    if (max_sims_ > 0 && simulations >= max_sims_) return true;
-    if (cancel_ != nullptr && cancel_->load(std::memory_order_relaxed)) return true;
-    return has_deadline_ && Clock::now() >= deadline_;
+    if (budget_.max_simulations > 0 && simulations >= budget_.max_simulations) return true;
+    if (cancelled()) return true;
+    const auto now = Clock::now();
+    if (budget_.time_ms > 0.0 && now >= deadline_) return true;
+    const double wall_ms = std::chrono::duration<double, std::milli>(now - start_).count();
+    if (also_stop_ && wall_ms >= next_poll_ms_.load(std::memory_order_relaxed)) {
+      next_poll_ms_.store(wall_ms + poll_ms_, std::memory_order_relaxed);
+      if (also_stop_()) {
+        Terminate();
+        return true;
+      }
+    }
+    if (budget_.cpu_ms > 0.0) {
+      // Reading a thread's CPU clock is a system call; read it at most every 0.1 ms of wall time
+      // (the CPU time used in between cannot exceed the wall time that passed).
+      const double seen = cpu_seen_ms_.load(std::memory_order_relaxed);
+      const double at = cpu_seen_at_ms_.load(std::memory_order_relaxed);
+      if (seen + (wall_ms - at) < budget_.cpu_ms && wall_ms - at < 0.1) return false;
+      const double used = CpuNowMs() - cpu_start_ms_;
+      cpu_seen_ms_.store(used, std::memory_order_relaxed);
+      cpu_seen_at_ms_.store(wall_ms, std::memory_order_relaxed);
+      if (used >= budget_.cpu_ms) return true;
+    }
+    return false;
   }
 
+  /// Wall-clock milliseconds since construction.
+  double ElapsedMs() const { return MillisSince(start_); }
+  /// CPU milliseconds of the constructing thread since construction.
+  double CpuMs() const { return CpuNowMs() - cpu_start_ms_; }
+
  private:
-  int64_t max_sims_;
-  const std::atomic<bool>* cancel_;
-  bool has_deadline_ = false;
+  double CpuNowMs() const {
+    timespec ts{};
+    clock_gettime(cpu_clock_, &ts);
+    return 1e3 * static_cast<double>(ts.tv_sec) + 1e-6 * static_cast<double>(ts.tv_nsec);
+  }
+
+  Budget budget_;
+  std::function<bool()> also_stop_;
+  double poll_ms_;
+  Clock::time_point start_;
   Clock::time_point deadline_;
+  clockid_t cpu_clock_ = CLOCK_THREAD_CPUTIME_ID;
+  double cpu_start_ms_ = 0.0;
+  mutable std::atomic<bool> terminated_{false};
+  mutable std::atomic<double> next_poll_ms_{0.0};
+  mutable std::atomic<double> cpu_seen_ms_{0.0};
+  mutable std::atomic<double> cpu_seen_at_ms_{-1.0};
 };
 
 /// Statistics of one planning call.
 struct SearchStats {
   int64_t simulations = 0;       ///< Episodes simulated from the root in this call.
   double elapsed_ms = 0.0;       ///< Wall time of the call, teardown included.
+  double cpu_ms = 0.0;           ///< CPU time of the planning thread during the call.
   double teardown_ms = 0.0;      ///< Time spent discarding the previous tree.
   int64_t tree_nodes = 0;        ///< Observation + action nodes in the tree after the call.
   int max_depth = 0;             ///< Deepest tree level reached.
@@ -93,6 +176,20 @@ struct SearchStats {
   int64_t refinements = 0;       ///< Action-space refinements (cell splits, sphere refinements).
   bool budget_exhausted = true;  ///< False when the search stopped for another reason.
 };
+
+/// Fills the time statistics of a finished search from its termination condition and reports a
+/// cancellation (Terminate() or the extra condition) as CANCELLED. The decision's action is kept,
+/// so a caller may still use the best action found so far.
+template <class Decision>
+Decision FinishSearch(Decision d, const TerminationCondition& stop) {
+  d.stats.elapsed_ms = stop.ElapsedMs();
+  d.stats.cpu_ms = stop.CpuMs();
+  if (stop.cancelled() && d.status.ok()) {
+    d.status = CancelledError("planning was cancelled");
+    d.stats.budget_exhausted = false;
+  }
+  return d;
+}
 
 /// Statistics of one root action, for logs and the API.
 template <class Action>
@@ -176,29 +273,35 @@ typename M::Action UniformRandomAction(const M& model, const typename M::State& 
 template <GenerativeModel M>
 double Rollout(const M& model, typename M::State s, int depth, const SearchOptions& options,
                Rng& rng, std::vector<int>* scratch) {
-  const double gamma = model.Discount();
-  double total = 0.0;
-  double discount = 1.0;
-  double horizon_discount = std::pow(gamma, depth);
-  while (depth < options.max_depth && horizon_discount >= options.discount_horizon) {
-    if (IsTerminalState(model, s)) break;
-    typename M::Action a;
-    if constexpr (requires {
-                    { model.RolloutAction(s, rng) } -> std::same_as<typename M::Action>;
-                  }) {
-      a = model.RolloutAction(s, rng);
-    } else {
-      a = UniformRandomAction(model, s, rng, scratch);
+  // A model over a restricted action set (e.g. a manual discrete set) may delegate its rollouts
+  // to the full model it wraps, so that every planner shares one rollout policy.
+  if constexpr (requires { model.rollout_model(); }) {
+    return Rollout(model.rollout_model(), std::move(s), depth, options, rng, scratch);
+  } else {
+    const double gamma = model.Discount();
+    double total = 0.0;
+    double discount = 1.0;
+    double horizon_discount = std::pow(gamma, depth);
+    while (depth < options.max_depth && horizon_discount >= options.discount_horizon) {
+      if (IsTerminalState(model, s)) break;
+      typename M::Action a;
+      if constexpr (requires {
+                      { model.RolloutAction(s, rng) } -> std::same_as<typename M::Action>;
+                    }) {
+        a = model.RolloutAction(s, rng);
+      } else {
+        a = UniformRandomAction(model, s, rng, scratch);
+      }
+      auto step = model.Step(s, a, rng);
+      total += discount * step.reward;
+      if (step.terminal) break;
+      s = std::move(step.state);
+      discount *= gamma;
+      horizon_discount *= gamma;
+      ++depth;
     }
-    auto step = model.Step(s, a, rng);
-    total += discount * step.reward;
-    if (step.terminal) break;
-    s = std::move(step.state);
-    discount *= gamma;
-    horizon_discount *= gamma;
-    ++depth;
+    return total;
   }
-  return total;
 }
 
 /// The value of a new leaf at `depth`: the model's HeuristicValue when asked for (and present),

@@ -64,12 +64,17 @@ class Pomcp {
   const ParticleBelief<State>& belief() const { return belief_; }
   const PomcpOptions& options() const { return options_; }
 
-  /// Searches from the current belief within `budget` and recommends an action.
+  /// Plans within a budget of its own (a condition created here, which nobody can cancel).
   Decision<Action> Plan(const Budget& budget, Rng& rng) {
-    const auto start = Clock::now();
+    TerminationCondition stop(budget);
+    return Plan(stop, rng);
+  }
+
+  /// Searches from the current belief within `budget` and recommends an action.
+  Decision<Action> Plan(const TerminationCondition& stop, Rng& rng) {
     Decision<Action> d;
     if (Status s = options_.Validate(); !s.ok()) return Fail(std::move(d), std::move(s));
-    if (Status s = budget.Validate(); !s.ok()) return Fail(std::move(d), std::move(s));
+    if (Status s = stop.budget().Validate(); !s.ok()) return Fail(std::move(d), std::move(s));
     if (belief_.empty()) return Fail(std::move(d), FailedPreconditionError("belief is empty"));
     if (!options_.search.reuse_tree && root_ >= 0) {
       const auto t0 = Clock::now();
@@ -87,14 +92,13 @@ class Pomcp {
     d.stats.reused_visits = obs_[root_].n;
     if (obs_[root_].num_actions == 0) Expand(root_, belief_.Sample(rng));
 
-    TerminationCondition stop(budget, start);
     int64_t sims = 0;
     while (!stop.ShouldStop(sims)) {
       Simulate(belief_.Sample(rng), root_, 0, rng);
       ++sims;
     }
     d.stats.simulations = sims;
-    return Finish(std::move(d), start);
+    return Finish(std::move(d), stop);
   }
 
   /// Updates the belief with the real step (a, o) and keeps the matching subtree when tree reuse
@@ -247,7 +251,7 @@ class Pomcp {
     return total;
   }
 
-  Decision<Action> Finish(Decision<Action> d, Clock::time_point start) {
+  Decision<Action> Finish(Decision<Action> d, const TerminationCondition& stop) {
     const ObsNode& root = obs_[root_];
     int best = -1;
     for (int i = root.first_action; i < root.first_action + root.num_actions; ++i) {
@@ -265,8 +269,7 @@ class Pomcp {
     d.stats.max_depth = max_depth_;
     d.stats.root_actions = root.num_actions;
     d.stats.root_visits = root.n;
-    d.stats.elapsed_ms = MillisSince(start);
-    return d;
+    return FinishSearch(std::move(d), stop);
   }
 
   // Copies the subtree under observation node `new_root` into fresh arrays and makes it the root.

@@ -34,6 +34,9 @@ struct PomcpowOptions {
   bool use_voo = false;
   /// Voronoi sampling settings (used when use_voo).
   VooOptions voo;
+  /// Draws spent to find a new continuous action that passes the model's reasonability check
+  /// (1: no check, as POMCPOW.jl; VOO proposals then only need to lie in the box).
+  int feasibility_tries = 1;
 
   /// Checks every option; the message names the offending one.
   Status Validate() const {
@@ -48,6 +51,7 @@ struct PomcpowOptions {
       return InvalidArgumentError("alpha_action must be in [0, 1]");
     }
     if (Status s = observations.Validate(); !s.ok()) return Prefixed("observations", s);
+    if (feasibility_tries < 1) return InvalidArgumentError("feasibility_tries must be >= 1");
     if (use_voo) return Prefixed("voo", voo.Validate());
     return OkStatus();
   }
@@ -80,13 +84,18 @@ requires HasObservationLikelihood<M> &&
   const ParticleBelief<State>& belief() const { return belief_; }
   const PomcpowOptions& options() const { return options_; }
 
-  /// Searches from the current belief within `budget` and recommends an action.
+  /// Plans within a budget of its own (a condition created here, which nobody can cancel).
   Decision<Action> Plan(const Budget& budget, Rng& rng) {
-    const auto start = Clock::now();
+    TerminationCondition stop(budget);
+    return Plan(stop, rng);
+  }
+
+  /// Searches from the current belief within `budget` and recommends an action.
+  Decision<Action> Plan(const TerminationCondition& stop, Rng& rng) {
     Decision<Action> d;
     d.stats.budget_exhausted = false;
     if (Status s = options_.Validate(); !s.ok()) return Fail(std::move(d), std::move(s));
-    if (Status s = budget.Validate(); !s.ok()) return Fail(std::move(d), std::move(s));
+    if (Status s = stop.budget().Validate(); !s.ok()) return Fail(std::move(d), std::move(s));
     if (belief_.empty()) return Fail(std::move(d), FailedPreconditionError("belief is empty"));
     if (!options_.search.reuse_tree && tree_.root >= 0) {
       const auto t0 = Clock::now();
@@ -97,7 +106,6 @@ requires HasObservationLikelihood<M> &&
     max_depth_ = 0;
     d.stats.reused_visits = tree_.obs[tree_.root].n;
 
-    TerminationCondition stop(budget, start);
     int64_t sims = 0;
     while (!stop.ShouldStop(sims)) {
       const State& s = belief_.Sample(rng);
@@ -117,8 +125,7 @@ requires HasObservationLikelihood<M> &&
     }
     if (best < 0) best = tree_.obs[tree_.root].actions.front();
     FillRootStats(tree_, best, max_depth_, &d);
-    d.stats.elapsed_ms = MillisSince(start);
-    return d;
+    return FinishSearch(std::move(d), stop);
   }
 
   /// Updates the belief with the real step (a, o) and keeps the matching subtree when tree reuse
@@ -190,14 +197,15 @@ requires HasObservationLikelihood<M> &&
           if (an.n > 0 && (best < 0 || an.q > tree_.act[best].q)) best = ai;
         }
         if (best >= 0 && model_.KindSpace(tree_.act[best].action.kind).dim() > 0) {
-          HybridAction a =
-              SampleVoronoiAround(model_, tree_.act[best].action, existing_, options_.voo, rng);
+          HybridAction a = SampleVoronoiAround(model_, s, tree_.act[best].action, existing_,
+                                               options_.voo, rng, options_.feasibility_tries > 1);
           tree_.NewActNode(node, std::move(a));
           return;
         }
       }
       HybridAction a;
-      if (SampleUniformNewAction(model_, s, existing_, rng, &scratch_, &a)) {
+      if (SampleUniformNewAction(model_, s, existing_, rng, &scratch_, &a,
+                                 options_.feasibility_tries)) {
         tree_.NewActNode(node, std::move(a));
       }
     }

@@ -81,6 +81,10 @@ inline Status InternalError(std::string msg) {
 inline Status ResourceExhaustedError(std::string msg) {
   return Status(StatusCode::kResourceExhausted, std::move(msg));
 }
+/// A CANCELLED status.
+inline Status CancelledError(std::string msg) {
+  return Status(StatusCode::kCancelled, std::move(msg));
+}
 /// An OUT_OF_RANGE status.
 inline Status OutOfRangeError(std::string msg) {
   return Status(StatusCode::kOutOfRange, std::move(msg));

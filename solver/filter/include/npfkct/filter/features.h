@@ -7,7 +7,7 @@
 #include <array>
 #include <vector>
 
-#include "npfkct/solver/object_search/model.h"
+#include "npfkct/object_search/model.h"
 #include "npfkct/solver/rng.h"
 
 namespace npfkct::filter {

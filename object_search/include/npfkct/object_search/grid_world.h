@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "npfkct/solver/object_search/geometry.h"
+#include "npfkct/object_search/geometry.h"
 #include "npfkct/solver/rng.h"
 #include "npfkct/solver/status.h"
 

@@ -6,10 +6,11 @@
 #include <array>
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
-#include "npfkct/solver/object_search/geometry.h"
-#include "npfkct/solver/object_search/grid_world.h"
+#include "npfkct/object_search/geometry.h"
+#include "npfkct/object_search/grid_world.h"
 #include "npfkct/solver/status.h"
 
 namespace npfkct::object_search {
@@ -21,6 +22,11 @@ enum ObjectStatus : int8_t {
   kDeclaredObstacle = 0,
   kDeclaredTarget = 1,
 };
+
+/// The offsets of the discrete action kinds of object i: kind 1 + 3i + offset (model.h).
+inline constexpr int kDeclareTargetOffset = 0;
+inline constexpr int kDeclareObstacleOffset = 1;
+inline constexpr int kRemoveOffset = 2;
 
 /// Parameters of the object-search POMDP (paper section 3 and appendix J).
 struct SearchParams {
@@ -59,6 +65,25 @@ struct SearchParams {
   /// Checks every field; the message names the offending one.
   Status Validate() const;
 };
+
+/// What one executed action did; the reward table maps it to a reward.
+enum class ActionOutcome {
+  kMoved,             ///< A legal move.
+  kIllegal,           ///< Any illegal action (collision, wrong declaration, re-removal, ...).
+  kDeclaredTarget,    ///< The target correctly declared.
+  kDeclaredObstacle,  ///< An obstacle correctly declared.
+  kRemovedTarget,     ///< The declared target removed (terminal).
+  kRemovedObstacle,   ///< A declared obstacle removed.
+};
+
+/// The paper's reward table (section 3): R_min per move, R_ill for illegal actions, R_ct and R_co
+/// for correct declarations, R_max for removing the target, 2 R_min for removing an obstacle. The
+/// model, the simulator and the server all take rewards from here.
+double RewardOf(const SearchParams& p, ActionOutcome outcome);
+
+/// The outcome of a declare/remove (kind offset: 0 declare target, 1 declare obstacle, 2 remove)
+/// that succeeded on an object whose status was `status`.
+ActionOutcome SuccessfulOutcome(int kind_offset, int8_t status);
 
 /// A 2-D occupancy map of the floor; the base may not stand where its footprint touches an
 /// occupied cell.
@@ -156,9 +181,15 @@ struct World {
   bool BaseFeasible(double x, double y) const;
   /// Index of the object with this key, or -1.
   int FindObject(const std::string& key) const;
-  /// The paper's manual discrete configuration set: every discrete pose x 3 lifts x 9 head
-  /// orientations (3 pans x 3 tilts). Poses default to each base region's center facing the
-  /// nearest workspace.
+  /// The manual base poses (x, y, yaw) of the discrete baselines: discrete_poses, or each base
+  /// region's center facing the nearest workspace.
+  std::vector<RobotConfig> ManualPoses() const;
+  /// The manual lift heights: lowest, middle, highest.
+  std::array<double, 3> ManualLifts() const;
+  /// The manual head orientations (pan, tilt): 3 pans (both limits and the middle) x 3 tilts
+  /// (level, half-way down, lowest).
+  std::array<std::pair<double, double>, 9> ManualHeads() const;
+  /// Every manual pose x lift x head orientation (4 x 3 x 9 = 108 with four poses).
   std::vector<RobotConfig> ManualConfigurations() const;
 };
 

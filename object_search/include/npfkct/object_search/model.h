@@ -10,8 +10,8 @@
 #include <string>
 #include <vector>
 
+#include "npfkct/object_search/world.h"
 #include "npfkct/solver/model.h"
-#include "npfkct/solver/object_search/world.h"
 #include "npfkct/solver/spaces.h"
 
 namespace npfkct::object_search {
@@ -53,14 +53,15 @@ struct Observation {
 /// face odds (8), moveability, status.
 using ObjectVector20 = std::array<double, 20>;
 
-/// Action kinds: kind 0 moves to a configuration (x, y, yaw, lift, pan, tilt); kind 1 + 3i
-/// declares object i the target, 2 + 3i declares it an obstacle, 3 + 3i removes it.
+/// Action kinds, the one place their layout is defined: kind 0 moves to a configuration (x, y,
+/// yaw, lift, pan, tilt); kind 1 + 3i + offset acts on object i, offset kDeclareTargetOffset
+/// declaring it the target, kDeclareObstacleOffset an obstacle, kRemoveOffset removing it.
 inline constexpr int kMoveKind = 0;
-inline int DeclareTargetKind(int object) { return 1 + 3 * object; }
-inline int DeclareObstacleKind(int object) { return 2 + 3 * object; }
-inline int RemoveKind(int object) { return 3 + 3 * object; }
-/// The object a discrete kind refers to, and the offset (0 declare target, 1 declare obstacle,
-/// 2 remove).
+inline int ObjectKind(int object, int offset) { return 1 + 3 * object + offset; }
+inline int DeclareTargetKind(int object) { return ObjectKind(object, kDeclareTargetOffset); }
+inline int DeclareObstacleKind(int object) { return ObjectKind(object, kDeclareObstacleOffset); }
+inline int RemoveKind(int object) { return ObjectKind(object, kRemoveOffset); }
+/// The object a discrete kind refers to, and its offset.
 inline int KindObject(int kind) { return (kind - 1) / 3; }
 inline int KindOffset(int kind) { return (kind - 1) % 3; }
 

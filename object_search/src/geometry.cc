@@ -1,4 +1,4 @@
-#include "npfkct/solver/object_search/geometry.h"
+#include "npfkct/object_search/geometry.h"
 
 #include <algorithm>
 #include <cmath>

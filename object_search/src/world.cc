@@ -1,4 +1,4 @@
-#include "npfkct/solver/object_search/world.h"
+#include "npfkct/object_search/world.h"
 
 #include <algorithm>
 #include <cmath>
@@ -59,6 +59,37 @@ Status SearchParams::Validate() const {
   }
   if (max_steps < 1) return InvalidArgumentError("max_steps must be >= 1");
   return OkStatus();
+}
+
+double RewardOf(const SearchParams& p, ActionOutcome outcome) {
+  switch (outcome) {
+    case ActionOutcome::kMoved:
+      return p.r_min;
+    case ActionOutcome::kIllegal:
+      return p.r_ill;
+    case ActionOutcome::kDeclaredTarget:
+      return p.r_ct;
+    case ActionOutcome::kDeclaredObstacle:
+      return p.r_co;
+    case ActionOutcome::kRemovedTarget:
+      return p.r_max;
+    case ActionOutcome::kRemovedObstacle:
+      return 2.0 * p.r_min;
+  }
+  return p.r_ill;
+}
+
+ActionOutcome SuccessfulOutcome(int kind_offset, int8_t status) {
+  switch (kind_offset) {
+    case kDeclareTargetOffset:
+      return ActionOutcome::kDeclaredTarget;
+    case kDeclareObstacleOffset:
+      return ActionOutcome::kDeclaredObstacle;
+    case kRemoveOffset:
+      return status == kDeclaredTarget ? ActionOutcome::kRemovedTarget
+                                       : ActionOutcome::kRemovedObstacle;
+  }
+  return ActionOutcome::kIllegal;
 }
 
 OccupancyMap::OccupancyMap(Vec2 min, Vec2 max, double resolution)
@@ -184,38 +215,50 @@ int World::FindObject(const std::string& key) const {
   return -1;
 }
 
-std::vector<RobotConfig> World::ManualConfigurations() const {
+std::vector<RobotConfig> World::ManualPoses() const {
   std::vector<RobotConfig> poses = discrete_poses;
-  if (poses.empty()) {
-    for (const BaseRegion& r : base_regions) {
-      RobotConfig c;
-      c.x = 0.5 * (r.min.x() + r.max.x());
-      c.y = 0.5 * (r.min.y() + r.max.y());
-      double best = 1e18;
-      for (const Workspace& w : grid.workspaces()) {
-        const double d = (w.center - Vec2(c.x, c.y)).squaredNorm();
-        if (d < best) {
-          best = d;
-          c.yaw = std::atan2(w.center.y() - c.y, w.center.x() - c.x);
-        }
+  if (!poses.empty()) return poses;
+  for (const BaseRegion& r : base_regions) {
+    RobotConfig c;
+    c.x = 0.5 * (r.min.x() + r.max.x());
+    c.y = 0.5 * (r.min.y() + r.max.y());
+    double best = 1e18;
+    for (const Workspace& w : grid.workspaces()) {
+      const double d = (w.center - Vec2(c.x, c.y)).squaredNorm();
+      if (d < best) {
+        best = d;
+        c.yaw = std::atan2(w.center.y() - c.y, w.center.x() - c.x);
       }
-      poses.push_back(c);
     }
+    poses.push_back(c);
   }
-  std::vector<RobotConfig> out;
-  const double lifts[3] = {robot.lift_min, 0.5 * (robot.lift_min + robot.lift_max), robot.lift_max};
+  return poses;
+}
+
+std::array<double, 3> World::ManualLifts() const {
+  return {robot.lift_min, 0.5 * (robot.lift_min + robot.lift_max), robot.lift_max};
+}
+
+std::array<std::pair<double, double>, 9> World::ManualHeads() const {
   const double pans[3] = {robot.pan_min, 0.5 * (robot.pan_min + robot.pan_max), robot.pan_max};
   const double tilts[3] = {0.0, 0.5 * robot.tilt_max, robot.tilt_max};
-  for (const RobotConfig& pose : poses) {
-    for (double lift : lifts) {
-      for (double pan : pans) {
-        for (double tilt : tilts) {
-          RobotConfig c = pose;
-          c.lift = lift;
-          c.pan = pan;
-          c.tilt = tilt;
-          out.push_back(c);
-        }
+  std::array<std::pair<double, double>, 9> out;
+  for (int p = 0; p < 3; ++p) {
+    for (int t = 0; t < 3; ++t) out[3 * p + t] = {pans[p], tilts[t]};
+  }
+  return out;
+}
+
+std::vector<RobotConfig> World::ManualConfigurations() const {
+  std::vector<RobotConfig> out;
+  for (const RobotConfig& pose : ManualPoses()) {
+    for (double lift : ManualLifts()) {
+      for (const auto& [pan, tilt] : ManualHeads()) {
+        RobotConfig c = pose;
+        c.lift = lift;
+        c.pan = pan;
+        c.tilt = tilt;
+        out.push_back(c);
       }
     }
   }

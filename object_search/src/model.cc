@@ -1,4 +1,4 @@
-#include "npfkct/solver/object_search/model.h"
+#include "npfkct/object_search/model.h"
 
 #include <algorithm>
 #include <cmath>
@@ -170,52 +170,41 @@ StepResult<State, Observation> ObjectSearchModel::Step(const State& s, const Act
     return r;
   }
   State& n = r.state;
+  ActionOutcome outcome = ActionOutcome::kIllegal;
   if (a.kind == kMoveKind) {
     const RobotConfig c = a.x.size() == 6 ? ConfigOf(a.x) : s.robot;
     if (a.x.size() == 6 && world_->BaseFeasible(c.x, c.y)) {
       n.robot = c;
-      r.reward = p.r_min;
-    } else {
-      r.reward = p.r_ill;
+      outcome = ActionOutcome::kMoved;
     }
   } else {
     const int i = KindObject(a.kind);
-    if (a.kind < 1 || i >= static_cast<int>(s.objects.size())) {
-      r.reward = p.r_ill;
-    } else {
+    if (a.kind >= 1 && i < static_cast<int>(s.objects.size())) {
       ObjectParticle& obj = n.objects[i];
-      switch (KindOffset(a.kind)) {
-        case 0:
-          if (obj.status == kUpdating && CountPast(obj.odds, true) >= p.n_odds) {
-            obj.status = kDeclaredTarget;
-            r.reward = p.r_ct;
-          } else {
-            r.reward = p.r_ill;
-          }
+      const int offset = KindOffset(a.kind);
+      bool legal = false;
+      switch (offset) {
+        case kDeclareTargetOffset:
+          legal = obj.status == kUpdating && CountPast(obj.odds, true) >= p.n_odds;
           break;
-        case 1:
-          if (obj.status == kUpdating && CountPast(obj.odds, false) >= p.n_odds) {
-            obj.status = kDeclaredObstacle;
-            r.reward = p.r_co;
-          } else {
-            r.reward = p.r_ill;
-          }
+        case kDeclareObstacleOffset:
+          legal = obj.status == kUpdating && CountPast(obj.odds, false) >= p.n_odds;
           break;
         default:
-          if (obj.status == kDeclaredTarget && obj.moveable) {
-            obj.status = kRemoved;
-            r.reward = p.r_max;
-            n.terminal = true;
-          } else if (obj.status == kDeclaredObstacle && obj.moveable) {
-            obj.status = kRemoved;
-            r.reward = 2.0 * p.r_min;
-          } else {
-            r.reward = p.r_ill;
-          }
+          legal =
+              (obj.status == kDeclaredTarget || obj.status == kDeclaredObstacle) && obj.moveable;
           break;
+      }
+      if (legal) {
+        outcome = SuccessfulOutcome(offset, obj.status);
+        obj.status = offset == kDeclareTargetOffset     ? kDeclaredTarget
+                     : offset == kDeclareObstacleOffset ? kDeclaredObstacle
+                                                        : kRemoved;
+        n.terminal = outcome == ActionOutcome::kRemovedTarget;
       }
     }
   }
+  r.reward = RewardOf(p, outcome);
   r.terminal = n.terminal;
   if (!n.terminal) Observe(&n, rng, &r.observation);
   return r;
@@ -251,8 +240,9 @@ bool ObjectSearchModel::IsFeasible(const State& s, const Action& a) const {
   const int i = KindObject(a.kind);
   if (i < 1 || i >= static_cast<int>(s.objects.size())) return false;  // not the guessed target
   const int8_t status = s.objects[i].status;
-  return KindOffset(a.kind) == 2 ? (status == kDeclaredTarget || status == kDeclaredObstacle)
-                                 : status == kUpdating;
+  return KindOffset(a.kind) == kRemoveOffset
+             ? (status == kDeclaredTarget || status == kDeclaredObstacle)
+             : status == kUpdating;
 }
 
 double ObjectSearchModel::ObservationLikelihood(const Action& a, const State& sp,
@@ -284,9 +274,9 @@ HybridAction ObjectSearchModel::RolloutAction(const State& s, Rng& rng) const {
       if (k == kMoveKind) continue;
       const int i = KindObject(k);
       int rank = 0;
-      if (KindOffset(k) == 2 && s.objects[i].status == kDeclaredTarget) rank = 3;
-      if (KindOffset(k) == 0) rank = 2;
-      if (KindOffset(k) == 1) rank = 1;
+      if (KindOffset(k) == kRemoveOffset && s.objects[i].status == kDeclaredTarget) rank = 3;
+      if (KindOffset(k) == kDeclareTargetOffset) rank = 2;
+      if (KindOffset(k) == kDeclareObstacleOffset) rank = 1;
       if (rank > best_rank) {
         best_rank = rank;
         best = k;

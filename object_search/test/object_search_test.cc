@@ -5,9 +5,9 @@
 #include <cmath>
 #include <memory>
 
+#include "npfkct/object_search/discrete.h"
+#include "npfkct/object_search/model.h"
 #include "npfkct/solver/kct.h"
-#include "npfkct/solver/object_search/discrete.h"
-#include "npfkct/solver/object_search/model.h"
 #include "npfkct/solver/pomcp.h"
 
 namespace npfkct::object_search {
@@ -309,15 +309,15 @@ TEST(ObjectSearchModelTest, PlannersDeclareAndRemoveAConfirmedTarget) {
   auto d = kct.Plan(Budget::Simulations(2000), rng);
   ASSERT_TRUE(d.status.ok()) << d.status.ToString();
   EXPECT_EQ(d.action.kind, DeclareTargetKind(1));
-  DiscreteObjectSearch discrete(model);
+  DiscreteObjectSearch discrete(model, DiscreteActionSet::kJoint);
   PomcpOptions po;
   po.search.num_particles = 200;
   Pomcp<DiscreteObjectSearch> pomcp(discrete, po);
   pomcp.Reset(rng);
   auto pd = pomcp.Plan(Budget::Simulations(2000), rng);
   ASSERT_TRUE(pd.status.ok());
-  EXPECT_EQ(discrete.ToHybrid(pd.action).kind, DeclareTargetKind(1));
-  EXPECT_EQ(discrete.num_configs(), 1 * 3 * 9);
+  EXPECT_EQ(discrete.ToHybrid(pd.action, w.robot_config).kind, DeclareTargetKind(1));
+  EXPECT_EQ(discrete.num_moves(), 1 * 3 * 9);
 }
 
 }  // namespace

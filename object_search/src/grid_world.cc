@@ -1,4 +1,4 @@
-#include "npfkct/solver/object_search/grid_world.h"
+#include "npfkct/object_search/grid_world.h"
 
 #include <algorithm>
 #include <cmath>
