@@ -1,23 +1,43 @@
 #!/usr/bin/env bash
-# Reproduces the paper's Table 1 on the built-in simulator: every scenario x every planner, 20
-# trials each, 1 s of planning per step, success within 50 steps. Writes
-# bench/results/table1.jsonl (one JSON object per scenario and planner) and table1.md (the
-# Markdown table of the README). One scenario at a time (its results are appended as soon as it
-# ends, so an interrupted run keeps what it finished); inside a scenario trials run trial-major,
-# so machine noise spreads evenly over the planners. About 2 hours on a 2-core machine.
-# Usage: scripts/bench_table1.sh [time_ms] [trials]   (env: PLANNERS, SCENARIOS, BUILD_DIR, OUT)
+# Table 1 of the README: every planner on the paper's six scenes, 20 trials per cell, 1 s of the
+# planning thread's CPU time per step, success within 50 steps, trials seeded 1000003 + i in every
+# cell (the same worlds and noise for every planner).
+#
+# Resumable: each (scene, planner) cell is one file, bench/results/table1/RUN/SCENE/PLANNER.jsonl,
+# and a cell whose file holds a finished run is skipped, so an interrupted run continues where it
+# stopped (on this machine or another: CPU-time budgets make cells measured on different machines
+# and days comparable). With --commit each finished cell is committed to git at once. The table
+# (table1.md, with each planner's reward as a share of the oracle's) is rebuilt at the end.
+#
+# The full table is several CPU-hours (about 6 on the 2-core machine, i.e. 3 hours of wall time).
+# Usage: scripts/bench_table1.sh [--run NAME] [--cpu-ms MS] [--trials N] [--commit]
+#        env: SCENES (default: the six), PLANNERS (default: every planner), BUILD_DIR
 set -euo pipefail
 NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 source "$NPFKCT_ROOT/scripts/deps.sh"
-npfkct_prepare
-OUT="${OUT:-$NPFKCT_ROOT/bench/results}"
-mkdir -p "$OUT"
-D="$NPFKCT_ROOT/scenarios/data"
-: >"$OUT/table1.jsonl"
-for scenario in ${SCENARIOS:-loose1 loose2 hidden1 covered1 complex1 fig16}; do
-  "$BUILD_DIR/scenarios/npfkct-bench" --scenario "$D/$scenario.json" \
-    --planner "${PLANNERS:-pomcp,gpomcp,pomcpow,vomcpow,advt,kct}" \
-    --trials "${2:-20}" --time-ms "${1:-1000}" --threads "$(nproc)" | tee -a "$OUT/table1.jsonl"
+RUN=run1
+CPU_MS=1000
+TRIALS=20
+COMMIT=0
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --run) RUN="$2"; shift 2 ;;
+    --cpu-ms) CPU_MS="$2"; shift 2 ;;
+    --trials) TRIALS="$2"; shift 2 ;;
+    --commit) COMMIT=1; shift ;;
+    -h|--help) sed -n '2,17p' "$0"; exit 0 ;;
+    *) echo "bench_table1.sh: unknown argument $1 (see --help)" >&2; exit 2 ;;
+  esac
 done
-python3 "$NPFKCT_ROOT/scripts/results_table.py" "$OUT/table1.jsonl" >"$OUT/table1.md"
-cat "$OUT/table1.md"
+npfkct_prepare
+SCENES="${SCENES:-loose1 loose2 hidden1 covered1 complex1 fig16}"
+PLANNERS="${PLANNERS:-oracle npfkct kct pomcp gpomcp pomcp-joint pomcpow vomcpow advt}"
+OUT="$NPFKCT_ROOT/bench/results/table1/$RUN"
+for scene in $SCENES; do
+  for planner in $PLANNERS; do
+    npfkct_bench_cell "$OUT/$scene/$planner.jsonl" "$TRIALS" \
+      --scenario "$NPFKCT_ROOT/scenarios/data/$scene.json" --planner "$planner" \
+      --trials "$TRIALS" --cpu-ms "$CPU_MS" --threads "$(nproc)" --seed 1
+  done
+done
+python3 "$NPFKCT_ROOT/scripts/results_table.py" table1 "$OUT" | tee "$OUT/table1.md"

@@ -44,3 +44,36 @@ npfkct_prepare() {
   BUILD_DIR="${BUILD_DIR:-$NPFKCT_ROOT/build}"
   npfkct_build "$BUILD_DIR" >/dev/null
 }
+
+# One cell of a resumable benchmark table: runs npfkct-bench with the given arguments and stores
+# its JSON line in FILE, unless FILE already holds a finished run of TRIALS trials. The line is
+# written to a temporary file first, so an interrupted run leaves no half cell. With COMMIT=1 the
+# finished cell is committed to git at once. Needs BUILD_DIR and NPFKCT_ROOT.
+# Usage: npfkct_bench_cell FILE TRIALS npfkct-bench-arguments...
+npfkct_bench_cell() {
+  local file="$1" trials="$2"
+  shift 2
+  if [ -s "$file" ] && python3 -c "import json,sys; d=json.loads(open(sys.argv[1]).readline()); \
+sys.exit(0 if d.get('trials') == int(sys.argv[2]) and not d.get('failed_trials') else 1)" \
+    "$file" "$trials" 2>/dev/null; then
+    echo "done already: ${file#"$NPFKCT_ROOT"/}" >&2
+    return 0
+  fi
+  mkdir -p "$(dirname "$file")"
+  echo "running: ${file#"$NPFKCT_ROOT"/}" >&2
+  "$BUILD_DIR/scenarios/npfkct-bench" "$@" >"$file.tmp"
+  # Record the commit the numbers were measured at (dirty: with uncommitted changes).
+  local commit
+  commit="$(git -C "$NPFKCT_ROOT" rev-parse --short HEAD 2>/dev/null || echo unknown)"
+  if ! git -C "$NPFKCT_ROOT" diff --quiet HEAD -- ':!bench/results' 2>/dev/null; then
+    commit="$commit-dirty"
+  fi
+  python3 -c "import json,sys; d=json.loads(open(sys.argv[1]).readline()); d['commit']=sys.argv[2]; \
+d['machine']='$(nproc) cores, '+open('/proc/cpuinfo').read().split('model name')[1].split(':')[1].split(chr(10))[0].strip(); \
+open(sys.argv[1],'w').write(json.dumps(d)+chr(10))" "$file.tmp" "$commit"
+  mv "$file.tmp" "$file"
+  if [ "${COMMIT:-0}" = 1 ]; then
+    git -C "$NPFKCT_ROOT" add "$file"
+    git -C "$NPFKCT_ROOT" commit -q -m "bench: ${file#"$NPFKCT_ROOT"/}" -- "$file"
+  fi
+}

@@ -1,45 +1,226 @@
 #!/usr/bin/env python3
-"""Turns npfkct-bench object-search JSON lines into the Markdown table of the README.
+"""Builds the README's benchmark tables from npfkct-bench JSON lines.
 
-Rows are planners (with the observation mode when a file mixes several), columns scenarios; a cell
-is 'mean discounted reward ± 95% CI | mean steps ± 95% CI | success rate', as in the paper's
-Table 1. A last column gives the median simulations per second on Complex1 when it is present.
-Usage: scripts/results_table.py RESULTS.jsonl > TABLE.md
+  results_table.py table1 DIR      Table 1 from DIR/SCENE/PLANNER.jsonl (scripts/bench_table1.sh):
+                                   reward ± 95% CI | steps ± 95% CI | success, and each planner's
+                                   mean reward as a share of the oracle's in the same scene.
+  results_table.py generated DIR   The held-out generated scenes (scripts/bench_generated.sh): per
+                                   planner, the mean over scenes of its share of the oracle's
+                                   reward with a Student's t interval over the scenes, success rate
+                                   and mean steps over every trial.
+  results_table.py compare A B     Whether two runs of the same cells agree: each mean inside the
+                                   other run's 95% interval.
+  results_table.py flat FILE       A table from one file of JSON lines (rows planners, columns
+                                   scenarios), as written by --observe comparisons.
+
+Intervals are two-sided 95% Student's t intervals of the mean (n - 1 degrees of freedom); the bench
+writes them per cell, and this script computes them the same way for derived figures.
 """
 
+import glob
 import json
+import math
+import os
 import sys
 
+PAPER_SCENES = ["Loose1", "Loose2", "Hidden1", "Covered1", "Complex1", "Fig16"]
+PLANNER_ORDER = ["oracle", "npfkct", "kct", "pomcp", "gpomcp", "pomcp-joint", "pomcpow",
+                 "vomcpow", "advt"]
 
-def main():
-    rows = [json.loads(line) for line in open(sys.argv[1], encoding="utf-8") if line.strip()]
-    scenarios, planners = [], []
-    modes = {r.get("observe", "geometric") for r in rows}
+
+def _beta_cf(x, a, b):
+    tiny, eps = 1e-300, 1e-15
+    qab, qap, qam = a + b, a + 1.0, a - 1.0
+    c, d = 1.0, 1.0 - qab * x / qap
+    d = 1.0 / (d if abs(d) > tiny else tiny)
+    h = d
+    for m in range(1, 501):
+        m2 = 2 * m
+        for aa in (m * (b - m) * x / ((qam + m2) * (a + m2)),
+                   -(a + m) * (qab + m) * x / ((a + m2) * (qap + m2))):
+            d = 1.0 + aa * d
+            d = 1.0 / (d if abs(d) > tiny else tiny)
+            c = 1.0 + aa / c
+            c = c if abs(c) > tiny else tiny
+            h *= d * c
+        if abs(d * c - 1.0) < eps:
+            break
+    return h
+
+
+def _ibeta(x, a, b):
+    if x <= 0:
+        return 0.0
+    if x >= 1:
+        return 1.0
+    front = math.exp(math.lgamma(a + b) - math.lgamma(a) - math.lgamma(b)
+                     + a * math.log(x) + b * math.log1p(-x))
+    if x < (a + 1) / (a + b + 2):
+        return front * _beta_cf(x, a, b) / a
+    return 1.0 - front * _beta_cf(1 - x, b, a) / b
+
+
+def t_quantile(p, df):
+    """The p-quantile of Student's t with df degrees of freedom (p > 0.5)."""
+    def cdf(t):
+        return 1.0 - 0.5 * _ibeta(df / (df + t * t), 0.5 * df, 0.5)
+    lo, hi = 0.0, 1.0
+    while cdf(hi) < p:
+        hi *= 2
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if cdf(mid) < p:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+def mean_ci(values):
+    n = len(values)
+    if n == 0:
+        return float("nan"), 0.0
+    m = sum(values) / n
+    if n < 2:
+        return m, 0.0
+    sd = math.sqrt(sum((v - m) ** 2 for v in values) / (n - 1))
+    return m, t_quantile(0.975, n - 1) * sd / math.sqrt(n)
+
+
+def load_cells(root):
+    """{(scene, planner): record} from ROOT/*/*.jsonl."""
     cells = {}
+    for path in sorted(glob.glob(os.path.join(root, "*", "*.jsonl"))):
+        with open(path, encoding="utf-8") as f:
+            line = f.readline()
+        if line.strip():
+            r = json.loads(line)
+            cells[(r["scenario"], r["planner"])] = r
+    return cells
+
+
+def order(names, preferred):
+    return [n for n in preferred if n in names] + sorted(n for n in names if n not in preferred)
+
+
+def cell_text(r):
+    return (f"{r['mean_discounted_reward']:.1f} ± {r['ci95']:.1f} \\| "
+            f"{r['mean_steps']:.1f} ± {r['ci95_steps']:.1f} \\| {100 * r['success_rate']:.0f}%")
+
+
+def table1(root):
+    cells = load_cells(root)
+    scenes = order({s for s, _ in cells}, PAPER_SCENES)
+    planners = order({p for _, p in cells}, PLANNER_ORDER)
+    budget = {(r["cpu_ms"], r["trials"]) for r in cells.values()}
+    print(f"Cells: discounted reward ± 95% t interval \\| steps ± 95% t interval \\| success "
+          f"rate; budgets and trials (cpu_ms, trials): {sorted(budget)}.\n")
+    print("| Planner |" + "".join(f" {s} |" for s in scenes) + " sims/CPU-s (Complex1) |")
+    print("|---|" + "---|" * (len(scenes) + 1))
+    for p in planners:
+        row = f"| {p} |"
+        for s in scenes:
+            r = cells.get((s, p))
+            row += " – |" if r is None else f" {cell_text(r)} |"
+        r = cells.get(("Complex1", p))
+        row += " – |" if r is None or p == "oracle" else f" {r['median_sims_per_cpu_second']:.0f} |"
+        print(row)
+    print("\nMean reward as a share of the oracle's in the same scene:\n")
+    print("| Planner |" + "".join(f" {s} |" for s in scenes))
+    print("|---|" + "---|" * len(scenes))
+    for p in planners:
+        if p == "oracle":
+            continue
+        row = f"| {p} |"
+        for s in scenes:
+            r, o = cells.get((s, p)), cells.get((s, "oracle"))
+            if r is None or o is None or o["mean_discounted_reward"] <= 0:
+                row += " – |"
+            else:
+                row += f" {100 * r['mean_discounted_reward'] / o['mean_discounted_reward']:.0f}% |"
+        print(row)
+
+
+def generated(root):
+    cells = load_cells(root)
+    scenes = sorted({s for s, _ in cells})
+    planners = order({p for _, p in cells}, PLANNER_ORDER)
+    budget = {(r["cpu_ms"], r["trials"]) for r in cells.values()}
+    print(f"{len(scenes)} held-out generated scenes; budgets and trials (cpu_ms, trials): "
+          f"{sorted(budget)}. Share of the oracle: per scene the planner's mean reward over the "
+          f"oracle's, then the mean over scenes ± 95% t interval over scenes.\n")
+    print("| Planner | Share of the oracle's reward | Success | Steps | Scenes |")
+    print("|---|---|---|---|---|")
+    for p in planners:
+        shares, successes, steps, n = [], [], [], 0
+        for s in scenes:
+            r, o = cells.get((s, p)), cells.get((s, "oracle"))
+            if r is None:
+                continue
+            n += 1
+            successes += r.get("successes", [])
+            steps += r.get("steps", [])
+            if o is not None and o["mean_discounted_reward"] > 0:
+                shares.append(r["mean_discounted_reward"] / o["mean_discounted_reward"])
+        m, ci = mean_ci(shares)
+        sm, sci = mean_ci(steps)
+        succ = 100 * sum(successes) / len(successes) if successes else float("nan")
+        print(f"| {p} | {100 * m:.1f}% ± {100 * ci:.1f} | {succ:.1f}% | {sm:.1f} ± {sci:.1f} | {n} |")
+
+
+def compare(a_root, b_root):
+    a, b = load_cells(a_root), load_cells(b_root)
+    keys = [k for k in a if k in b]
+    scenes = order({s for s, _ in keys}, PAPER_SCENES)
+    planners = order({p for _, p in keys}, PLANNER_ORDER)
+    print(f"| Scene | Planner | {os.path.basename(a_root)} | {os.path.basename(b_root)} | "
+          "Each mean inside the other's interval |")
+    print("|---|---|---|---|---|")
+    agree = 0
+    for s in scenes:
+        for p in planners:
+            if (s, p) not in a or (s, p) not in b:
+                continue
+            ra, rb = a[(s, p)], b[(s, p)]
+            ma, ca = ra["mean_discounted_reward"], ra["ci95"]
+            mb, cb = rb["mean_discounted_reward"], rb["ci95"]
+            ok = abs(ma - mb) <= min(ca, cb) + 1e-6
+            agree += ok
+            print(f"| {s} | {p} | {ma:.1f} ± {ca:.1f} | {mb:.1f} ± {cb:.1f} | "
+                  f"{'yes' if ok else 'no'} |")
+    print(f"\n{agree} of {len(keys)} cells agree.")
+
+
+def flat(path):
+    rows = [json.loads(line) for line in open(path, encoding="utf-8") if line.strip()]
+    modes = {r.get("observe", "geometric") for r in rows}
+    scenes, planners, cells = [], [], {}
     for r in rows:
         name = r["planner"] + (f" ({r['observe']})" if len(modes) > 1 else "")
-        if r["scenario"] not in scenarios:
-            scenarios.append(r["scenario"])
+        if r["scenario"] not in scenes:
+            scenes.append(r["scenario"])
         if name not in planners:
             planners.append(name)
         cells[(name, r["scenario"])] = r
-    complex_col = "Complex1" in scenarios
-    head = "| Planner |" + "".join(f" {s} |" for s in scenarios)
-    head += " sims/s (Complex1) |" if complex_col else ""
-    print(head)
-    print("|---|" + "---|" * (len(scenarios) + (1 if complex_col else 0)))
+    print("| Planner |" + "".join(f" {s} |" for s in scenes))
+    print("|---|" + "---|" * len(scenes))
     for p in planners:
-        line = f"| {p} |"
-        for s in scenarios:
-            r = cells.get((p, s))
-            line += (" – |" if r is None else
-                     f" {r['mean_discounted_reward']:.1f} ± {r['ci95']:.1f} \\| "
-                     f"{r['mean_steps']:.1f} ± {r['ci95_steps']:.1f} \\| "
-                     f"{100 * r['success_rate']:.0f}% |")
-        if complex_col:
-            r = cells.get((p, "Complex1"))
-            line += " – |" if r is None else f" {r['median_sims_per_second']:.0f} |"
-        print(line)
+        print(f"| {p} |" + "".join(
+            " – |" if (p, s) not in cells else f" {cell_text(cells[(p, s)])} |" for s in scenes))
+
+
+def main():
+    if len(sys.argv) < 3 or sys.argv[1] not in ("table1", "generated", "compare", "flat"):
+        print(__doc__)
+        sys.exit(2)
+    if sys.argv[1] == "table1":
+        table1(sys.argv[2])
+    elif sys.argv[1] == "generated":
+        generated(sys.argv[2])
+    elif sys.argv[1] == "compare":
+        compare(sys.argv[2], sys.argv[3])
+    else:
+        flat(sys.argv[2])
 
 
 if __name__ == "__main__":

@@ -3,10 +3,13 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <map>
 #include <memory>
+#include <queue>
 
 #include "npfkct/object_search/discrete.h"
 #include "npfkct/object_search/model.h"
+#include "npfkct/object_search/search_planner.h"
 #include "npfkct/solver/kct.h"
 #include "npfkct/solver/pomcp.h"
 
@@ -318,6 +321,123 @@ TEST(ObjectSearchModelTest, PlannersDeclareAndRemoveAConfirmedTarget) {
   ASSERT_TRUE(pd.status.ok());
   EXPECT_EQ(discrete.ToHybrid(pd.action, w.robot_config).kind, DeclareTargetKind(1));
   EXPECT_EQ(discrete.num_moves(), 1 * 3 * 9);
+}
+
+// Four base regions around the table, so that the manual set has the paper's four poses.
+World FourSidedWorld() {
+  World w = TestWorld();
+  w.base_regions = {{Vec2(-0.5, -0.6), Vec2(0.4, 0.6)},
+                    {Vec2(2.0, -0.6), Vec2(2.6, 0.6)},
+                    {Vec2(0.7, 0.8), Vec2(1.7, 1.4)},
+                    {Vec2(0.7, -1.4), Vec2(1.7, -0.8)}};
+  return w;
+}
+
+TEST(DiscreteActionSetTest, PrimitiveActionsChangeOnePartAndAViewCanTakeThreeSteps) {
+  const World w = FourSidedWorld();
+  ObjectSearchModel model(std::make_shared<World>(w));
+  DiscreteObjectSearch primitive(model, DiscreteActionSet::kPrimitive);
+  DiscreteObjectSearch joint(model, DiscreteActionSet::kJoint);
+  ASSERT_EQ(primitive.poses().size(), 4u);
+  EXPECT_EQ(primitive.num_moves(), 4 + 3 + 9);
+  EXPECT_EQ(joint.num_moves(), 4 * 3 * 9);
+  RobotConfig from;
+  from.x = -0.3;
+  from.y = 0.1;
+  from.yaw = 0.2;
+  from.lift = 0.13;
+  from.pan = 0.05;
+  from.tilt = 0.21;
+  // Every primitive action changes exactly one part: the base pose, the lift, or the head.
+  for (int a = 0; a < primitive.num_moves(); ++a) {
+    const RobotConfig to = primitive.MoveTarget(a, from);
+    const bool base = to.x != from.x || to.y != from.y || to.yaw != from.yaw;
+    const bool lift = to.lift != from.lift;
+    const bool head = to.pan != from.pan || to.tilt != from.tilt;
+    EXPECT_EQ(base + lift + head, 1) << "action " << a;
+  }
+  // Breadth-first search over primitive actions: reaching a joint configuration that differs in
+  // base, lift and head takes three steps, and none of the 108 takes fewer than the parts that
+  // differ.
+  auto key = [](const RobotConfig& c) {
+    return std::make_tuple(c.x, c.y, c.yaw, c.lift, c.pan, c.tilt);
+  };
+  std::map<decltype(key(from)), int> depth;
+  std::queue<RobotConfig> frontier;
+  depth[key(from)] = 0;
+  frontier.push(from);
+  while (!frontier.empty()) {
+    const RobotConfig c = frontier.front();
+    frontier.pop();
+    for (int a = 0; a < primitive.num_moves(); ++a) {
+      const RobotConfig n = primitive.MoveTarget(a, c);
+      if (depth.emplace(key(n), depth[key(c)] + 1).second) frontier.push(n);
+    }
+  }
+  int three = 0;
+  for (int a = 0; a < joint.num_moves(); ++a) {
+    const RobotConfig target = joint.MoveTarget(a, from);
+    ASSERT_TRUE(depth.count(key(target))) << "joint configuration " << a << " unreachable";
+    const int parts = (target.x != from.x || target.y != from.y || target.yaw != from.yaw) +
+                      (target.lift != from.lift) +
+                      (target.pan != from.pan || target.tilt != from.tilt);
+    EXPECT_EQ(depth[key(target)], parts) << "joint configuration " << a;
+    three += depth[key(target)] == 3;
+  }
+  EXPECT_EQ(three, 4 * 3 * 9);  // from this start every new view needs all three parts changed
+  // A joint action reaches any of them in one step.
+  EXPECT_EQ(ObjectSearchModel::ConfigOf(joint.ToHybrid(57, from).x), joint.MoveTarget(57, from));
+}
+
+TEST(DiscreteActionSetTest, PomcpPlansWithoutTheGuessedTargetAndGpomcpWithIt) {
+  // Nothing detected yet: only the guessed target, sampled on the table, can make a view
+  // valuable. GPOMCP sees the value of looking; the paper's POMCP has no guessed target and
+  // values every action at the step cost.
+  const World w = FourSidedWorld();
+  ObjectSearchModel model(std::make_shared<World>(w));
+  Rng rng(11);
+  auto belief = ParticleBelief<State>::FromInitial(model, 300, rng);
+  auto pomcp = MakeSearchPlanner("pomcp", model, {}).value();
+  auto gpomcp = MakeSearchPlanner("gpomcp", model, {}).value();
+  pomcp->SetBelief(belief);
+  gpomcp->SetBelief(belief);
+  const auto dp = pomcp->Plan(Budget::Simulations(3000), rng);
+  const auto dg = gpomcp->Plan(Budget::Simulations(3000), rng);
+  ASSERT_TRUE(dp.status.ok() && dg.status.ok());
+  EXPECT_LT(dp.value, 0.0);     // only step costs
+  EXPECT_GT(dg.value, 1000.0);  // declaring the guessed target is within reach
+  EXPECT_FALSE(MakeSearchPlanner("oracle", model, {}).ok());
+  EXPECT_FALSE(MakeSearchPlanner("nope", model, {}).ok());
+  for (const std::string& name : SearchPlannerNames()) {
+    if (name == "oracle") continue;
+    auto p = MakeSearchPlanner(name, model, {});
+    ASSERT_TRUE(p.ok()) << name;
+    (*p)->SetBelief(belief);
+    EXPECT_TRUE((*p)->Plan(Budget::Simulations(200), rng).status.ok()) << name;
+  }
+}
+
+TEST(HybridBaselinesTest, NewActionsAreFeasibleConfigurations) {
+  // With the reasonability check the continuous baselines never waste a simulation on a base
+  // outside the base regions: every root action they try is feasible.
+  const World w = FourSidedWorld();
+  ObjectSearchModel model(std::make_shared<World>(w));
+  Rng rng(12);
+  auto belief = ParticleBelief<State>::FromInitial(model, 300, rng);
+  for (const char* name : {"pomcpow", "vomcpow", "advt"}) {
+    auto p = MakeSearchPlanner(name, model, {}).value();
+    p->SetBelief(belief);
+    const auto d = p->Plan(Budget::Simulations(2000), rng);
+    ASSERT_TRUE(d.status.ok()) << name;
+    int moves = 0;
+    for (const auto& r : d.root) {
+      if (r.action.kind != kMoveKind) continue;
+      ++moves;
+      EXPECT_TRUE(model.IsFeasible(belief.particle(0), r.action))
+          << name << ": " << r.action.ToString();
+    }
+    EXPECT_GT(moves, 3) << name;
+  }
 }
 
 }  // namespace

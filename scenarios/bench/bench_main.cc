@@ -26,7 +26,8 @@ struct Config {
   std::string problem;
   std::string planner;
   int episodes = 100;
-  double time_ms = 1000.0;
+  double time_ms = 0.0;
+  double cpu_ms = 0.0;
   int64_t sims = 0;
   uint64_t seed = 1;
   int threads = 1;
@@ -53,6 +54,7 @@ EpisodeResult RunEpisode(const M& model, P& planner, const Budget& budget, int m
     }
     result.sims_per_step.push_back(d.stats.simulations);
     result.ms_per_step.push_back(d.stats.elapsed_ms);
+    result.cpu_ms_per_step.push_back(d.stats.cpu_ms);
     auto step = model.Step(state, d.action, world);
     result.discounted_return += discount * step.reward;
     result.undiscounted_return += step.reward;
@@ -89,9 +91,9 @@ bool ApplyOptions(Options* o, const std::vector<std::string>& assignments) {
 void PrintJson(const Config& c, const RunSummary& s, int max_steps) {
   std::printf(
       "{\"problem\": \"%s\", \"planner\": \"%s\", \"episodes\": %d, \"time_ms\": %g, "
-      "\"sims\": %lld, \"max_steps\": %d, \"seed\": %llu, \"threads\": %d, \"rollout\": \"%s\", "
-      "\"options\": [",
-      JsonEscape(c.problem).c_str(), JsonEscape(c.planner).c_str(), c.episodes, c.time_ms,
+      "\"cpu_ms\": %g, \"sims\": %lld, \"max_steps\": %d, \"seed\": %llu, \"threads\": %d, "
+      "\"rollout\": \"%s\", \"options\": [",
+      JsonEscape(c.problem).c_str(), JsonEscape(c.planner).c_str(), c.episodes, c.time_ms, c.cpu_ms,
       static_cast<long long>(c.sims), max_steps, static_cast<unsigned long long>(c.seed), c.threads,
       JsonEscape(c.rollout).c_str());
   for (size_t i = 0; i < c.options.size(); ++i) {
@@ -108,10 +110,12 @@ void PrintJson(const Config& c, const RunSummary& s, int max_steps) {
   }
   std::printf(
       ", \"mean_steps\": %.3f, \"ci95_steps\": %.3f, \"median_sims_per_step\": %.1f, "
-      "\"median_sims_per_second\": %.1f, \"median_first_step_sims_per_second\": %.1f, "
-      "\"wall_seconds\": %.2f, \"failed_episodes\": %d",
+      "\"median_sims_per_second\": %.1f, \"median_sims_per_cpu_second\": %.1f, "
+      "\"median_first_step_sims_per_second\": %.1f, \"wall_seconds\": %.2f, "
+      "\"failed_episodes\": %d",
       s.mean_steps, s.ci95_steps, s.median_sims_per_step, s.median_sims_per_second,
-      s.median_first_step_sims_per_second, s.wall_seconds, s.failed_episodes);
+      s.median_sims_per_cpu_second, s.median_first_step_sims_per_second, s.wall_seconds,
+      s.failed_episodes);
   if (!s.first_error.empty()) std::printf(", \"error\": \"%s\"", JsonEscape(s.first_error).c_str());
   std::printf("}\n");
   std::fflush(stdout);
@@ -121,7 +125,7 @@ template <class M, class P, class Options, class SuccessFn>
 int Run(const Config& c, const M& model, Options options, int default_max_steps,
         bool success_defined, SuccessFn success) {
   if (!ApplyOptions(&options, c.options)) return 2;
-  const Budget budget{c.time_ms, c.sims};
+  const Budget budget{c.time_ms, c.sims, c.cpu_ms};
   if (Status s = budget.Validate(); !s.ok()) {
     std::cerr << "npfkct-bench: " << s.message() << "\n";
     return 2;
@@ -282,14 +286,18 @@ int main(int argc, char** argv) {
                  "object-search scenario file(s) (repeatable or comma-separated)")
       ->delimiter(',');
   app.add_option("--planner", search.planners,
-                 "problems: pomcp | pomcpow | vomcpow | advt | kct; scenarios: npfkct, "
-                 "npfkct+filter[:explore], kct, "
-                 "pomcp, gpomcp, pomcpow, vomcpow, advt or all (comma-separated)")
+                 "problems: pomcp | pomcpow | vomcpow | advt | kct; scenarios: a comma-separated "
+                 "list of npfkct, kct, pomcp, gpomcp, pomcp-joint, pomcpow, vomcpow, advt, oracle, "
+                 "or all")
       ->delimiter(',')
       ->required();
   app.add_option("--episodes,--trials", c.episodes, "episodes (trials) per run")
       ->check(CLI::PositiveNumber);
-  app.add_option("--time-ms", c.time_ms, "planning time per step in ms (0: no time limit)")
+  app.add_option("--time-ms", c.time_ms, "wall-clock planning time per step in ms (0: no limit)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--cpu-ms", c.cpu_ms,
+                 "CPU time of the planning thread per step in ms (0: no limit); benchmarks of "
+                 "record use it, since it does not shrink when other work shares the core")
       ->check(CLI::NonNegativeNumber);
   app.add_option("--sims", c.sims, "simulations per step (0: no limit)")
       ->check(CLI::NonNegativeNumber);
@@ -298,9 +306,12 @@ int main(int argc, char** argv) {
   app.add_option("--max-steps", c.max_steps, "episode length limit (default per problem)");
   app.add_option("--rollout", c.rollout,
                  "tiger: listen (default) | random; vdptag: random (default) | tonextml");
-  app.add_option("--opt", c.options, "planner option key=value (repeatable)");
+  app.add_option(
+      "--opt", c.options,
+      "planner option key=value (repeatable); scenarios: filter.* set Net_sam's options");
   app.add_option("--model", search.filter_model,
-                 "scenarios: filter model of the npfkct+filter planner (default: the shipped one)");
+                 "scenarios: the neural filter model of the npfkct planner (default: the shipped "
+                 "one; none: uniform candidates)");
   app.add_option("--robot", search.robot, "scenarios: override the robot (fetch | stretch)");
   app.add_option("--table", search.table_path, "scenarios: write a Markdown table (Table 1)");
   app.add_option("--observe", search.observe,
@@ -313,6 +324,7 @@ int main(int argc, char** argv) {
   if (!search.scenarios.empty()) {
     search.trials = c.episodes;
     search.time_ms = c.time_ms;
+    search.cpu_ms = c.cpu_ms;
     search.sims = c.sims;
     search.seed = c.seed;
     search.threads = c.threads;

@@ -17,6 +17,7 @@
 
 #include "npfkct/solver/planner.h"
 #include "npfkct/solver/rng.h"
+#include "npfkct/solver/stats.h"
 #include "npfkct/solver/status.h"
 
 namespace npfkct::bench {
@@ -28,12 +29,13 @@ struct EpisodeResult {
   int steps = 0;
   bool success = false;
   std::vector<int64_t> sims_per_step;
-  std::vector<double> ms_per_step;
-  std::vector<double> extra_ms;  ///< Other per-step timings (perception per frame).
-  std::string error;             ///< Non-empty when planning failed.
+  std::vector<double> ms_per_step;      ///< Wall time of each planning call.
+  std::vector<double> cpu_ms_per_step;  ///< CPU time of the planning thread in each call.
+  std::vector<double> extra_ms;         ///< Other per-step timings (perception per frame).
+  std::string error;                    ///< Non-empty when planning failed.
 };
 
-/// Aggregates of a run.
+/// Aggregates of a run. Intervals are two-sided 95% Student's t intervals of the mean.
 struct RunSummary {
   int episodes = 0;
   double mean_return = 0.0;
@@ -43,19 +45,14 @@ struct RunSummary {
   double ci95_steps = 0.0;
   std::optional<double> success_rate;
   double median_sims_per_step = 0.0;
-  double median_sims_per_second = 0.0;
+  double median_sims_per_second = 0.0;      ///< Per second of wall time.
+  double median_sims_per_cpu_second = 0.0;  ///< Per second of the planning thread's CPU time.
   double median_first_step_sims_per_second = 0.0;  ///< Over episodes, the first step only.
+  double median_cpu_ms_per_step = 0.0;
   double wall_seconds = 0.0;
   int failed_episodes = 0;
   std::string first_error;
 };
-
-inline double Median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 
 /// Runs `jobs` jobs `run(index)` on `threads` threads (each job is one episode) and returns their
 /// results by index; a progress line goes to stderr when it is a terminal.
@@ -93,18 +90,15 @@ inline RunSummary Summarize(const std::vector<EpisodeResult>& results, bool succ
   const int episodes = static_cast<int>(results.size());
   s.episodes = episodes;
   s.wall_seconds = wall_seconds;
-  std::vector<double> sims, rate, first_rate;
-  double sum = 0, sum2 = 0, steps = 0, steps2 = 0;
+  std::vector<double> sims, rate, cpu_rate, first_rate, cpu_ms, returns, steps;
   int successes = 0;
   for (const auto& r : results) {
     if (!r.error.empty()) {
       ++s.failed_episodes;
       if (s.first_error.empty()) s.first_error = r.error;
     }
-    sum += r.discounted_return;
-    sum2 += r.discounted_return * r.discounted_return;
-    steps += r.steps;
-    steps2 += static_cast<double>(r.steps) * r.steps;
+    returns.push_back(r.discounted_return);
+    steps.push_back(r.steps);
     successes += r.success;
     if (!r.sims_per_step.empty() && r.ms_per_step[0] > 0) {
       first_rate.push_back(r.sims_per_step[0] / (r.ms_per_step[0] / 1000.0));
@@ -112,21 +106,26 @@ inline RunSummary Summarize(const std::vector<EpisodeResult>& results, bool succ
     for (size_t k = 0; k < r.sims_per_step.size(); ++k) {
       sims.push_back(static_cast<double>(r.sims_per_step[k]));
       if (r.ms_per_step[k] > 0) rate.push_back(r.sims_per_step[k] / (r.ms_per_step[k] / 1000.0));
+      if (k < r.cpu_ms_per_step.size() && r.cpu_ms_per_step[k] > 0) {
+        cpu_ms.push_back(r.cpu_ms_per_step[k]);
+        cpu_rate.push_back(r.sims_per_step[k] / (r.cpu_ms_per_step[k] / 1000.0));
+      }
     }
   }
-  const double n = std::max(episodes, 1);
-  s.mean_return = sum / n;
-  const double var = episodes > 1 ? (sum2 - n * s.mean_return * s.mean_return) / (n - 1) : 0.0;
-  s.stderr_return = std::sqrt(std::max(var, 0.0) / n);
-  s.ci95_return = 1.96 * s.stderr_return;
-  s.mean_steps = steps / n;
-  const double var_steps =
-      episodes > 1 ? (steps2 - n * s.mean_steps * s.mean_steps) / (n - 1) : 0.0;
-  s.ci95_steps = 1.96 * std::sqrt(std::max(var_steps, 0.0) / n);
-  if (success_defined) s.success_rate = successes / n;
+  const MeanInterval ret = MeanWithInterval(returns);
+  const MeanInterval st = MeanWithInterval(steps);
+  s.mean_return = ret.mean;
+  s.stderr_return = ret.n > 0 ? ret.stddev / std::sqrt(static_cast<double>(ret.n)) : 0.0;
+  s.ci95_return = ret.half_width;
+  s.mean_steps = st.mean;
+  s.ci95_steps = st.half_width;
+  if (success_defined)
+    s.success_rate = episodes > 0 ? static_cast<double>(successes) / episodes : 0;
   s.median_sims_per_step = Median(sims);
   s.median_sims_per_second = Median(rate);
+  s.median_sims_per_cpu_second = Median(cpu_rate);
   s.median_first_step_sims_per_second = Median(first_rate);
+  s.median_cpu_ms_per_step = Median(cpu_ms);
   return s;
 }
 

@@ -15,6 +15,7 @@
 #include "npfkct/object_search/search_planner.h"
 #include "npfkct/perception/perception.h"
 #include "npfkct/sim/frame_io.h"
+#include "npfkct/sim/oracle.h"
 #include "npfkct/sim/scenario.h"
 #include "npfkct/sim/simulator.h"
 
@@ -27,38 +28,29 @@ using object_search::World;
 struct TrialContext {
   const sim::Scenario* scenario;
   std::string planner;
-  std::vector<std::pair<std::string, double>> options;
+  std::vector<std::pair<std::string, double>> options;  // planner options
+  filter::FilterOptions filter_options;
   Budget budget;
   int max_steps;
   uint64_t seed;
   std::string render_prefix;  // empty: no pictures
   bool perception = false;    // observe through rendered frames and the perception pipeline
-  std::shared_ptr<const filter::NeuralFilter> filter;  // for the "npfkct+filter" planner
+  std::shared_ptr<const filter::NeuralFilter> filter;  // Net_sam of the npfkct planner
 };
 
-// The planner "npfkct+filter" is NPF-kCT with the neural filter as its candidate sampler;
-// "npfkct+filter:X" also keeps a share X of uniform candidates (FilterOptions::explore).
-constexpr char kFilteredPlanner[] = "npfkct+filter";
-
-bool IsFiltered(const std::string& name) { return name.rfind(kFilteredPlanner, 0) == 0; }
-
+// A registry planner; npfkct gets Net_sam over the loaded filter as its candidate sampler.
 StatusOr<std::unique_ptr<object_search::SearchPlanner>> MakePlanner(
     const std::string& name, const ObjectSearchModel& model,
     const std::vector<std::pair<std::string, double>>& options,
+    const filter::FilterOptions& filter_options,
     const std::shared_ptr<const filter::NeuralFilter>& net) {
-  if (!IsFiltered(name)) return object_search::MakeSearchPlanner(name, model, options);
-  filter::FilterOptions fo;
-  const std::string rest = name.substr(std::strlen(kFilteredPlanner));
-  if (!rest.empty()) {
-    char* end = nullptr;
-    fo.explore = rest[0] == ':' ? std::strtod(rest.c_str() + 1, &end) : -1.0;
-    if (rest[0] != ':' || end == rest.c_str() + 1 || *end != '\0') {
-      return InvalidArgumentError("planner '" + name + "': expected npfkct+filter[:explore]");
-    }
+  std::shared_ptr<CandidateSampler<object_search::State>> sampler;
+  if (name == "npfkct" && net != nullptr) {
+    auto made = filter::MakeNetSam(net, model, filter_options);
+    if (!made.ok()) return made.status();
+    sampler = *made;
   }
-  auto sampler = filter::MakeNetSam(net, model, fo);
-  if (!sampler.ok()) return sampler.status();
-  return object_search::MakeSearchPlanner("npfkct", model, options, *sampler);
+  return object_search::MakeSearchPlanner(name, model, options, sampler);
 }
 
 // The robot's eyes in perception mode: renders the view, reports a noisy pose, and turns the
@@ -141,23 +133,43 @@ EpisodeResult RunTrial(const TrialContext& ctx) {
     return result;
   }
   ObjectSearchModel model(std::make_shared<World>(world));
-  auto made = MakePlanner(ctx.planner, model, ctx.options, ctx.filter);
-  if (!made.ok()) {
-    result.error = made.status().ToString();
-    return result;
+  // The oracle is told the true scene; every other planner plans on the robot's belief.
+  std::unique_ptr<sim::Oracle> oracle;
+  std::unique_ptr<object_search::SearchPlanner> planner;
+  if (ctx.planner == "oracle") {
+    oracle = std::make_unique<sim::Oracle>(simulator);
+  } else {
+    auto made = MakePlanner(ctx.planner, model, ctx.options, ctx.filter_options, ctx.filter);
+    if (!made.ok()) {
+      result.error = made.status().ToString();
+      return result;
+    }
+    planner = std::move(made).value();
   }
-  std::unique_ptr<object_search::SearchPlanner> planner = std::move(made).value();
   const int particles = 300;
-  planner->SetBelief(ParticleBelief<object_search::State>::FromInitial(model, particles, rng));
+  if (planner) {
+    planner->SetBelief(ParticleBelief<object_search::State>::FromInitial(model, particles, rng));
+  }
   double discount = 1.0;
   for (int t = 0; t < ctx.max_steps; ++t) {
-    Decision<HybridAction> d = planner->Plan(ctx.budget, rng);
+    Decision<HybridAction> d;
+    if (oracle) {
+      TerminationCondition clock(ctx.budget);
+      d.action = oracle->Next(world);
+      d.stats.simulations = 0;
+      d.stats.elapsed_ms = clock.ElapsedMs();
+      d.stats.cpu_ms = clock.CpuMs();
+    } else {
+      TerminationCondition stop(ctx.budget);
+      d = planner->Plan(stop, rng);
+    }
     if (!d.status.ok()) {
       result.error = d.status.ToString();
       break;
     }
     result.sims_per_step.push_back(d.stats.simulations);
     result.ms_per_step.push_back(d.stats.elapsed_ms);
+    result.cpu_ms_per_step.push_back(d.stats.cpu_ms);
     const sim::ExecutionOutcome outcome = simulator.Execute(d.action, world, world_rng);
     result.discounted_return += discount * outcome.reward;
     result.undiscounted_return += outcome.reward;
@@ -192,12 +204,14 @@ EpisodeResult RunTrial(const TrialContext& ctx) {
       break;
     }
     model.SetWorld(std::make_shared<World>(world));
-    planner->OnWorldChanged();
-    auto belief = ParticleBelief<object_search::State>::FromInitial(model, particles, rng);
-    if (new_objects) {
-      planner->SetBelief(std::move(belief));
-    } else {
-      planner->AdvanceTo(d.action, key, std::move(belief));
+    if (planner) {
+      planner->OnWorldChanged();
+      auto belief = ParticleBelief<object_search::State>::FromInitial(model, particles, rng);
+      if (new_objects) {
+        planner->SetBelief(std::move(belief));
+      } else {
+        planner->AdvanceTo(d.action, key, std::move(belief));
+      }
     }
     if (!ctx.render_prefix.empty()) {
       char name[32];
@@ -223,6 +237,7 @@ std::string Cell(const RunSummary& s) {
 
 int RunObjectSearchBench(const SearchBenchConfig& config) {
   std::vector<std::pair<std::string, double>> options;
+  filter::FilterOptions filter_options;
   for (const std::string& a : config.options) {
     const size_t eq = a.find('=');
     char* end = nullptr;
@@ -232,19 +247,40 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
       std::cerr << "npfkct-bench: option '" << a << "' is not key=number\n";
       return 2;
     }
-    options.emplace_back(a.substr(0, eq), v);
+    const std::string key = a.substr(0, eq);
+    if (key.rfind("filter.", 0) == 0) {
+      if (Status s = filter::SetOption(&filter_options, key.substr(7), v); !s.ok()) {
+        std::cerr << "npfkct-bench: " << s.message() << "\n";
+        return 2;
+      }
+      continue;
+    }
+    options.emplace_back(key, v);
   }
-  const Budget budget{config.time_ms, config.sims};
+  if (Status s = filter_options.Validate(); !s.ok()) {
+    std::cerr << "npfkct-bench: filter." << s.message() << "\n";
+    return 2;
+  }
+  const Budget budget{config.time_ms, config.sims, config.cpu_ms};
   if (Status s = budget.Validate(); !s.ok()) {
-    std::cerr << "npfkct-bench: " << s.message() << "\n";
+    std::cerr << "npfkct-bench: " << s.message() << " (--time-ms, --cpu-ms, --sims)\n";
     return 2;
   }
   std::vector<std::string> planners = config.planners;
   if (planners.size() == 1 && planners[0] == "all") {
-    planners = {"pomcp", "gpomcp", "pomcpow", "vomcpow", "advt", "kct"};
+    planners = object_search::SearchPlannerNames();
+  }
+  for (const std::string& p : planners) {
+    if (object_search::FindSearchPlanner(p) == nullptr) {
+      std::string known;
+      for (const auto& n : object_search::SearchPlannerNames()) known += " " + n;
+      std::cerr << "npfkct-bench: unknown planner '" << p << "' (known:" << known << ")\n";
+      return 2;
+    }
   }
   std::shared_ptr<const filter::NeuralFilter> net;
-  if (std::any_of(planners.begin(), planners.end(), IsFiltered)) {
+  if (std::find(planners.begin(), planners.end(), "npfkct") != planners.end() &&
+      config.filter_model != "none") {
     const std::string path =
         config.filter_model.empty() ? std::string(NPFKCT_FILTER_MODEL) : config.filter_model;
     auto loaded = filter::NeuralFilter::Load(path);
@@ -253,6 +289,18 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
       return 2;
     }
     net = *loaded;
+  }
+  for (const std::string& mode : config.observe) {
+    if (mode != "geometric" && mode != "perception") {
+      std::cerr << "npfkct-bench: --observe: expected geometric or perception, got '" << mode
+                << "'\n";
+      return 2;
+    }
+    if (mode == "perception" &&
+        std::find(planners.begin(), planners.end(), "oracle") != planners.end()) {
+      std::cerr << "npfkct-bench: the oracle observes geometrically only\n";
+      return 2;
+    }
   }
   std::map<std::string, std::map<std::string, RunSummary>> table;
   std::vector<std::string> scenario_names;
@@ -273,7 +321,8 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
     }
     ObjectSearchModel probe(std::make_shared<World>(*world));
     for (const std::string& planner : planners) {
-      auto made = MakePlanner(planner, probe, options, net);
+      if (planner == "oracle") continue;
+      auto made = MakePlanner(planner, probe, options, filter_options, net);
       if (!made.ok()) {
         std::cerr << "npfkct-bench: " << made.status().message() << "\n";
         return 2;
@@ -285,13 +334,6 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
   if (!config.render_dir.empty()) std::filesystem::create_directories(config.render_dir);
   // Trials run trial-major (trial 0 of every scenario and planner, then trial 1, ...), so that
   // whatever else the machine does spreads evenly over the planners compared.
-  for (const std::string& mode : config.observe) {
-    if (mode != "geometric" && mode != "perception") {
-      std::cerr << "npfkct-bench: --observe: expected geometric or perception, got '" << mode
-                << "'\n";
-      return 2;
-    }
-  }
   const std::vector<std::string>& modes = config.observe;
   const int variants = static_cast<int>(planners.size() * modes.size());  // planner x mode
   const int per_trial = static_cast<int>(scenarios.size()) * variants;
@@ -326,6 +368,7 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
         TrialContext ctx{&scenario,
                          planner,
                          options,
+                         filter_options,
                          budget,
                          max_steps,
                          config.seed * 1000003ULL + static_cast<uint64_t>(trial),
@@ -337,6 +380,11 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
       "object search");
   const double wall = MillisSince(start) / 1000.0;
   int failures = 0;
+  std::string option_list;
+  for (size_t i = 0; i < config.options.size(); ++i) {
+    if (i > 0) option_list.append(", ");
+    option_list.append("\"").append(JsonEscape(config.options[i])).append("\"");
+  }
   for (size_t sc = 0; sc < scenarios.size(); ++sc) {
     for (int variant = 0; variant < variants; ++variant) {
       std::vector<EpisodeResult> mine;
@@ -357,24 +405,42 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
       failures += s.failed_episodes;
       std::string perception_ms;
       if (!frame_ms.empty()) {
-        std::sort(frame_ms.begin(), frame_ms.end());
-        perception_ms = ", \"median_perception_ms_per_frame\": " +
-                        std::to_string(frame_ms[frame_ms.size() / 2]);
+        perception_ms = ", \"median_perception_ms_per_frame\": " + std::to_string(Median(frame_ms));
       }
+      // Every trial's outcome, so that tables and comparisons can be recomputed from the file.
+      std::string rewards, steps, successes;
+      for (size_t k = 0; k < mine.size(); ++k) {
+        char buf[64];
+        std::snprintf(buf, sizeof buf, "%s%.1f", k ? ", " : "", mine[k].discounted_return);
+        rewards += buf;
+        if (k > 0) {
+          steps.append(", ");
+          successes.append(", ");
+        }
+        steps.append(std::to_string(mine[k].steps));
+        successes.append(mine[k].success ? "1" : "0");
+      }
+      const std::string model_name = planner == "npfkct" && net
+                                         ? std::filesystem::path(net->path()).filename().string()
+                                         : std::string();
       std::printf(
           "{\"scenario\": \"%s\", \"planner\": \"%s\", \"observe\": \"%s\", \"trials\": %d, "
-          "\"time_ms\": %g, "
-          "\"sims\": %lld, \"robot\": \"%s\", \"seed\": %llu, \"threads\": %d, "
+          "\"time_ms\": %g, \"cpu_ms\": %g, \"sims\": %lld, \"robot\": \"%s\", \"seed\": %llu, "
+          "\"threads\": %d, \"options\": [%s], \"model\": \"%s\", "
           "\"mean_discounted_reward\": %.1f, \"ci95\": %.1f, \"mean_steps\": %.2f, "
           "\"ci95_steps\": %.2f, \"success_rate\": %.3f, \"median_sims_per_step\": %.1f, "
-          "\"median_sims_per_second\": %.1f, \"median_first_step_sims_per_second\": %.1f, "
-          "\"wall_seconds\": %.1f, \"failed_trials\": %d%s%s%s%s}\n",
+          "\"median_sims_per_second\": %.1f, \"median_sims_per_cpu_second\": %.1f, "
+          "\"median_cpu_ms_per_step\": %.1f, \"median_first_step_sims_per_second\": %.1f, "
+          "\"wall_seconds\": %.1f, \"failed_trials\": %d, \"rewards\": [%s], \"steps\": [%s], "
+          "\"successes\": [%s]%s%s%s%s}\n",
           JsonEscape(scenario.name).c_str(), planner.c_str(), mode.c_str(), config.trials,
-          config.time_ms, static_cast<long long>(config.sims), scenario.robot.c_str(),
-          static_cast<unsigned long long>(config.seed), config.threads, s.mean_return,
-          s.ci95_return, s.mean_steps, s.ci95_steps, s.success_rate.value_or(0.0),
-          s.median_sims_per_step, s.median_sims_per_second, s.median_first_step_sims_per_second,
-          s.wall_seconds, s.failed_episodes, perception_ms.c_str(),
+          config.time_ms, config.cpu_ms, static_cast<long long>(config.sims),
+          scenario.robot.c_str(), static_cast<unsigned long long>(config.seed), config.threads,
+          option_list.c_str(), JsonEscape(model_name).c_str(), s.mean_return, s.ci95_return,
+          s.mean_steps, s.ci95_steps, s.success_rate.value_or(0.0), s.median_sims_per_step,
+          s.median_sims_per_second, s.median_sims_per_cpu_second, s.median_cpu_ms_per_step,
+          s.median_first_step_sims_per_second, s.wall_seconds, s.failed_episodes, rewards.c_str(),
+          steps.c_str(), successes.c_str(), perception_ms.c_str(),
           s.first_error.empty() ? "" : ", \"error\": \"", JsonEscape(s.first_error).c_str(),
           s.first_error.empty() ? "" : "\"");
     }

@@ -10,25 +10,29 @@ namespace npfkct::bench {
 /// Settings of an object-search benchmark run.
 struct SearchBenchConfig {
   std::vector<std::string> scenarios;  ///< Scenario files.
-  std::vector<std::string> planners;   ///< npfkct, kct, pomcp, gpomcp, pomcpow, vomcpow, advt.
+  /// Planner registry names (object_search::SearchPlanners()), "all", or "oracle".
+  std::vector<std::string> planners;
   int trials = 20;
-  double time_ms = 1000.0;
-  int64_t sims = 0;
+  double time_ms = 0.0;  ///< Wall-clock budget per step (0: none).
+  double cpu_ms = 0.0;   ///< CPU-time budget of the planning thread per step (0: none).
+  int64_t sims = 0;      ///< Simulation budget per step (0: none).
   uint64_t seed = 1;
   int threads = 1;
   int max_steps = 0;                 ///< 0: the scenario's (50 by default).
   std::string robot;                 ///< Overrides the scenario's robot ("fetch", "stretch").
-  std::vector<std::string> options;  ///< Planner options key=value.
+  std::vector<std::string> options;  ///< Planner options key=value; filter.* go to Net_sam.
   std::string table_path;            ///< Markdown table output (Table 1 layout).
   std::string render_dir;            ///< Per-step PNGs (first trial of each run).
-  std::string filter_model;          ///< Neural filter model (npfkct planner).
+  /// Neural filter model of the npfkct planner (default: the shipped one; "none": uniform).
+  std::string filter_model;
   /// Observation modes compared: "geometric" (the simulator's visibility shortcut) and/or
   /// "perception" (rendered 640x480 RGB-D frames, a noisy reported pose, and the perception
   /// pipeline: registration, segmentation, association, SIFT target detection).
   std::vector<std::string> observe = {"geometric"};
 };
 
-/// Runs every (scenario, planner) pair; prints one JSON line per pair and writes the table.
+/// Runs every (scenario, planner) pair; prints one JSON line per pair (with every trial's reward,
+/// steps and success) and writes the table.
 int RunObjectSearchBench(const SearchBenchConfig& config);
 
 }  // namespace npfkct::bench

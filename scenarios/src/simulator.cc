@@ -243,29 +243,50 @@ ExecutionOutcome Simulator::ExecuteOnObject(int offset, const std::string& key, 
   }
 }
 
+std::vector<int> Simulator::VisibleCorners(int i, const RobotConfig& config,
+                                           uint64_t ignore) const {
+  std::vector<int> out;
+  if (i < 0 || i >= static_cast<int>(objects_.size()) || removed_[i]) return out;
+  const SceneObject& o = objects_[i];
+  const object_search::CameraPose pose = object_search::CameraPoseFor(preset_, config);
+  if (!object_search::InFrustum(camera_, pose, o.box.center)) return out;
+  std::vector<Box> occluders;
+  for (const Furniture& f : scenario_.furniture) occluders.push_back(f.box);
+  for (size_t k = 0; k < objects_.size(); ++k) {
+    if (removed_[k] || static_cast<int>(k) == i || (k < 64 && (ignore >> k & 1u))) continue;
+    const Box& b = objects_[k].box;
+    // Smaller objects nested inside this one (a covered target) do not hide it.
+    if (b.size.prod() < o.box.size.prod() && o.box.Contains(b.center)) continue;
+    occluders.push_back(b);
+  }
+  auto hidden = [&](const Vec3& p) {
+    for (const Box& b : occluders) {
+      if (b.Contains(p) || b.BlocksSegment(pose.position, p)) return true;
+    }
+    return false;
+  };
+  if (hidden(o.box.center)) return out;
+  const auto corners = o.box.Corners();
+  std::array<std::pair<double, int>, 8> by_distance;
+  for (int k = 0; k < 8; ++k) by_distance[k] = {(corners[k] - pose.position).squaredNorm(), k};
+  std::partial_sort(by_distance.begin(), by_distance.begin() + 4, by_distance.end());
+  for (int n = 0; n < 4; ++n) {
+    const int k = by_distance[n].second;
+    const Vec3 p = corners[k] + 0.05 * (o.box.center - corners[k]);
+    if (object_search::InFrustum(camera_, pose, p) && !hidden(p)) out.push_back(k);
+  }
+  // Seen at all: the center is visible even when no corner is.
+  if (out.empty()) out.push_back(-1);
+  return out;
+}
+
 object_search::RealObservation Simulator::Observe(Rng& rng) const {
   object_search::RealObservation obs;
   obs.achieved = robot_;
-  const object_search::CameraPose pose = object_search::CameraPoseFor(preset_, robot_);
   for (size_t i = 0; i < objects_.size(); ++i) {
-    if (removed_[i]) continue;
+    const std::vector<int> corners = VisibleCorners(static_cast<int>(i), robot_);
+    if (corners.empty()) continue;
     const SceneObject& o = objects_[i];
-    if (!object_search::InFrustum(camera_, pose, o.box.center)) continue;
-    std::vector<Box> occluders = Occluders(static_cast<int>(i));
-    // Smaller objects nested inside this one (a covered target) do not hide it.
-    occluders.erase(std::remove_if(occluders.begin(), occluders.end(),
-                                   [&](const Box& b) {
-                                     return b.size.prod() < o.box.size.prod() &&
-                                            o.box.Contains(b.center);
-                                   }),
-                    occluders.end());
-    auto hidden = [&](const Vec3& p) {
-      for (const Box& b : occluders) {
-        if (b.Contains(p) || b.BlocksSegment(pose.position, p)) return true;
-      }
-      return false;
-    };
-    if (hidden(o.box.center)) continue;
     object_search::ObjectDetection d;
     d.key = o.name;
     d.box = o.box;
@@ -274,16 +295,8 @@ object_search::RealObservation Simulator::Observe(Rng& rng) const {
         (d.box.size + scenario_.noise.box_estimate * Vec3(rng.Normal(), rng.Normal(), rng.Normal()))
             .cwiseMax(0.01);
     d.moveability = o.moveable ? 0.95 : 0.05;
-    const auto corners = o.box.Corners();
-    std::array<std::pair<double, int>, 8> by_distance;
-    for (int k = 0; k < 8; ++k) {
-      by_distance[k] = {(corners[k] - pose.position).squaredNorm(), k};
-    }
-    std::partial_sort(by_distance.begin(), by_distance.begin() + 4, by_distance.end());
-    for (int n = 0; n < 4; ++n) {
-      const int k = by_distance[n].second;
-      const Vec3 p = corners[k] + 0.05 * (o.box.center - corners[k]);
-      if (!object_search::InFrustum(camera_, pose, p) || hidden(p)) continue;
+    for (int k : corners) {
+      if (k < 0) continue;
       double score = o.target ? 0.85 : 0.15;
       if (rng.Bernoulli(scenario_.noise.false_detection)) score = 1.0 - score;
       score = std::clamp(score + scenario_.noise.detection * rng.Normal(), 0.01, 0.99);

@@ -81,6 +81,13 @@ class Simulator {
   /// nearest to the camera that are unoccluded, a noisy detection score (high for the target).
   object_search::RealObservation Observe(Rng& rng) const;
 
+  /// What the camera at `config` sees of scene object i, without noise, by the rule Observe()
+  /// applies: empty when the object is removed, its center is outside the frustum or occluded;
+  /// else the corners (face grids, 0..7) among its 4 nearest to the camera whose points just
+  /// inside the box are in the frustum and unoccluded, or {-1} when none is. Objects whose bit is
+  /// set in `ignore` are treated as removed (what a view would show once they are gone).
+  std::vector<int> VisibleCorners(int i, const RobotConfig& config, uint64_t ignore = 0) const;
+
   /// Renders what the head camera sees (default 640 x 480).
   Frame Render(int width = 640, int height = 480) const;
 

@@ -1,0 +1,256 @@
+#include "npfkct/sim/oracle.h"
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cmath>
+#include <utility>
+
+#include "npfkct/object_search/model.h"
+
+namespace npfkct::sim {
+namespace {
+
+using object_search::ObjectSearchModel;
+using object_search::RobotConfig;
+using object_search::Vec2;
+using object_search::Vec3;
+
+// Face grids of `odds` past the threshold in the direction `sign` (+1 target, -1 obstacle).
+uint32_t ConfirmedMask(const std::array<float, 8>& odds, double sign, double threshold) {
+  uint32_t mask = 0;
+  for (int k = 0; k < 8; ++k) {
+    if (sign * odds[k] > threshold) mask |= 1u << k;
+  }
+  return mask;
+}
+
+HybridAction Move(const RobotConfig& c) {
+  HybridAction a;
+  a.kind = object_search::kMoveKind;
+  a.x = ObjectSearchModel::VecOf(c);
+  return a;
+}
+
+HybridAction OnObject(int object, int offset) {
+  HybridAction a;
+  a.kind = object_search::ObjectKind(object, offset);
+  return a;
+}
+
+}  // namespace
+
+Oracle::Oracle(const Simulator& simulator, OracleOptions options)
+    : sim_(simulator), options_(options) {
+  auto world = simulator.InitialWorld();
+  if (!world.ok()) return;
+  const double clearance = world->robot.footprint_radius + 0.05;
+  for (const object_search::BaseRegion& r : world->base_regions) {
+    const double s = options_.base_spacing;
+    for (double x = r.min.x() + 0.5 * s; x <= r.max.x(); x += s) {
+      for (double y = r.min.y() + 0.5 * s; y <= r.max.y(); y += s) {
+        // A margin beyond the footprint, so that the pose noise of a move cannot push the base
+        // into the map (the robot would then stay where it was).
+        if (world->BaseFeasible(x, y) && world->occupancy.DiscFree(x, y, clearance)) {
+          bases_.push_back(Vec2(x, y));
+        }
+      }
+    }
+  }
+}
+
+const std::vector<RobotConfig>& Oracle::ViewsOf(int object) const {
+  auto cached = views_.find(object);
+  if (cached != views_.end()) return cached->second;
+  const object_search::RobotPreset preset =
+      object_search::RobotPreset::ByName(sim_.scenario().robot).value();
+  const Vec3 aim = sim_.objects()[object].box.center;
+  std::vector<RobotConfig> views;
+  const int lifts = std::max(1, options_.lifts), pans = std::max(1, options_.pans);
+  for (const Vec2& b : bases_) {
+    for (int li = 0; li < lifts; ++li) {
+      const double lift =
+          lifts == 1 ? preset.lift_min
+                     : preset.lift_min + (preset.lift_max - preset.lift_min) * li / (lifts - 1);
+      for (int pi = 0; pi < pans; ++pi) {
+        const double pan =
+            pans == 1 ? 0.0 : preset.pan_min + (preset.pan_max - preset.pan_min) * pi / (pans - 1);
+        RobotConfig c;
+        c.x = b.x();
+        c.y = b.y();
+        c.lift = lift;
+        c.pan = pan;
+        // Aim the optical axis at the object: the camera sits ahead of the base center, so the
+        // heading is refined once from the camera's position.
+        double heading = std::atan2(aim.y() - b.y(), aim.x() - b.x());
+        for (int it = 0; it < 2; ++it) {
+          c.yaw = object_search::WrapAngle(heading - pan);
+          c.tilt = 0.0;
+          const Vec3 cam = object_search::CameraPoseFor(preset, c).position;
+          heading = std::atan2(aim.y() - cam.y(), aim.x() - cam.x());
+          const double horizontal = std::hypot(aim.x() - cam.x(), aim.y() - cam.y());
+          c.tilt = std::clamp(std::atan2(cam.z() - aim.z(), horizontal), preset.tilt_min,
+                              preset.tilt_max);
+        }
+        c.yaw = object_search::WrapAngle(heading - pan);
+        views.push_back(c);
+      }
+    }
+  }
+  return views_[object] = std::move(views);
+}
+
+uint32_t Oracle::SeeableCorners(int object, uint64_t ignore) const {
+  uint32_t seen = 0;
+  for (const RobotConfig& c : ViewsOf(object)) {
+    for (int k : sim_.VisibleCorners(object, c, ignore)) {
+      if (k >= 0) seen |= 1u << k;
+    }
+  }
+  return seen;
+}
+
+bool Oracle::BestView(int object, const std::array<float, 8>& odds, double sign, int needed,
+                      uint64_t ignore, RobotConfig* best) const {
+  const double threshold = sim_.scenario().params.declare_threshold;
+  const uint32_t confirmed = ConfirmedMask(odds, sign, threshold);
+  const std::vector<RobotConfig>& views = ViewsOf(object);
+  // The unconfirmed face grids each view would see.
+  std::vector<uint32_t> gain(views.size(), 0);
+  std::array<bool, 256> present{};
+  for (size_t v = 0; v < views.size(); ++v) {
+    uint32_t seen = 0;
+    for (int k : sim_.VisibleCorners(object, views[v], ignore)) {
+      if (k >= 0) seen |= 1u << k;
+    }
+    gain[v] = seen & ~confirmed;
+    present[gain[v]] = true;
+  }
+  needed = std::max(needed, 1);
+  // Views needed to reach `needed` new face grids starting with a view of gain mask m: 1, 2 (with
+  // the best partner) or 3 and more; and the face grids the pair covers.
+  struct Score {
+    int views = 99;
+    int covered = 0;
+  };
+  std::array<Score, 256> score;
+  for (uint32_t m = 1; m < 256; ++m) {
+    if (!present[m]) continue;
+    Score& s = score[m];
+    s.covered = std::popcount(m);
+    s.views = s.covered >= needed ? 1 : 3;
+    if (s.views == 1) continue;
+    for (uint32_t w = 1; w < 256; ++w) {
+      if (!present[w]) continue;
+      const int both = std::popcount(m | w);
+      if (both >= needed) s.views = 2;
+      s.covered = std::max(s.covered, std::min(both, needed));
+    }
+  }
+  auto better = [&](uint32_t a, uint32_t b) {
+    if (score[a].views != score[b].views) return score[a].views < score[b].views;
+    if (score[a].covered != score[b].covered) return score[a].covered > score[b].covered;
+    return std::popcount(a) > std::popcount(b);
+  };
+  uint32_t best_mask = 0;
+  for (uint32_t m = 1; m < 256; ++m) {
+    if (present[m] && (best_mask == 0 || better(m, best_mask))) best_mask = m;
+  }
+  if (best_mask == 0) return false;
+  // Among the views with that mask, the one whose view survives the move's pose noise best: the
+  // same face grids seen from the four perturbed poses.
+  const double dxy = std::max(0.02, sim_.scenario().noise.pose_xy);
+  const double dyaw = std::max(0.02, sim_.scenario().noise.pose_yaw);
+  int chosen = -1, chosen_robust = -1, checked = 0;
+  for (size_t v = 0; v < views.size() && checked < 24; ++v) {
+    if (gain[v] != best_mask) continue;
+    ++checked;
+    int robust = 0;
+    for (int d = 0; d < 4; ++d) {
+      RobotConfig c = views[v];
+      c.x += (d == 0 ? dxy : d == 1 ? -dxy : 0.0);
+      c.y += (d == 2 ? dxy : d == 3 ? -dxy : 0.0);
+      c.yaw += (d % 2 == 0 ? dyaw : -dyaw);
+      uint32_t seen = 0;
+      for (int k : sim_.VisibleCorners(object, c, ignore)) {
+        if (k >= 0) seen |= 1u << k;
+      }
+      robust += (seen & best_mask) == best_mask;
+    }
+    if (robust > chosen_robust) {
+      chosen_robust = robust;
+      chosen = static_cast<int>(v);
+    }
+  }
+  *best = views[chosen];
+  return true;
+}
+
+HybridAction Oracle::Next(const object_search::World& knowledge) const {
+  const object_search::SearchParams& p = knowledge.params;
+  const auto& scene = sim_.objects();
+  const int target = sim_.target_index();
+  auto known = [&](int scene_index) { return knowledge.FindObject(scene[scene_index].name); };
+  auto count = [&](const std::array<float, 8>& odds, double sign) {
+    return std::popcount(ConfirmedMask(odds, sign, p.declare_threshold));
+  };
+  // 1. Finish what is ready: remove what was declared, declare what can be.
+  for (size_t i = 1; i < knowledge.objects.size(); ++i) {
+    const object_search::ObjectKnowledge& o = knowledge.objects[i];
+    if (o.status == object_search::kDeclaredTarget) {
+      return OnObject(static_cast<int>(i), object_search::kRemoveOffset);
+    }
+  }
+  for (size_t i = 1; i < knowledge.objects.size(); ++i) {
+    if (knowledge.objects[i].status == object_search::kDeclaredObstacle) {
+      return OnObject(static_cast<int>(i), object_search::kRemoveOffset);
+    }
+  }
+  std::array<float, 8> target_odds{};
+  const int kt = known(target);
+  if (kt > 0) {
+    const object_search::ObjectKnowledge& o = knowledge.objects[kt];
+    target_odds = o.odds;
+    if (o.status == object_search::kUpdating && count(o.odds, +1) >= p.n_odds) {
+      return OnObject(kt, object_search::kDeclareTargetOffset);
+    }
+  }
+  // 2. Look at the target.
+  RobotConfig view;
+  if (BestView(target, target_odds, +1, p.n_odds - count(target_odds, +1), 0, &view)) {
+    return Move(view);
+  }
+  // 3. Nothing more of the target can be seen: clear the object whose removal exposes the most.
+  int blocker = -1, best_exposed = 0;
+  for (int b = 0; b < static_cast<int>(scene.size()); ++b) {
+    if (b == target || sim_.removed(b) || !scene[b].moveable || b >= 64) continue;
+    // Only what stands near the target can hide it.
+    const Vec3 d = scene[b].box.center - scene[target].box.center;
+    if (std::hypot(d.x(), d.y()) > 0.8) continue;
+    const uint64_t ignore = uint64_t{1} << b;
+    const uint32_t confirmed = ConfirmedMask(target_odds, +1, p.declare_threshold);
+    const uint32_t exposed = SeeableCorners(target, ignore);
+    const int n = std::popcount(exposed & ~confirmed);
+    if (n > best_exposed) {
+      best_exposed = n;
+      blocker = b;
+    }
+  }
+  if (blocker >= 0) {
+    std::array<float, 8> odds{};
+    const int kb = known(blocker);
+    if (kb > 0) {
+      odds = knowledge.objects[kb].odds;
+      if (knowledge.objects[kb].status == object_search::kUpdating && count(odds, -1) >= p.n_odds) {
+        return OnObject(kb, object_search::kDeclareObstacleOffset);
+      }
+    }
+    if (BestView(blocker, odds, -1, p.n_odds - count(odds, -1), 0, &view)) return Move(view);
+  }
+  // 4. Nothing helps (an unsolvable scene): keep looking at the target from its best view.
+  std::array<float, 8> none{};
+  if (BestView(target, none, +1, 1, 0, &view)) return Move(view);
+  return Move(knowledge.robot_config);
+}
+
+}  // namespace npfkct::sim

@@ -1,0 +1,87 @@
+// The oracle is the ceiling of Table 1: on Loose1 no planner can use fewer than 4 steps (the
+// start sees nothing; one view shows at most 4 of the target's 8 face grids and declaring needs
+// 6, so two moves, a declaration and a removal), and the oracle takes exactly those 4 steps.
+#include "npfkct/sim/oracle.h"
+
+#include <gtest/gtest.h>
+
+#include "npfkct/object_search/model.h"
+
+namespace npfkct::sim {
+namespace {
+
+struct Episode {
+  double discounted = 0.0;
+  int steps = 0;
+  bool success = false;
+};
+
+// The closed loop of npfkct-bench with the oracle: act, execute in the simulator, observe.
+Episode RunOracle(const Scenario& scenario, uint64_t seed) {
+  Simulator sim(scenario, seed);
+  object_search::World world = sim.InitialWorld().value();
+  Rng world_rng(seed * 104729 + 3);
+  EXPECT_TRUE(object_search::ApplyRealObservation(&world, sim.Observe(world_rng)).ok());
+  Oracle oracle(sim);
+  Episode e;
+  double discount = 1.0;
+  for (int t = 0; t < scenario.params.max_steps; ++t) {
+    const HybridAction a = oracle.Next(world);
+    const ExecutionOutcome out = sim.Execute(a, world, world_rng);
+    EXPECT_FALSE(out.illegal) << "step " << t << ": " << out.detail;
+    e.discounted += discount * out.reward;
+    discount *= world.params.discount;
+    ++e.steps;
+    if (a.kind != object_search::kMoveKind && out.success) {
+      EXPECT_TRUE(object_search::ApplyDiscreteOutcome(&world, object_search::KindObject(a.kind),
+                                                      object_search::KindOffset(a.kind), true)
+                      .ok());
+    }
+    if (out.terminal) {
+      e.success = true;
+      break;
+    }
+    EXPECT_TRUE(object_search::ApplyRealObservation(&world, sim.Observe(world_rng)).ok());
+  }
+  return e;
+}
+
+Scenario Load(const std::string& name) {
+  return LoadScenario(std::string(NPFKCT_SCENARIO_DIR) + "/" + name + ".json").value();
+}
+
+TEST(OracleTest, ReachesTheBestPossibleRewardOnLoose1) {
+  const Scenario loose1 = Load("loose1");
+  // The largest discounted reward any planner can reach: -1, -1, then R_ct and R_max.
+  const auto& p = loose1.params;
+  const double best = p.r_min + p.discount * p.r_min + p.discount * p.discount * p.r_ct +
+                      p.discount * p.discount * p.discount * p.r_max;
+  for (uint64_t trial = 0; trial < 20; ++trial) {
+    const Episode e = RunOracle(loose1, 1000003ULL + trial);  // the bench's seeds
+    EXPECT_TRUE(e.success) << "trial " << trial;
+    EXPECT_EQ(e.steps, 4) << "trial " << trial;
+    EXPECT_NEAR(e.discounted, best, 1e-6) << "trial " << trial;
+  }
+}
+
+TEST(OracleTest, ClearsTheCoverOfACoveredTarget) {
+  const Episode e = RunOracle(Load("covered1"), 1000003ULL);
+  EXPECT_TRUE(e.success);
+  // At least: two views of the cover, declare and remove it, two views of the target, declare
+  // and remove it (one view may serve twice).
+  EXPECT_GE(e.steps, 7);
+  EXPECT_LE(e.steps, 10);
+}
+
+TEST(OracleTest, SolvesEveryPaperScene) {
+  for (const char* name : {"loose2", "hidden1", "complex1", "fig16"}) {
+    for (uint64_t trial = 0; trial < 3; ++trial) {
+      const Episode e = RunOracle(Load(name), 1000003ULL + trial);
+      EXPECT_TRUE(e.success) << name << " trial " << trial;
+      EXPECT_LE(e.steps, 12) << name << " trial " << trial;
+    }
+  }
+}
+
+}  // namespace
+}  // namespace npfkct::sim

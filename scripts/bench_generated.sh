@@ -1,0 +1,44 @@
+#!/usr/bin/env bash
+# The held-out generated scenes of the README: the 30 scenes npfkct-scenegen makes from seeds
+# 900001-900030 (no filter training data comes from seeds above 900000), 5 trials per scene and
+# planner, 0.25 s of the planning thread's CPU time per step, success within 50 steps. The summary
+# gives each planner's mean share of the oracle's reward over the scenes (with a Student's t
+# interval over the 30 scene means) and its success rate over all trials.
+#
+# Resumable like scripts/bench_table1.sh: one file per scene and planner,
+# bench/results/generated/RUN/SEED/PLANNER.jsonl; finished cells are skipped; --commit commits
+# each cell. About 2 CPU-hours.
+# Usage: scripts/bench_generated.sh [--run NAME] [--cpu-ms MS] [--trials N] [--commit]
+#        env: SEEDS (default: 900001 ... 900030), PLANNERS, BUILD_DIR
+set -euo pipefail
+NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+source "$NPFKCT_ROOT/scripts/deps.sh"
+RUN=run1
+CPU_MS=250
+TRIALS=5
+COMMIT=0
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --run) RUN="$2"; shift 2 ;;
+    --cpu-ms) CPU_MS="$2"; shift 2 ;;
+    --trials) TRIALS="$2"; shift 2 ;;
+    --commit) COMMIT=1; shift ;;
+    -h|--help) sed -n '2,13p' "$0"; exit 0 ;;
+    *) echo "bench_generated.sh: unknown argument $1 (see --help)" >&2; exit 2 ;;
+  esac
+done
+npfkct_prepare
+SEEDS="${SEEDS:-$(seq 900001 900030)}"
+PLANNERS="${PLANNERS:-oracle npfkct kct pomcp-joint gpomcp vomcpow}"
+OUT="$NPFKCT_ROOT/bench/results/generated/$RUN"
+SCENES="$BUILD_DIR/generated-scenes"
+mkdir -p "$SCENES"
+for seed in $SEEDS; do
+  scene="$SCENES/gen-$seed.json"
+  "$BUILD_DIR/scenarios/npfkct-scenegen" --seed "$seed" >"$scene"
+  for planner in $PLANNERS; do
+    npfkct_bench_cell "$OUT/$seed/$planner.jsonl" "$TRIALS" --scenario "$scene" \
+      --planner "$planner" --trials "$TRIALS" --cpu-ms "$CPU_MS" --threads "$(nproc)" --seed 1
+  done
+done
+python3 "$NPFKCT_ROOT/scripts/results_table.py" generated "$OUT" | tee "$OUT/summary.md"
