@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "npfkct/object_search/proposals.h"
 #include "npfkct/solver/advt.h"
 #include "npfkct/solver/kct.h"
 #include "npfkct/solver/option_setters.h"
@@ -226,8 +227,30 @@ StatusOr<std::unique_ptr<SearchPlanner>> MakeSearchPlanner(
     o.search.num_particles = kParticles;
     o.observations.enabled = false;
     o.max_feasibility_tries = kFeasibilityTries;
-    if (Status s = ApplyAll(&o, options); !s.ok()) return s;
-    if (name == "kct") sampler = nullptr;
+    // proposals.* choose the candidates of kct (and of npfkct without a filter): aimed at what is
+    // left to see (default) or uniform (proposals.aimed = 0, the paper's candidates).
+    ProposalOptions proposals;
+    bool aimed = true;
+    std::vector<std::pair<std::string, double>> rest;
+    for (const auto& [key, value] : options) {
+      if (key == "proposals.aimed") {
+        if (value != 0.0 && value != 1.0) {
+          return InvalidArgumentError("option proposals.aimed: 0 (uniform) or 1 (aimed)");
+        }
+        aimed = value != 0.0;
+      } else if (key == "proposals.target_share") {
+        proposals.target_share = value;
+      } else if (key == "proposals.object_share") {
+        proposals.object_share = value;
+      } else {
+        rest.emplace_back(key, value);
+      }
+    }
+    if (Status s = proposals.Validate(); !s.ok()) return Prefixed("option proposals", s);
+    if (Status s = ApplyAll(&o, rest); !s.ok()) return s;
+    if (name == "kct" || sampler == nullptr) {
+      sampler = aimed ? std::make_shared<AimedCandidateSampler>(model, proposals) : nullptr;
+    }
     return std::unique_ptr<SearchPlanner>(
         new HybridPlanner<KCenterTree<ObjectSearchModel>, KctOptions>(name, model, o, sampler));
   }

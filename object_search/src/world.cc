@@ -58,6 +58,9 @@ Status SearchParams::Validate() const {
     return InvalidArgumentError("face_odds_limit must be > 0");
   }
   if (max_steps < 1) return InvalidArgumentError("max_steps must be >= 1");
+  if (!(base_clearance >= 0.0 && base_clearance <= 1.0)) {
+    return InvalidArgumentError("base_clearance must be in [0, 1] m");
+  }
   return OkStatus();
 }
 
@@ -205,7 +208,7 @@ std::vector<Box> World::Occluders() const {
 bool World::BaseFeasible(double x, double y) const {
   bool in_region = false;
   for (const BaseRegion& r : base_regions) in_region |= r.Contains(x, y);
-  return in_region && occupancy.DiscFree(x, y, robot.footprint_radius);
+  return in_region && occupancy.DiscFree(x, y, robot.footprint_radius + params.base_clearance);
 }
 
 int World::FindObject(const std::string& key) const {

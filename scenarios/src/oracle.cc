@@ -44,14 +44,13 @@ Oracle::Oracle(const Simulator& simulator, OracleOptions options)
     : sim_(simulator), options_(options) {
   auto world = simulator.InitialWorld();
   if (!world.ok()) return;
-  const double clearance = world->robot.footprint_radius + 0.05;
   for (const object_search::BaseRegion& r : world->base_regions) {
     const double s = options_.base_spacing;
     for (double x = r.min.x() + 0.5 * s; x <= r.max.x(); x += s) {
       for (double y = r.min.y() + 0.5 * s; y <= r.max.y(); y += s) {
-        // A margin beyond the footprint, so that the pose noise of a move cannot push the base
-        // into the map (the robot would then stay where it was).
-        if (world->BaseFeasible(x, y) && world->occupancy.DiscFree(x, y, clearance)) {
+        // The reasonability check keeps a clearance beyond the footprint, so that the pose noise
+        // of a move cannot push the base into the map (the robot would then stay where it was).
+        if (world->BaseFeasible(x, y)) {
           bases_.push_back(Vec2(x, y));
         }
       }

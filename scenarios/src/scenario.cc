@@ -36,7 +36,8 @@ Status ParseParams(const json& j, object_search::SearchParams* p) {
                                                    {"declareThreshold", &p->declare_threshold},
                                                    {"guessOdds", &p->guess_odds},
                                                    {"guessSize", &p->guess_size},
-                                                   {"gridFreeDelta", &p->grid_free_delta}};
+                                                   {"gridFreeDelta", &p->grid_free_delta},
+                                                   {"baseClearance", &p->base_clearance}};
   std::set<std::string> known = {"nOdds", "maxSteps"};
   for (auto [key, field] : reals) {
     known.insert(key);

@@ -37,6 +37,8 @@ const std::map<std::string, Setter<SearchOptions>, std::less<>>& SearchTable() {
       {"reuse_tree", Bool(&SearchOptions::reuse_tree)},
       {"num_particles", Int(&SearchOptions::num_particles)},
       {"leaf_value", LeafValue()},
+      {"threads", Int(&SearchOptions::threads)},
+      {"rollout_first", Bool(&SearchOptions::rollout_first)},
       {"belief.resample_threshold",
        Nested(&SearchOptions::belief, Real(&BeliefUpdateOptions::resample_threshold))},
       {"belief.reinvigoration_fraction",
@@ -158,6 +160,29 @@ const std::map<std::string, Setter<KctOptions>, std::less<>>& KctTable() {
                                       : KctOptions::FinalAction::kCenter;
            return OkStatus();
          }},
+        {"final_choice",
+         [](KctOptions* o, double v) {
+           if (v != 0.0 && v != 1.0) {
+             return InvalidArgumentError("0 (highest value) or 1 (most visited)");
+           }
+           o->final_choice = v == 0.0 ? KctOptions::FinalChoice::kMaxValue
+                                      : KctOptions::FinalChoice::kMostVisited;
+           return OkStatus();
+         }},
+        {"normalization",
+         [](KctOptions* o, double v) {
+           if (v != 0.0 && v != 1.0 && v != 2.0) {
+             return InvalidArgumentError(
+                 "0 (observed range), 1 (value scale) or 2 (sibling range)");
+           }
+           o->normalization = v == 0.0   ? KctOptions::Normalization::kObservedRange
+                              : v == 1.0 ? KctOptions::Normalization::kValueScale
+                                         : KctOptions::Normalization::kSiblingRange;
+           return OkStatus();
+         }},
+        {"w2_ratio", Real(&KctOptions::w2_ratio)},
+        {"sample_candidates", Bool(&KctOptions::sample_candidates)},
+        {"refine_share", Real(&KctOptions::refine_share)},
     };
     AddSearch(t);
     AddWidening(t);

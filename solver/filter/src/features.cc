@@ -1,14 +1,13 @@
 #include "npfkct/filter/features.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
-#include <numbers>
 
 namespace npfkct::filter {
 namespace {
 
 using object_search::Box;
-using object_search::kMoveKind;
 using object_search::kRemoved;
 using object_search::Vec2;
 
@@ -117,8 +116,7 @@ SceneFeatures SceneOf(const World& world, Rng& rng) {
   return f;
 }
 
-void QueryOf(const World& world, const RobotConfig& config, const std::array<float, 8>& odds,
-             float* out) {
+void QueryOf(const World& world, const RobotConfig& config, int candidate, float* out) {
   const Frame2 frame(world);
   const auto& r = world.robot;
   out[0] = frame.X(config.x);
@@ -135,8 +133,29 @@ void QueryOf(const World& world, const RobotConfig& config, const std::array<flo
   out[10] = static_cast<float>(pose.forward.x());
   out[11] = static_cast<float>(pose.forward.y());
   out[12] = static_cast<float>(pose.forward.z());
+  float* c = out + kConfigDim;
+  std::fill(c, c + kCandidateDim, 0.0f);
   const float limit = static_cast<float>(world.params.face_odds_limit);
-  for (int k = 0; k < 8; ++k) out[kConfigDim + k] = odds[k] / limit;
+  float* odds = c + kCandidateDim;
+  if (candidate <= 0 || candidate >= static_cast<int>(world.objects.size())) {
+    c[0] = 1.0f;  // the guessed target: where it may be is in the image
+    for (int k = 0; k < 8; ++k) odds[k] = static_cast<float>(world.params.guess_odds) / limit;
+    return;
+  }
+  const Box& b = world.objects[candidate].box;
+  c[1] = frame.X(b.center.x());
+  c[2] = frame.Y(b.center.y());
+  c[3] = static_cast<float>(b.center.z() / 2.0);
+  c[4] = static_cast<float>(b.size.x());
+  c[5] = static_cast<float>(b.size.y());
+  c[6] = static_cast<float>(b.size.z());
+  c[7] = static_cast<float>(std::cos(b.yaw));
+  c[8] = static_cast<float>(std::sin(b.yaw));
+  const Vec3 in_camera = pose.ToCamera(b.center) / world.camera.far;
+  c[9] = static_cast<float>(in_camera.x());
+  c[10] = static_cast<float>(in_camera.y());
+  c[11] = static_cast<float>(in_camera.z());
+  for (int k = 0; k < 8; ++k) odds[k] = world.objects[candidate].odds[k] / limit;
 }
 
 std::vector<Vec3> SamplePlacements(const World& world, int count, Rng& rng) {
@@ -147,60 +166,47 @@ std::vector<Vec3> SamplePlacements(const World& world, int count, Rng& rng) {
   return out;
 }
 
-double VisibilityScore(const ObjectSearchModel& model, const State& s, const RobotConfig& config,
-                       const std::vector<Vec3>& placements) {
-  if (placements.empty() || s.objects.empty()) return 0.0;
-  State t = s;
-  int seen = 0;
-  for (const Vec3& p : placements) {
-    t.target = p;
-    if (model.SeesObject(t, config, 0)) ++seen;
+double TargetScore(const ObjectSearchModel& model, const State& s, int candidate,
+                   const RobotConfig& config, const std::vector<Vec3>& placements) {
+  if (s.objects.empty()) return 0.0;
+  if (candidate <= 0 || candidate >= static_cast<int>(s.objects.size())) {
+    if (placements.empty()) return 0.0;
+    State t = s;
+    int seen = 0;
+    for (const Vec3& p : placements) {
+      t.target = p;
+      if (model.SeesObject(t, config, 0)) ++seen;
+    }
+    return static_cast<double>(seen) / static_cast<double>(placements.size());
   }
-  return static_cast<double>(seen) / static_cast<double>(placements.size());
+  const uint32_t unconfirmed = object_search::UnconfirmedFaces(model.world(), candidate, +1);
+  if (unconfirmed == 0) return 0.0;
+  std::array<std::array<int, 4>, 64> nearest;
+  if (!(model.VisibleObjects(s, config, &nearest) >> candidate & 1u)) return 0.0;
+  int updated = 0;
+  for (int k : nearest[candidate]) updated += (unconfirmed >> k) & 1u;
+  return static_cast<double>(updated) / std::min(4, std::popcount(unconfirmed));
 }
 
-RobotConfig SampleConfig(const ObjectSearchModel& model, const std::vector<Vec3>& placements,
-                         bool aimed, Rng& rng) {
-  const World& w = model.world();
-  const BoxSpace& box = model.KindSpace(kMoveKind);
-  if (aimed && !placements.empty()) {
-    const auto& r = w.robot;
-    for (int tries = 0; tries < 64; ++tries) {
-      const Vec3& p = placements[rng.UniformInt(static_cast<int64_t>(placements.size()))];
-      const double dist = rng.Uniform(0.6, 1.6);
-      const double theta = rng.Uniform(-std::numbers::pi, std::numbers::pi);
-      RobotConfig c;
-      c.x = p.x() - dist * std::cos(theta);
-      c.y = p.y() - dist * std::sin(theta);
-      c.yaw = object_search::WrapAngle(theta + 0.15 * rng.Normal());
-      c.lift = rng.Uniform(r.lift_min, r.lift_max);
-      c.pan = std::clamp(0.1 * rng.Normal(), r.pan_min, r.pan_max);
-      const double height = r.camera_offset.z() + (r.lift_moves_camera ? c.lift : 0.0);
-      c.tilt = std::clamp(std::atan2(height - p.z(), dist) + 0.08 * rng.Normal(), r.tilt_min,
-                          r.tilt_max);
-      if (!box.Contains(ObjectSearchModel::VecOf(c)) || !w.BaseFeasible(c.x, c.y)) continue;
-      return c;
-    }
-  }
-  RobotConfig c;
-  for (int tries = 0; tries < 64; ++tries) {
-    c = ObjectSearchModel::ConfigOf(box.SampleUniform(rng));
-    if (w.BaseFeasible(c.x, c.y)) break;
-  }
-  return c;
+object_search::ProposalOptions TrainingProposals() {
+  object_search::ProposalOptions o;
+  o.target_share = 0.5;
+  o.object_share = 0.2;
+  return o;
 }
 
 ScoredConfigs ScoreConfigs(const ObjectSearchModel& model, const State& s,
                            const std::vector<Vec3>& placements, int n, Rng& rng) {
   ScoredConfigs out;
-  out.configs.reserve(n);
+  const int candidate = object_search::TargetCandidate(model.world());
+  object_search::ProposeMoves(model, TrainingProposals(), n, rng, &out.configs, nullptr);
   out.queries.resize(static_cast<size_t>(n) * kQueryDim);
   out.scores.resize(n);
   for (int i = 0; i < n; ++i) {
-    out.configs.push_back(SampleConfig(model, placements, i % 2 == 0, rng));
-    QueryOf(model.world(), out.configs[i], s.objects[0].odds,
+    QueryOf(model.world(), out.configs[i], candidate,
             &out.queries[static_cast<size_t>(i) * kQueryDim]);
-    out.scores[i] = static_cast<float>(VisibilityScore(model, s, out.configs[i], placements));
+    out.scores[i] =
+        static_cast<float>(TargetScore(model, s, candidate, out.configs[i], placements));
   }
   return out;
 }

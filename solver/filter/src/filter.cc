@@ -6,6 +6,7 @@
 #include <numeric>
 
 #include "network.h"
+#include "npfkct/object_search/proposals.h"
 #include "npfkct/solver/option_table.h"
 
 namespace npfkct::filter {
@@ -43,9 +44,29 @@ class NetSam final : public CandidateSampler<State> {
     }
     const World& w = model_.world();
     const State& s = belief.Sample(rng);
+    const int candidate = object_search::TargetCandidate(w);
+    object_search::ProposalOptions mix;
+    mix.target_share = options_.target_share;
+    mix.object_share = options_.object_share;
+    // Proposals: aimed at the target candidate, at other known objects, or uniform.
+    std::vector<RobotConfig> configs;
+    std::vector<object_search::ProposalSource> sources;
+    object_search::ProposeMoves(model_, mix, options_.candidates, rng, &configs, &sources);
+    if (candidate > 0 && object_search::UnconfirmedFaces(w, candidate, +1) == 0) {
+      // Every face of the candidate is confirmed: it can be declared, no view scores, and the
+      // proposals go through as they are.
+      for (int i = 0; i < count && i < options_.candidates; ++i) {
+        out->push_back(box.Clamp(ObjectSearchModel::VecOf(configs[i])));
+      }
+      if (stats != nullptr) {
+        stats->sampled += options_.candidates;
+        stats->accepted += std::min(count, options_.candidates);
+      }
+      return OkStatus();
+    }
     const std::vector<Vec3> placements = SamplePlacements(w, options_.placements, rng);
     const SceneFeatures scene = SceneOf(w, rng);
-    // Context: configurations scored exactly, half aimed at a placement, as in training.
+    // Context: configurations scored exactly, drawn as in training.
     const ScoredConfigs context = ScoreConfigs(model_, s, placements, options_.context, rng);
     std::vector<std::pair<double, ActionVec>> known_good;
     for (int i = 0; i < options_.context; ++i) {
@@ -54,26 +75,33 @@ class NetSam final : public CandidateSampler<State> {
         known_good.push_back({context.scores[i], x});
       }
     }
-    // Candidates: uniform configurations with a feasible base, scored by the network.
-    std::vector<RobotConfig> configs(options_.candidates);
-    std::vector<float> q(static_cast<size_t>(options_.candidates) * kQueryDim);
+    // The network scores the views of the target candidate and the uniform ones; views aimed at
+    // other objects' faces serve their declaration as obstacles, which g does not score.
+    std::vector<int> scored, objects;
     for (int i = 0; i < options_.candidates; ++i) {
-      configs[i] = SampleConfig(model_, placements, false, rng);
-      QueryOf(w, configs[i], s.objects[0].odds, &q[static_cast<size_t>(i) * kQueryDim]);
+      (sources[i] == object_search::ProposalSource::kObject ? objects : scored).push_back(i);
+    }
+    std::vector<float> q(scored.size() * kQueryDim);
+    for (size_t j = 0; j < scored.size(); ++j) {
+      QueryOf(w, configs[scored[j]], candidate, &q[j * kQueryDim]);
     }
     const Prediction p = filter_->Predict(scene, context.queries, context.scores, q);
     const double beta = options_.Beta();
-    std::vector<std::pair<double, int>> ranked(options_.candidates);
-    for (int i = 0; i < options_.candidates; ++i) ranked[i] = {p.mu[i] - beta * p.sigma[i], i};
+    std::vector<std::pair<double, int>> ranked(scored.size());
+    for (size_t j = 0; j < scored.size(); ++j) {
+      ranked[j] = {p.mu[j] - beta * p.sigma[j], scored[j]};
+    }
     std::sort(ranked.begin(), ranked.end(),
               [](const auto& a, const auto& b) { return a.first > b.first; });
-    // Keep mu > beta* sigma, best first; the exactly scored efficient context configurations
-    // join them; at least min_keep, at most count.
     std::sort(known_good.begin(), known_good.end(),
               [](const auto& a, const auto& b) { return a.first > b.first; });
-    // A share of `count` stays uniform (exploration); the kept ones fill the rest.
+    // Keep mu > beta* sigma, best first, with the exactly scored efficient context configurations;
+    // at least min_keep; the object views in their share of `count`; a share of uniform
+    // (explore) configurations the filter did not keep.
+    const int object_keep = std::min(static_cast<int>(objects.size()),
+                                     static_cast<int>(std::lround(options_.object_share * count)));
     const int explore = static_cast<int>(std::lround(options_.explore * count));
-    const int filtered = std::max(1, count - explore);
+    const int filtered = std::max(1, count - explore - object_keep);
     std::vector<bool> used(options_.candidates, false);
     int added = 0;
     for (const auto& [g, x] : known_good) {
@@ -88,8 +116,13 @@ class NetSam final : public CandidateSampler<State> {
       used[i] = true;
       ++added;
     }
+    for (int k = 0; k < object_keep; ++k) {
+      out->push_back(box.Clamp(ObjectSearchModel::VecOf(configs[objects[k]])));
+      used[objects[k]] = true;
+      ++added;
+    }
     for (int i = 0; i < options_.candidates && added < count && explore > 0; ++i) {
-      if (used[i]) continue;
+      if (used[i] || sources[i] != object_search::ProposalSource::kUniform) continue;
       out->push_back(box.Clamp(ObjectSearchModel::VecOf(configs[i])));
       ++added;
     }
@@ -123,6 +156,15 @@ Status FilterOptions::Validate() const {
   }
   if (min_keep < 1) return InvalidArgumentError("min_keep must be >= 1");
   if (!(explore >= 0.0 && explore < 1.0)) return InvalidArgumentError("explore must be in [0, 1)");
+  if (!(target_share >= 0.0 && target_share <= 1.0)) {
+    return InvalidArgumentError("target_share must be in [0, 1]");
+  }
+  if (!(object_share >= 0.0 && object_share <= 1.0 - target_share)) {
+    return InvalidArgumentError("object_share must be in [0, 1 - target_share]");
+  }
+  if (explore + object_share >= 1.0) {
+    return InvalidArgumentError("explore + object_share must be below 1");
+  }
   return OkStatus();
 }
 
@@ -136,6 +178,8 @@ Status SetOption(FilterOptions* o, std::string_view key, double value) {
       {"placements", Int(&FilterOptions::placements)},
       {"min_keep", Int(&FilterOptions::min_keep)},
       {"explore", Real(&FilterOptions::explore)},
+      {"target_share", Real(&FilterOptions::target_share)},
+      {"object_share", Real(&FilterOptions::object_share)},
   };
   return option_table::Apply(*table, o, key, value);
 }

@@ -9,10 +9,12 @@
 #include <numeric>
 #include <string>
 
+#include "generate.h"
 #include "npfkct/filter/dataset.h"
 #include "npfkct/filter/features.h"
 #include "npfkct/filter/train.h"
 #include "npfkct/sim/scenario.h"
+#include "npfkct/sim/scenegen.h"
 #include "npfkct/sim/simulator.h"
 
 namespace npfkct::filter {
@@ -42,9 +44,12 @@ World SceneWorld(const std::string& name, uint64_t seed = 1) {
   return w;
 }
 
-GenerateOptions SmallGeneration(int samples, uint64_t seed) {
+// A few snapshots of generated scenes (training seeds; the benchmark's held-out ones are above
+// sim::kHeldOutSeedBase).
+GenerateOptions SmallGeneration(int samples, uint64_t seed, uint64_t scene_seed = 100) {
   GenerateOptions o;
-  for (const char* n : {"loose1", "hidden1", "complex1"}) o.scenarios.push_back(ScenarioPath(n));
+  o.scene_seed = scene_seed;
+  o.scene_count = 50;
   o.samples = samples;
   o.queries_per_sample = 24;
   o.placements = 32;
@@ -94,8 +99,8 @@ TEST(FeaturesTest, EmptySceneHasAZeroCloud) {
   for (float v : f.points) ASSERT_EQ(v, 0.0f);
 }
 
-TEST(FeaturesTest, QueryEncodesConfigurationAndOdds) {
-  const World w = SceneWorld("loose1");
+TEST(FeaturesTest, QueryEncodesConfigurationAndTargetCandidate) {
+  World w = SceneWorld("loose1");
   RobotConfig c;
   c.x = w.base_regions[0].min.x();
   c.y = w.base_regions[0].min.y();
@@ -103,50 +108,104 @@ TEST(FeaturesTest, QueryEncodesConfigurationAndOdds) {
   c.lift = w.robot.lift_max;
   c.pan = 0.0;
   c.tilt = w.robot.tilt_min;
-  std::array<float, 8> odds{};
-  odds[3] = static_cast<float>(w.params.face_odds_limit);
   std::vector<float> q(kQueryDim);
-  QueryOf(w, c, odds, q.data());
+  QueryOf(w, c, 0, q.data());
   EXPECT_NEAR(q[2], 0.0, 1e-6);   // cos yaw
   EXPECT_NEAR(q[3], 1.0, 1e-6);   // sin yaw
   EXPECT_NEAR(q[4], 1.0, 1e-6);   // lift at its maximum
   EXPECT_NEAR(q[5], 0.0, 1e-6);   // pan centred
   EXPECT_NEAR(q[6], -1.0, 1e-6);  // tilt at its minimum
-  EXPECT_NEAR(q[kConfigDim + 3], 1.0, 1e-6);
-  EXPECT_NEAR(q[kConfigDim + 0], 0.0, 1e-6);
+  // The guessed target: flagged, its face odds the re-initialised guess odds.
+  EXPECT_EQ(q[kConfigDim], 1.0f);
+  const float limit = static_cast<float>(w.params.face_odds_limit);
+  EXPECT_NEAR(q[kConfigDim + kCandidateDim], w.params.guess_odds / limit, 1e-6);
+  // A detected candidate: not flagged, its center in front of a camera turned towards it, and
+  // its own face odds (not a constant).
+  ASSERT_GT(w.objects.size(), 1u);
+  w.objects[1].odds = {1.5f, -0.5f, 0, 0, 2.0f, 0, 0, 0.25f};
+  const Vec3 center = w.objects[1].box.center;
+  c.x = center.x() - 1.2;
+  c.y = center.y();
+  c.yaw = 0.0;
+  c.tilt = 0.3;
+  QueryOf(w, c, 1, q.data());
+  EXPECT_EQ(q[kConfigDim], 0.0f);
+  EXPECT_GT(q[kConfigDim + 9], 0.4f);            // depth along the optical axis, over far
+  EXPECT_NEAR(q[kConfigDim + 10], 0.0f, 0.05f);  // centred left-right
+  EXPECT_NEAR(q[kConfigDim + kCandidateDim + 0], 1.5f / limit, 1e-6);
+  EXPECT_NEAR(q[kConfigDim + kCandidateDim + 4], 2.0f / limit, 1e-6);
 }
 
-TEST(FeaturesTest, ScoreCountsVisiblePlacements) {
+TEST(FeaturesTest, ScoreOfTheGuessIsTheVisibleShareOfPlacements) {
   const World w = SceneWorld("loose1");
   ObjectSearchModel model(std::make_shared<const World>(w));
   Rng rng(5);
   const State s = model.SampleInitialState(rng);
   const std::vector<Vec3> placements = SamplePlacements(w, 64, rng);
-  // Aimed configurations see their placement; turning the base around sees nothing.
-  int aimed_seen = 0;
+  // Views aimed at a placement see it; turning the base around sees nothing.
+  int aimed_seen = 0, tried = 0;
   for (int i = 0; i < 20; ++i) {
     const std::vector<Vec3> one = {placements[i]};
-    RobotConfig c = SampleConfig(model, one, true, rng);
+    RobotConfig c;
+    if (!object_search::AimAt(w, placements[i], rng, &c)) continue;
+    ++tried;
     EXPECT_TRUE(w.BaseFeasible(c.x, c.y));
-    const double g = VisibilityScore(model, s, c, one);
+    const double g = TargetScore(model, s, 0, c, one);
     EXPECT_TRUE(g == 0.0 || g == 1.0);
     aimed_seen += g > 0;
     c.yaw = object_search::WrapAngle(c.yaw + std::numbers::pi);
-    EXPECT_EQ(VisibilityScore(model, s, c, one), 0.0);
+    EXPECT_EQ(TargetScore(model, s, 0, c, one), 0.0);
   }
-  EXPECT_GE(aimed_seen, 10);
-  // The score over many placements is their visible fraction.
-  const RobotConfig c = SampleConfig(model, placements, true, rng);
+  EXPECT_GE(tried, 15);
+  EXPECT_GE(aimed_seen, tried / 2);
+  RobotConfig c;
+  ASSERT_TRUE(object_search::AimAt(w, placements[0], rng, &c));
   int seen = 0;
   State t = s;
   for (const Vec3& p : placements) {
     t.target = p;
     seen += model.SeesObject(t, c, 0);
   }
-  EXPECT_DOUBLE_EQ(VisibilityScore(model, s, c, placements), seen / 64.0);
-  EXPECT_EQ(VisibilityScore(model, s, c, {}), 0.0);
+  EXPECT_DOUBLE_EQ(TargetScore(model, s, 0, c, placements), seen / 64.0);
+  EXPECT_EQ(TargetScore(model, s, 0, c, {}), 0.0);
 }
 
+TEST(FeaturesTest, ScoreOfADetectedCandidateIsTheShareOfItsUnconfirmedFacesAViewUpdates) {
+  World w = SceneWorld("loose1");
+  ASSERT_GT(w.objects.size(), 1u);
+  for (size_t i = 1; i < w.objects.size(); ++i) w.objects[i].odds.fill(-1.0f);
+  // Object 1 is the target candidate: grids 0-3 confirmed, 4-7 not.
+  for (int k = 0; k < 8; ++k) w.objects[1].odds[k] = k < 4 ? 2.0f : 0.0f;
+  ASSERT_EQ(object_search::TargetCandidate(w), 1);
+  ASSERT_EQ(object_search::UnconfirmedFaces(w, 1, +1), 0xF0u);
+  auto world = std::make_shared<World>(w);
+  ObjectSearchModel model(world);
+  Rng rng(6);
+  const State s = model.SampleInitialState(rng);
+  int positive = 0, full = 0;
+  for (int i = 0; i < 60; ++i) {
+    RobotConfig c;
+    const int k = static_cast<int>(rng.UniformInt(8));
+    if (!object_search::AimAt(w, object_search::FacePoint(w.objects[1].box, k), rng, &c)) continue;
+    std::array<std::array<int, 4>, 64> nearest;
+    double expected = 0.0;
+    if (model.VisibleObjects(s, c, &nearest) >> 1 & 1u) {
+      for (int n : nearest[1]) expected += n >= 4 ? 0.25 : 0.0;
+    }
+    const double g = TargetScore(model, s, 1, c, {});
+    EXPECT_DOUBLE_EQ(g, expected);
+    positive += g > 0.0;
+    full += g == 1.0;
+  }
+  EXPECT_GT(positive, 10);
+  EXPECT_GT(full, 0);  // some views see all four unconfirmed grids
+  // With every grid confirmed no view scores.
+  world->objects[1].odds.fill(2.0f);
+  model.SetWorld(world);
+  RobotConfig c;
+  ASSERT_TRUE(object_search::AimAt(*world, world->objects[1].box.center, rng, &c));
+  EXPECT_EQ(TargetScore(model, s, 1, c, {}), 0.0);
+}
 TEST(DatasetTest, GeneratesWritesAndReadsBack) {
   auto data = GenerateDataset(SmallGeneration(12, 4));
   ASSERT_TRUE(data.ok()) << data.status().ToString();
@@ -199,6 +258,8 @@ TEST(DatasetTest, OptionsNameTheBadField) {
   o.queries_per_sample = 1;
   EXPECT_NE(o.Validate().message().find("queries_per_sample"), std::string::npos);
   o = SmallGeneration(1, 1);
+  o.scene_seed = 0;
+  EXPECT_NE(o.Validate().message().find("scenarios"), std::string::npos);
   o.scenarios = {"/nonexistent/scenario.json"};
   auto data = GenerateDataset(o);
   ASSERT_FALSE(data.ok());
@@ -247,22 +308,30 @@ TEST(FilterTest, MissingOrCorruptModelIsAClearError) {
   fs::remove(path);
 }
 
-TEST(FilterTest, ShippedModelSeparatesEfficientFromUseless) {
+TEST(FilterTest, ShippedModelSeparatesEfficientFromUselessOnUnseenLayouts) {
   auto filter = NeuralFilter::Load(NPFKCT_FILTER_MODEL);
   ASSERT_TRUE(filter.ok()) << filter.status().ToString();
-  // Scenes the model has not seen (another seed), at the production context size.
-  GenerateOptions g = SmallGeneration(30, 987654);
-  g.queries_per_sample = 64;
-  g.placements = 64;
-  auto test = GenerateDataset(g);
-  ASSERT_TRUE(test.ok());
-  auto m = EvaluateFilter(**filter, *test, FilterOptions());
-  ASSERT_TRUE(m.ok()) << m.status().ToString();
-  EXPECT_GT(m->efficient, 100);
-  EXPECT_GE(m->accuracy, 0.95);
-  EXPECT_GE(m->specificity, 0.5);
-  EXPECT_GE(m->dropped_useless, 0.3);
-  EXPECT_LT(m->mean_abs_error, 0.15);
+  // Layouts the model never saw: held-out generated scenes and the paper's scenes, at the
+  // production context size. (The README's figures come from larger sets: npfkct-train evaluate.)
+  GenerateOptions held_out = SmallGeneration(30, 987654, sim::kHeldOutSeedBase + 1);
+  held_out.scene_count = 30;
+  GenerateOptions paper = SmallGeneration(30, 987655, 0);
+  for (const char* n : {"loose1", "loose2", "hidden1", "covered1", "complex1", "fig16"}) {
+    paper.scenarios.push_back(ScenarioPath(n));
+  }
+  for (GenerateOptions g : {held_out, paper}) {
+    g.queries_per_sample = 64;
+    g.placements = 64;
+    auto test = GenerateDataset(g);
+    ASSERT_TRUE(test.ok()) << test.status().ToString();
+    auto m = EvaluateFilter(**filter, *test, FilterOptions());
+    ASSERT_TRUE(m.ok()) << m.status().ToString();
+    EXPECT_GT(m->efficient, 100);
+    EXPECT_GE(m->accuracy, 0.95);
+    EXPECT_GE(m->specificity, 0.5);
+    EXPECT_GE(m->dropped_useless, 0.3);
+    EXPECT_LT(m->mean_abs_error, 0.15);
+  }
 }
 
 TEST(FilterTest, NetSamReturnsBetterCandidatesThanUniform) {
@@ -288,43 +357,40 @@ TEST(FilterTest, NetSamReturnsBetterCandidatesThanUniform) {
   for (const ActionVec& x : kept) EXPECT_TRUE(box.Contains(x));
   UniformCandidateSampler<State> u;
   ASSERT_TRUE(u.Sample(belief, object_search::kMoveKind, box, 256, rng, &uniform, nullptr).ok());
-  // Exact scores against fresh placements, averaged over belief samples.
+  // Exact scores for the target candidate against fresh placements, over belief samples.
+  const int candidate = object_search::TargetCandidate(w);
   const auto placements = SamplePlacements(w, 128, rng);
   auto mean_score = [&](const std::vector<ActionVec>& xs) {
     double sum = 0;
     for (const ActionVec& x : xs) {
-      sum += VisibilityScore(model, belief.Sample(rng), ObjectSearchModel::ConfigOf(x), placements);
+      sum += TargetScore(model, belief.Sample(rng), candidate, ObjectSearchModel::ConfigOf(x),
+                         placements);
     }
     return sum / xs.size();
   };
   const double k = mean_score(kept), un = mean_score(uniform);
   EXPECT_GT(k, 3.0 * un) << "kept " << k << " uniform " << un;
-  // The network alone ranks uniform candidates: its top 10% score far above the average.
+  // The network alone ranks proposals: its top 10% score far above their average.
   const State& s = belief.Sample(rng);
   const SceneFeatures scene = SceneOf(w, rng);
   const ScoredConfigs context = ScoreConfigs(model, s, placements, 16, rng);
   ASSERT_EQ(context.queries.size(), 16u * kQueryDim);
   for (int i = 0; i < 16; ++i) {
     EXPECT_EQ(context.scores[i],
-              static_cast<float>(VisibilityScore(model, s, context.configs[i], placements)));
+              static_cast<float>(TargetScore(model, s, candidate, context.configs[i], placements)));
   }
-  std::vector<float> q(500 * kQueryDim);
-  std::vector<double> exact(500);
-  for (int i = 0; i < 500; ++i) {
-    const RobotConfig c = SampleConfig(model, placements, false, rng);
-    QueryOf(w, c, s.objects[0].odds, &q[i * kQueryDim]);
-    exact[i] = VisibilityScore(model, s, c, placements);
-  }
-  const Prediction p = (*filter)->Predict(scene, context.queries, context.scores, q);
+  const ScoredConfigs proposals = ScoreConfigs(model, s, placements, 500, rng);
+  const Prediction p =
+      (*filter)->Predict(scene, context.queries, context.scores, proposals.queries);
   std::vector<int> order(500);
   std::iota(order.begin(), order.end(), 0);
   std::sort(order.begin(), order.end(), [&](int a, int b) { return p.mu[a] > p.mu[b]; });
   double top = 0, all = 0;
   for (int i = 0; i < 500; ++i) {
-    all += exact[i] / 500;
-    if (i < 50) top += exact[order[i]] / 50;
+    all += proposals.scores[i] / 500;
+    if (i < 50) top += proposals.scores[order[i]] / 50;
   }
-  EXPECT_GT(top, 3.0 * all) << "top " << top << " all " << all;
+  EXPECT_GT(top, 1.5 * all) << "top " << top << " all " << all;
   // Discrete kinds pass through.
   std::vector<ActionVec> discrete;
   ASSERT_TRUE((*netsam)->Sample(belief, 1, model.KindSpace(1), 3, rng, &discrete, nullptr).ok());

@@ -4,6 +4,7 @@
 //   npfkct-train evaluate --model filter.pt --test test.bin
 //   npfkct-train bench --model filter.pt
 #include <torch/torch.h>
+#include <unistd.h>
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
@@ -14,28 +15,25 @@
 #include <string>
 #include <vector>
 
+#include "generate.h"
 #include "npfkct/filter/dataset.h"
 #include "npfkct/filter/filter.h"
 #include "npfkct/filter/train.h"
 #include "npfkct/sim/scenario.h"
+#include "npfkct/sim/scenegen.h"
 #include "npfkct/sim/simulator.h"
 #include "npfkct/solver/belief.h"
 #include "npfkct/solver/planner.h"
+#include "npfkct/solver/stats.h"
 
 namespace {
 
 using namespace npfkct;
 using namespace npfkct::filter;
 
-std::vector<std::string> DefaultScenarios() {
-  std::vector<std::string> out;
-  for (const char* name : {"loose1", "loose2", "hidden1", "covered1", "complex1", "fig16"}) {
-    out.push_back(std::string(NPFKCT_SCENARIO_DIR) + "/" + name + ".json");
-  }
-  return out;
-}
-
+// A progress bar on a terminal; nothing when stderr is a file or a pipe (logs stay readable).
 void Bar(const std::string& label, int done, int total, const std::string& tail) {
+  if (!isatty(STDERR_FILENO)) return;
   constexpr int kWidth = 30;
   const int filled = total > 0 ? done * kWidth / total : kWidth;
   std::fprintf(stderr, "\r%s [%s%s] %d/%d %s", label.c_str(), std::string(filled, '#').c_str(),
@@ -48,11 +46,6 @@ int Fail(const npfkct::Status& s) {
   return 1;
 }
 
-double Median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v.empty() ? 0.0 : v[v.size() / 2];
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -60,11 +53,18 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
 
   GenerateOptions gen;
-  gen.scenarios = DefaultScenarios();
   std::string gen_out;
-  auto* generate = app.add_subcommand("generate", "generate a dataset (paper algorithm 4)");
+  auto* generate = app.add_subcommand(
+      "generate", "generate a dataset (paper algorithm 4) from scenario files or generated scenes");
   generate->add_option("--out", gen_out, "dataset file to write")->required();
   generate->add_option("--scenarios", gen.scenarios, "scenario files")->delimiter(',');
+  generate->add_option("--scene-seed", gen.scene_seed,
+                       "first npfkct-scenegen seed of the scenes (instead of files); training "
+                       "data must stay below " +
+                           std::to_string(sim::kHeldOutSeedBase));
+  generate->add_option("--scene-count", gen.scene_count, "consecutive scene seeds");
+  generate->add_option("--oracle-share", gen.oracle_share,
+                       "share of the real steps before a snapshot chosen by the oracle");
   generate->add_option("--samples", gen.samples, "snapshots");
   generate->add_option("--queries", gen.queries_per_sample, "scored configurations per snapshot");
   generate->add_option("--placements", gen.placements, "target placements per score");
@@ -92,6 +92,8 @@ int main(int argc, char** argv) {
   ev->add_option("--context", fo.context, "context configurations");
   ev->add_option("--confidence", fo.confidence, "C_threshold of Net_sam");
   ev->add_option("--json", json_out, "also write the figures to this file");
+  std::string label;
+  ev->add_option("--label", label, "name of the test set in the figures");
 
   std::string bench_scenario = std::string(NPFKCT_SCENARIO_DIR) + "/complex1.json";
   int runs = 50;
@@ -105,10 +107,16 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
 
   if (*generate) {
+    if (gen.scene_seed != 0 && gen.scene_seed + gen.scene_count > sim::kHeldOutSeedBase + 1 &&
+        gen.scene_seed <= sim::kHeldOutSeedBase + 30) {
+      std::cerr << "npfkct-train: note: scene seeds overlap the benchmark's held-out scenes ("
+                << sim::kHeldOutSeedBase + 1 << "-" << sim::kHeldOutSeedBase + 30
+                << "): use them for test sets only\n";
+    }
     auto data = GenerateDataset(gen, [](int done, int total) {
       if (done % 10 == 0 || done == total) Bar("generate", done, total, "");
     });
-    std::fprintf(stderr, "\n");
+    if (isatty(STDERR_FILENO)) std::fprintf(stderr, "\n");
     if (!data.ok()) return Fail(data.status());
     int efficient = 0, total = 0;
     for (const Sample& s : data->samples) {
@@ -137,8 +145,9 @@ int main(int argc, char** argv) {
           }
         },
         [](const EpochReport& e) {
-          std::fprintf(stderr, "\nepoch %d: train loss %.4f, validation loss %.4f (%.1f s)\n",
-                       e.epoch, e.train_loss, e.val_loss, e.seconds);
+          std::fprintf(stderr, "%sepoch %d: train loss %.4f, validation loss %.4f (%.1f s)\n",
+                       isatty(STDERR_FILENO) ? "\n" : "", e.epoch, e.train_loss, e.val_loss,
+                       e.seconds);
         });
     if (!report.ok()) return Fail(report.status());
     std::printf("{\"best_epoch\": %d, \"best_val_loss\": %.5f, \"model\": \"%s\"}\n",
@@ -154,11 +163,13 @@ int main(int argc, char** argv) {
     auto m = EvaluateFilter(**filter, *test, fo);
     if (!m.ok()) return Fail(m.status());
     std::snprintf(line, sizeof(line),
-                  "{\"test_samples\": %zu, \"queries\": %d, \"efficient\": %d, \"accuracy\": %.4f, "
+                  "{\"test_set\": \"%s\", \"test_samples\": %zu, \"queries\": %d, \"efficient\": "
+                  "%d, \"accuracy\": %.4f, "
                   "\"specificity\": %.4f, \"kept_efficient\": %.4f, \"dropped_useless\": %.4f, "
                   "\"mean_abs_error\": %.4f, \"within_2_sigma\": %.4f}",
-                  test->samples.size(), m->queries, m->efficient, m->accuracy, m->specificity,
-                  m->kept_efficient, m->dropped_useless, m->mean_abs_error, m->within_2_sigma);
+                  label.c_str(), test->samples.size(), m->queries, m->efficient, m->accuracy,
+                  m->specificity, m->kept_efficient, m->dropped_useless, m->mean_abs_error,
+                  m->within_2_sigma);
   } else {
     // One core: the filter runs on the planning thread.
     auto sc = sim::LoadScenario(bench_scenario);
@@ -181,12 +192,12 @@ int main(int argc, char** argv) {
     const auto placements = SamplePlacements(*world, fo.placements, rng);
     const SceneFeatures scene = SceneOf(*world, rng);
     const ScoredConfigs context = ScoreConfigs(model, s, placements, fo.context, rng);
+    const int candidate = object_search::TargetCandidate(*world);
     std::vector<float> q(fo.candidates * kQueryDim);
     std::vector<object_search::RobotConfig> configs;
-    for (int i = 0; i < fo.candidates; ++i) {
-      configs.push_back(SampleConfig(model, placements, false, rng));
-      QueryOf(*world, configs.back(), s.objects[0].odds, &q[i * kQueryDim]);
-    }
+    object_search::ProposeMoves(model, TrainingProposals(), fo.candidates, rng, &configs, nullptr);
+    for (int i = 0; i < fo.candidates; ++i)
+      QueryOf(*world, configs[i], candidate, &q[i * kQueryDim]);
     std::vector<double> network, netsam, exact, scene_ms;
     auto sampler = MakeNetSam(*filter, model, fo);
     if (!sampler.ok()) return Fail(sampler.status());
@@ -214,7 +225,7 @@ int main(int argc, char** argv) {
       scene_ms.push_back(sc_ms);
       if (r < 3 + 5) {
         t0 = Clock::now();
-        for (const auto& c : configs) VisibilityScore(model, s, c, placements);
+        for (const auto& c : configs) TargetScore(model, s, candidate, c, placements);
         exact.push_back(MillisSince(t0));
       }
     }

@@ -61,6 +61,10 @@ struct SearchParams {
   double face_odds_limit = 8.0;
   /// Episode length limit (success within this many steps).
   int max_steps = 50;
+  /// Clearance (m) the reasonability check keeps between the base's footprint and the map, so
+  /// that the pose noise of a move cannot push the robot into furniture (a navigation stack's
+  /// inflation radius).
+  double base_clearance = 0.05;
 
   /// Checks every field; the message names the offending one.
   Status Validate() const;
@@ -177,7 +181,8 @@ struct World {
   Status Validate() const;
   /// Occluding boxes: furniture and every object not removed (object 0 excluded).
   std::vector<Box> Occluders() const;
-  /// Whether the base may stand at (x, y): inside a base region and free in the occupancy map.
+  /// Whether the base may stand at (x, y): inside a base region, and its footprint plus
+  /// params.base_clearance free in the occupancy map.
   bool BaseFeasible(double x, double y) const;
   /// Index of the object with this key, or -1.
   int FindObject(const std::string& key) const;

@@ -96,6 +96,10 @@ class Advt {
     d.stats.budget_exhausted = false;
     if (Status s = options_.Validate(); !s.ok()) return Fail(std::move(d), std::move(s));
     if (Status s = stop.budget().Validate(); !s.ok()) return Fail(std::move(d), std::move(s));
+    if (options_.search.threads != 1) {
+      return Fail(std::move(d), InvalidArgumentError("search.threads: only kCT plans on several "
+                                                     "threads; this planner needs 1"));
+    }
     if (belief_.empty()) return Fail(std::move(d), FailedPreconditionError("belief is empty"));
     if constexpr (!HasObservationLikelihood<M>) {
       if (options_.observations.enabled) {
@@ -251,10 +255,18 @@ class Advt {
 
   void InitCells(int node, const State& s, Rng& rng) {
     model_.ActionKinds(s, &scratch_);
-    for (int kind : scratch_) {
+    // RolloutFirst: at the root, the rollout policy's action represents its kind's first cell.
+    HybridAction first;
+    first.kind = -1;
+    if constexpr (requires { model_.RolloutAction(s, rng); }) {
+      if (options_.search.rollout_first && node == tree_.root) first = model_.RolloutAction(s, rng);
+    }
+    for (int kind : std::vector<int>(scratch_)) {
       HybridAction a;
       a.kind = kind;
-      a.x = SampleFeasiblePoint(model_, s, kind, options_.feasibility_tries, rng);
+      a.x = kind == first.kind
+                ? first.x
+                : SampleFeasiblePoint(model_, s, kind, options_.feasibility_tries, rng);
       tree_.NewActNode(node, std::move(a));
     }
   }

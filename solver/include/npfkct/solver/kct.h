@@ -2,13 +2,17 @@
 //
 // Every observation node keeps a dynamic action list L(node) of hyperspheres (center, range) of the
 // continuous action space, plus the discrete actions (range 0). The list starts from candidate
-// actions (uniform, or filtered by the neural process network) clustered into hyperspheres by
-// k-means with the elbow method. An episode picks the entry maximising
-//   U = Qhat / value_scale + w1 sqrt(log N / N_a) + w2 range,
+// actions (uniform, aimed, or filtered by the neural process network) clustered into hyperspheres
+// by k-means with the elbow method. An episode picks the entry maximising
+//   U = norm(Qhat) + w1 sqrt(log N / N_a) + w2 range,
 // refines it once N_a >= 1 / (C_r range^2) and range > D_lim by k-means of the actions tried in it
 // (radii clamped by f_lim; the subtree is copied for every new sphere and each copy keeps only the
 // episodes of its cluster), executes a point drawn uniformly in the sphere, and backs up by
-// Monte Carlo or Bellman (algorithm 6).
+// Monte Carlo or Bellman (algorithm 6). norm() maps Qhat onto [0, 1] by the range of returns seen
+// in this search (or divides by the model's reward range); w2 and C_r follow appendix J's rules
+// from the radii of this step's initial spheres unless set. With search.threads > 1, that many
+// independent trees search the same belief from the same initial spheres (root parallelism) and
+// the root statistics of spheres descending from the same initial sphere are merged.
 #pragma once
 
 #include <algorithm>
@@ -16,7 +20,10 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <numbers>
+#include <set>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -30,20 +37,37 @@
 
 namespace npfkct {
 
-/// Options of the k-center clustering tree. Defaults follow the paper's appendix J.
+/// Options of the k-center clustering tree. Defaults follow the paper's appendix J where it gives
+/// a value or a rule; the rest are marked.
 struct KctOptions {
-  /// Depth, horizon, reuse, particles and belief update settings.
+  /// Depth, horizon, reuse, particles, threads and belief update settings.
   SearchOptions search;
   /// Clusters per refinement (k).
   int k = 3;
-  /// UCB coefficient w1 (on values divided by value_scale).
+  /// UCB coefficient w1 (on normalised values).
   double w1 = std::numbers::sqrt2;
-  /// Range coefficient w2.
-  double w2 = 0.5;
-  /// Scale dividing Qhat in U; NaN means the model's reward range.
+  /// Range coefficient w2; NaN: appendix J's rule, w2 = w2_ratio / (mean radius of this step's
+  /// initial spheres), so that the range term of a typical initial sphere is w2_ratio, comparable
+  /// to the other two terms.
+  double w2 = std::numeric_limits<double>::quiet_NaN();
+  /// The range term of a sphere of the mean initial radius under the appendix J rule.
+  double w2_ratio = 0.5;
+  /// How Qhat is mapped for U.
+  enum class Normalization {
+    kObservedRange,  ///< (Qhat - min) / (max - min) over the returns seen in this search.
+    kValueScale,     ///< Qhat / value_scale (NaN scale: the model's reward range).
+    kSiblingRange,   ///< (Qhat - min) / (max - min) over the visited entries of the node.
+  };
+  Normalization normalization = Normalization::kObservedRange;
+  /// Scale dividing Qhat in U with kValueScale; NaN means the model's reward range.
   double value_scale = std::numeric_limits<double>::quiet_NaN();
-  /// Refinement exploration constant C_r: refine once N_a >= 1 / (C_r range^2).
-  double c_r = 0.05;
+  /// Refinement exploration constant C_r: refine once N_a >= 1 / (C_r range^2). NaN: appendix J's
+  /// rule, C_r = 1 / (refine_share N_p mean(range)^2) with N_p the root belief's particles and the
+  /// mean radius of this step's initial spheres, so that a sphere of that radius is refined after
+  /// refine_share N_p visits.
+  double c_r = std::numeric_limits<double>::quiet_NaN();
+  /// The share of N_p in appendix J's C_r rule (30% to 50% there).
+  double refine_share = 0.4;
   /// Minimum radius D_lim: spheres of this range or less are never refined.
   double d_lim = 0.2;
   /// f_lim coefficients: refined radii are clamped to [w2_bar, w1_bar] x the parent range.
@@ -56,17 +80,28 @@ struct KctOptions {
   int num_candidates = 256;
   /// Upper bound of k_i for the elbow method on the candidates.
   int max_initial_clusters = 8;
-  /// How the executed action is drawn from the best root sphere.
+  /// Which root sphere the executed action comes from.
+  enum class FinalChoice {
+    kMaxValue,     ///< The highest Qhat among visited spheres (paper, algorithm 1 line 12).
+    kMostVisited,  ///< The most visited sphere (robust to spheres visited a handful of times).
+  };
+  FinalChoice final_choice = FinalChoice::kMostVisited;
+  /// How the executed action is drawn from the chosen root sphere.
   enum class FinalAction {
     kUniformInSphere,  ///< Uniform in the sphere, rejecting infeasible points (paper).
     kCenter,           ///< The sphere's center (when feasible).
   };
   FinalAction final_action = FinalAction::kUniformInSphere;
+  /// Where Action_sam draws the point of a sphere: uniformly in the sphere (the paper), or among
+  /// the candidates (Net_sam's filtered samples) the sphere covers, uniformly in it when it
+  /// covers none. The candidates are where the filter found efficient actions; a uniform draw
+  /// also lands on the parts of the sphere between them.
+  bool sample_candidates = true;
   /// Draws tried by Action_sam before it falls back to the center.
   int max_feasibility_tries = 100;
   /// Draws tried inside the tree to find a point of a sphere that passes the model's
   /// reasonability check (1: no check in the tree, the paper's behaviour).
-  int tree_feasibility_tries = 8;
+  int tree_feasibility_tries = 1;
   /// Observation branching.
   ObservationWidening observations;
 
@@ -75,24 +110,36 @@ struct KctOptions {
     if (Status s = search.Validate(); !s.ok()) return Prefixed("search", s);
     if (k < 2) return InvalidArgumentError("k must be >= 2");
     if (!(w1 >= 0.0) || !std::isfinite(w1)) return InvalidArgumentError("w1 must be >= 0");
-    if (!(w2 >= 0.0) || !std::isfinite(w2)) return InvalidArgumentError("w2 must be >= 0");
+    if (!std::isnan(w2) && !(w2 >= 0.0 && std::isfinite(w2))) {
+      return InvalidArgumentError("w2 must be >= 0 (or NaN for appendix J's rule)");
+    }
+    if (!(w2_ratio >= 0.0) || !std::isfinite(w2_ratio)) {
+      return InvalidArgumentError("w2_ratio must be >= 0");
+    }
     if (!std::isnan(value_scale) && !(value_scale > 0.0 && std::isfinite(value_scale))) {
       return InvalidArgumentError("value_scale must be > 0 (or NaN for the reward range)");
     }
-    if (!(c_r > 0.0) || !std::isfinite(c_r)) return InvalidArgumentError("c_r must be > 0");
+    if (!std::isnan(c_r) && !(c_r > 0.0 && std::isfinite(c_r))) {
+      return InvalidArgumentError("c_r must be > 0 (or NaN for appendix J's rule)");
+    }
+    if (!(refine_share > 0.0 && refine_share <= 10.0)) {
+      return InvalidArgumentError("refine_share must be in (0, 10]");
+    }
     if (!(d_lim > 0.0) || !std::isfinite(d_lim)) return InvalidArgumentError("d_lim must be > 0");
     if (!(w2_bar >= 0.0 && w2_bar < w1_bar && w1_bar <= 1.0)) {
       return InvalidArgumentError("w1_bar and w2_bar must satisfy 0 <= w2_bar < w1_bar <= 1");
     }
-    if (num_candidates < 1) return InvalidArgumentError("num_candidates must be >= 1");
-    if (max_initial_clusters < 1) {
-      return InvalidArgumentError("max_initial_clusters must be >= 1");
+    if (num_candidates < 1 || num_candidates > 100000) {
+      return InvalidArgumentError("num_candidates must be in [1, 100000]");
     }
-    if (max_feasibility_tries < 1) {
-      return InvalidArgumentError("max_feasibility_tries must be >= 1");
+    if (max_initial_clusters < 1 || max_initial_clusters > 64) {
+      return InvalidArgumentError("max_initial_clusters must be in [1, 64]");
     }
-    if (tree_feasibility_tries < 1) {
-      return InvalidArgumentError("tree_feasibility_tries must be >= 1");
+    if (max_feasibility_tries < 1 || max_feasibility_tries > 100000) {
+      return InvalidArgumentError("max_feasibility_tries must be in [1, 100000]");
+    }
+    if (tree_feasibility_tries < 1 || tree_feasibility_tries > 1000) {
+      return InvalidArgumentError("tree_feasibility_tries must be in [1, 1000]");
     }
     return Prefixed("observations", observations.Validate());
   }
@@ -115,6 +162,17 @@ struct Hypersphere {
   int kind = 0;
   ActionVec center;
   double range = 0.0;
+  /// The candidates the sphere was built from (points of its kind's box).
+  std::shared_ptr<const std::vector<ActionVec>> members;
+};
+
+/// The parameters a kCT search actually used (appendix J's rules resolved), Ceres style.
+struct KctUsed {
+  double w2 = 0.0;
+  double c_r = 0.0;
+  double value_scale = 0.0;  ///< With kValueScale.
+  double mean_initial_range = 0.0;
+  int threads = 1;
 };
 
 /// The k-center clustering tree planner over a hybrid-action model. The model must outlive it.
@@ -130,16 +188,16 @@ class KCenterTree {
               std::shared_ptr<CandidateSampler<State>> sampler = nullptr)
       : model_(model), options_(std::move(options)), sampler_(std::move(sampler)) {
     if (!sampler_) sampler_ = std::make_shared<UniformCandidateSampler<State>>();
-    scale_ = std::isnan(options_.value_scale) ? RewardRange(model_, 1.0) : options_.value_scale;
+    workers_.resize(std::clamp(options_.search.threads, 1, 64));
   }
 
   void Reset(Rng& rng) {
     belief_ = ParticleBelief<State>::FromInitial(model_, options_.search.num_particles, rng);
-    tree_.Clear();
+    ClearTrees();
   }
   void SetBelief(ParticleBelief<State> belief) {
     belief_ = std::move(belief);
-    tree_.Clear();
+    ClearTrees();
   }
   const ParticleBelief<State>& belief() const { return belief_; }
   const KctOptions& options() const { return options_; }
@@ -153,6 +211,8 @@ class KCenterTree {
   const std::map<int, std::vector<Hypersphere>>& spheres() const { return spheres_; }
   /// The root sphere the last decision came from (kind, center, range).
   Hypersphere last_sphere() const { return last_sphere_; }
+  /// The parameters the last Plan() used.
+  const KctUsed& used() const { return used_; }
 
   /// Plans within a budget of its own (a condition created here, which nobody can cancel).
   Decision<Action> Plan(const Budget& budget, Rng& rng) {
@@ -160,7 +220,7 @@ class KCenterTree {
     return Plan(stop, rng);
   }
 
-  /// Plans within `budget` (algorithm 1, lines 3-18) and recommends an executable action.
+  /// Plans until `stop` says so (algorithm 1, lines 3-18) and recommends an executable action.
   Decision<Action> Plan(const TerminationCondition& stop, Rng& rng) {
     Decision<Action> d;
     d.stats.budget_exhausted = false;
@@ -174,66 +234,110 @@ class KCenterTree {
                                          "likelihood; use exact observation matching"));
       }
     }
-    if (!options_.search.reuse_tree && tree_.root >= 0) {
+    if (!options_.search.reuse_tree && workers_[0].tree.root >= 0) {
       const auto t0 = Clock::now();
-      tree_.Clear();
+      ClearTrees();
       d.stats.teardown_ms = MillisSince(t0);
     }
-    max_depth_ = 0;
-    refinements_ = 0;
     candidate_stats_ = {};
     spheres_.clear();
     // Net_sam + k-clustering for the kinds legal at the root, then Update(T, C_a, R_a).
-    model_.ActionKinds(belief_.Sample(rng), &scratch_);
-    for (int kind : std::vector<int>(scratch_)) {
+    std::vector<int> kinds;
+    model_.ActionKinds(belief_.Sample(rng), &kinds);
+    for (int kind : kinds) {
       if (Status s = EnsureSpheres(kind, rng); !s.ok()) return Fail(std::move(d), std::move(s));
     }
-    if (tree_.root < 0) {
-      tree_.root = tree_.NewObsNode();
-    } else {
-      AddSpheresToTree();
-      if (Status s = EnsureRootKinds(belief_.Sample(rng), rng); !s.ok()) {
-        return Fail(std::move(d), std::move(s));
+    ResolveParameters();
+    const int threads = static_cast<int>(workers_.size());
+    for (int t = 0; t < threads; ++t) {
+      Worker& w = workers_[t];
+      w.rng = rng.Split();
+      w.max_depth = 0;
+      w.refinements = 0;
+      w.simulations = 0;
+      w.status = OkStatus();
+      if (w.tree.root < 0) {
+        w.tree.root = w.tree.NewObsNode();
+      } else {
+        ForgetRootOrigins(w, t);
+        AddSpheresToTree(w);
+        if (Status s = EnsureRootKinds(w, belief_.Sample(rng), rng); !s.ok()) {
+          return Fail(std::move(d), std::move(s));
+        }
       }
+      d.stats.reused_visits += w.tree.obs[w.tree.root].n;
+      if (w.tree.obs[w.tree.root].actions.empty()) {
+        if (Status s = InitList(w, w.tree.root, belief_.Sample(rng), rng); !s.ok()) {
+          return Fail(std::move(d), s);
+        }
+      }
+      if (options_.search.rollout_first) AddRolloutFirst(w, rng);
     }
-    d.stats.reused_visits = tree_.obs[tree_.root].n;
 
-    int64_t sims = 0;
-    while (!stop.ShouldStop(sims)) {
-      const State& s = belief_.Sample(rng);
-      if (!IsTerminalState(model_, s)) {
-        Status status = OkStatus();
-        Simulate(s, tree_.root, 0, next_episode_++, rng, &status);
-        if (!status.ok()) return Fail(std::move(d), std::move(status));
+    // The search: with one thread on the calling thread under the caller's condition. With
+    // several, every worker (worker 0 on the calling thread) gets a condition of its own with
+    // what is left of the caller's wall and CPU budget (each on its own thread's CPU clock), its
+    // share of the simulations, and the caller's cancellation.
+    if (threads == 1) {
+      RunEpisodes(workers_[0], stop);
+    } else {
+      Budget left = stop.budget();
+      if (left.time_ms > 0.0) left.time_ms = std::max(left.time_ms - stop.ElapsedMs(), 1e-3);
+      if (left.cpu_ms > 0.0) left.cpu_ms = std::max(left.cpu_ms - stop.CpuMs(), 1e-3);
+      if (left.max_simulations > 0) {
+        left.max_simulations = (left.max_simulations + threads - 1) / threads;
       }
-      ++sims;
+      auto run = [this, left, &stop](int t) {
+        TerminationCondition local(
+            left, [&stop] { return stop.cancelled(); }, 1.0);
+        RunEpisodes(workers_[t], local);
+      };
+      std::vector<std::thread> pool;
+      for (int t = 1; t < threads; ++t) pool.emplace_back(run, t);
+      run(0);
+      for (std::thread& th : pool) th.join();
     }
-    d.stats.simulations = sims;
+    for (Worker& w : workers_) {
+      if (!w.status.ok()) return Fail(std::move(d), w.status);
+      d.stats.simulations += w.simulations;
+      d.stats.refinements += w.refinements;
+      d.stats.max_depth = std::max(d.stats.max_depth, w.max_depth);
+    }
     d.stats.budget_exhausted = true;
-    d.stats.refinements = refinements_;
+
+    // The decision: merge the root statistics of the workers and pick a sphere (algorithm 1,
+    // line 12), then Action_sam + Reasonability_check (lines 13-18).
+    // A sphere none of whose points passes the check is passed over for the next best.
     const State& s0 = belief_.Sample(rng);
-    if (tree_.obs[tree_.root].actions.empty()) {
-      if (Status s = InitList(tree_.root, s0, rng); !s.ok()) return Fail(std::move(d), s);
+    int chosen_worker = 0, best = -1;
+    std::set<std::pair<int, int>> excluded;
+    bool executable = false;
+    while (ChooseRootEntry(excluded, &chosen_worker, &best)) {
+      if (SampleExecutable(workers_[chosen_worker], best, s0, rng, &d.action)) {
+        executable = true;
+        break;
+      }
+      excluded.insert({chosen_worker, best});
     }
-    if (tree_.obs[tree_.root].actions.empty()) {
+    if (!executable && !ChooseRootEntry({}, &chosen_worker, &best)) {
       return Fail(std::move(d), FailedPreconditionError("no legal action at the root"));
     }
-    int best = -1;
-    for (int ai : tree_.obs[tree_.root].actions) {
-      const auto& an = tree_.act[ai];
-      if (an.n == 0) continue;
-      if (best < 0 || an.q > tree_.act[best].q ||
-          (an.q == tree_.act[best].q && an.n > tree_.act[best].n)) {
-        best = ai;
-      }
+    Worker& cw = workers_[chosen_worker];
+    const auto& an = cw.tree.act[best];
+    if (!executable) d.action = an.action;
+    d.value = an.q;
+    for (int ai : cw.tree.obs[cw.tree.root].actions) {
+      const auto& e = cw.tree.act[ai];
+      d.root.push_back({e.action, e.n, e.q});
     }
-    if (best < 0) best = tree_.obs[tree_.root].actions.front();
-    FillRootStats(tree_, best, max_depth_, &d);
-    // Action_sam + Reasonability_check (algorithm 1, lines 12-18).
-    d.action = SampleExecutable(best, s0, rng);
-    const auto& an = tree_.act[best];
-    last_sphere_ = {an.action.kind, an.action.x, an.data.range};
-    last_entry_ = best;
+    for (const Worker& w : workers_) {
+      d.stats.tree_nodes += w.tree.size();
+      d.stats.root_visits += w.tree.obs[w.tree.root].n;
+    }
+    d.stats.root_actions = static_cast<int>(cw.tree.obs[cw.tree.root].actions.size());
+    last_sphere_ = {an.action.kind, an.action.x, an.data.range, an.data.members};
+    for (Worker& w : workers_) w.last_entry = -1;
+    cw.last_entry = best;
     return FinishSearch(std::move(d), stop);
   }
 
@@ -243,7 +347,7 @@ class KCenterTree {
     BeliefUpdateOptions b = options_.search.belief;
     if (b.num_particles == 0) b.num_particles = options_.search.num_particles;
     BeliefUpdateSummary summary = belief_.Update(model_, a, o, rng, b);
-    KeepChild(a, o);
+    for (Worker& w : workers_) KeepChild(w, a, o);
     return summary;
   }
 
@@ -251,26 +355,750 @@ class KCenterTree {
   /// belief is maintained outside the planner (object search).
   void AdvanceTo(const Action& a, const Observation& o, ParticleBelief<State> belief) {
     belief_ = std::move(belief);
-    KeepChild(a, o);
+    for (Worker& w : workers_) KeepChild(w, a, o);
   }
 
-  int64_t TreeSize() const { return tree_.size(); }
-  int64_t RootVisits() const { return tree_.root >= 0 ? tree_.obs[tree_.root].n : 0; }
+  /// Nodes in the trees (all workers).
+  int64_t TreeSize() const {
+    int64_t n = 0;
+    for (const Worker& w : workers_) n += w.tree.size();
+    return n;
+  }
+  /// Root visits (all workers).
+  int64_t RootVisits() const {
+    int64_t n = 0;
+    for (const Worker& w : workers_) n += w.tree.root >= 0 ? w.tree.obs[w.tree.root].n : 0;
+    return n;
+  }
 
-  /// Verifies the statistics of every node below the root: N(node) = sum of N(node, a); N(node, a)
-  /// equals the episodes recorded in the sphere; with Monte-Carlo backup Qhat is their mean return;
-  /// with exact observation matching every child's visit count matches the recorded episodes; every
-  /// continuous sphere's range is at least D_lim. Used by tests after refinements.
+  /// Verifies the statistics of every node below every root: N(node) = sum of N(node, a);
+  /// N(node, a) equals the episodes recorded in the sphere; with Monte-Carlo backup Qhat is their
+  /// mean return; with exact observation matching every child's visit count matches the recorded
+  /// episodes; every continuous sphere's range is at least D_lim. Used by tests after refinements.
   Status CheckInvariants() const {
-    if (tree_.root < 0) return OkStatus();
-    std::vector<int> stack = {tree_.root};
+    for (const Worker& w : workers_) {
+      if (Status s = CheckTree(w.tree); !s.ok()) return s;
+    }
+    return OkStatus();
+  }
+
+  /// The first search tree's root list: (sphere, visits, value) per entry.
+  std::vector<std::pair<Hypersphere, RootActionStat<Action>>> RootList() const {
+    std::vector<std::pair<Hypersphere, RootActionStat<Action>>> out;
+    const Tree& tree = workers_[0].tree;
+    if (tree.root < 0) return out;
+    for (int ai : tree.obs[tree.root].actions) {
+      const auto& an = tree.act[ai];
+      out.push_back(
+          {{an.action.kind, an.action.x, an.data.range, an.data.members}, {an.action, an.n, an.q}});
+    }
+    return out;
+  }
+
+ private:
+  // Per action node: the sphere's range (the center is action.x), where it came from, and the
+  // episodes that chose it.
+  struct Sphere {
+    double range = 0.0;
+    // At the root: which of this step's initial entries it descends from (merging the workers'
+    // statistics), or a negative worker-unique code for entries kept from earlier steps.
+    int64_t origin = -1;
+    // The candidates it covers (shared by the copies of an initial sphere); null: none.
+    std::shared_ptr<const std::vector<ActionVec>> members;
+    std::vector<uint32_t> ids;     // episode ids, increasing
+    std::vector<double> returns;   // discounted return from the node
+    std::vector<double> rewards;   // immediate reward
+    std::vector<int32_t> entries;  // children entry reached, -1 when terminal
+    std::vector<float> points;     // executed point, dim floats per record (continuous kinds)
+  };
+  using Tree = BeliefTree<M, Sphere>;
+
+  // One search: a tree and what a thread needs to grow it.
+  struct Worker {
+    Tree tree;
+    Rng rng;
+    uint32_t next_episode = 1;
+    int max_depth = 0;
+    int64_t refinements = 0;
+    int64_t simulations = 0;
+    double vmin = std::numeric_limits<double>::infinity();
+    double vmax = -std::numeric_limits<double>::infinity();
+    int last_entry = -1;
+    Status status;
+    std::vector<int> scratch;
+  };
+
+  static Decision<Action> Fail(Decision<Action> d, Status s) {
+    d.status = std::move(s);
+    d.stats.budget_exhausted = false;
+    return d;
+  }
+
+  void ClearTrees() {
+    for (Worker& w : workers_) {
+      w.tree.Clear();
+      w.last_entry = -1;
+      w.vmin = std::numeric_limits<double>::infinity();
+      w.vmax = -std::numeric_limits<double>::infinity();
+    }
+  }
+
+  void RunEpisodes(Worker& w, const TerminationCondition& stop) {
+    int64_t sims = 0;
+    while (!stop.ShouldStop(sims)) {
+      const State& s = belief_.Sample(w.rng);
+      if (!IsTerminalState(model_, s)) {
+        Simulate(w, s, w.tree.root, 0, w.next_episode++);
+        if (!w.status.ok()) break;
+      }
+      ++sims;
+    }
+    w.simulations = sims;
+  }
+
+  // w2 and C_r by appendix J's rules from this step's initial spheres, unless set.
+  void ResolveParameters() {
+    double sum = 0.0;
+    int count = 0;
+    for (const auto& [kind, list] : spheres_) {
+      for (const Hypersphere& h : list) {
+        sum += h.range;
+        ++count;
+      }
+    }
+    used_.mean_initial_range = count > 0 ? sum / count : options_.d_lim;
+    const double mean = std::max(used_.mean_initial_range, options_.d_lim);
+    used_.w2 = std::isnan(options_.w2) ? options_.w2_ratio / mean : options_.w2;
+    used_.c_r = std::isnan(options_.c_r)
+                    ? 1.0 / (options_.refine_share * std::max(1, belief_.size()) * mean * mean)
+                    : options_.c_r;
+    used_.value_scale =
+        std::isnan(options_.value_scale) ? RewardRange(model_, 1.0) : options_.value_scale;
+    used_.threads = static_cast<int>(workers_.size());
+  }
+
+  void KeepChild(Worker& w, const Action& a, const Observation& o) {
+    int next = -1;
+    if (options_.search.reuse_tree && w.tree.root >= 0) {
+      const int ai = EntryContaining(w, a);
+      if (ai >= 0) next = w.tree.act[ai].children.Find(o, HashObservation(o));
+    }
+    w.last_entry = -1;
+    if (next < 0) {
+      w.tree.Clear();
+      w.vmin = std::numeric_limits<double>::infinity();
+      w.vmax = -std::numeric_limits<double>::infinity();
+    } else {
+      w.tree.KeepSubtree(next);
+    }
+  }
+
+  // The origin code of this step's entry `index` of kind `kind` (index -1: a discrete kind).
+  static int64_t Origin(int kind, int index) { return int64_t{kind} * 1000003 + index + 1; }
+
+  // Entries kept from earlier steps become worker-unique groups.
+  void ForgetRootOrigins(Worker& w, int worker) {
+    for (int ai : w.tree.obs[w.tree.root].actions) {
+      w.tree.act[ai].data.origin = -1 - (int64_t{worker} << 32) - ai;
+    }
+  }
+
+  Status EnsureSpheres(int kind, Rng& rng) {
+    std::lock_guard<std::mutex> lock(spheres_mutex_);
+    if (spheres_.count(kind)) return OkStatus();
+    const BoxSpace& box = model_.KindSpace(kind);
+    std::vector<Hypersphere>& out = spheres_[kind];
+    if (box.dim() == 0) return OkStatus();
+    // Candidates that fail the reasonability check are dropped; a few rounds top them up.
+    std::vector<ActionVec> points;
+    const auto t0 = Clock::now();
+    for (int round = 0; round < 4 && static_cast<int>(points.size()) < options_.num_candidates;
+         ++round) {
+      std::vector<ActionVec> batch;
+      Status s = sampler_->Sample(belief_, kind, box, options_.num_candidates, rng, &batch,
+                                  &candidate_stats_);
+      if (!s.ok()) {
+        candidate_stats_.elapsed_ms += MillisSince(t0);
+        return s;
+      }
+      for (const ActionVec& p : batch) {
+        if (!box.Contains(p)) {
+          return InternalError("candidate sampler returned a point outside the action box");
+        }
+        if (IsFeasibleAction(model_, belief_.Sample(rng), HybridAction{kind, p})) {
+          points.push_back(p);
+        }
+      }
+      // A sampler that returns fewer than asked (the neural filter) has nothing more to offer.
+      if (static_cast<int>(batch.size()) < options_.num_candidates) break;
+    }
+    candidate_stats_.elapsed_ms += MillisSince(t0);
+    if (points.empty()) {
+      // Nothing usable: fall back to one sphere around the whole box.
+      out.push_back({kind, box.Clamp((box.lower() + box.upper()) / 2.0),
+                     std::max(box.Diameter() / 2.0, options_.d_lim), nullptr});
+      return OkStatus();
+    }
+    for (const Cluster& c : ClusterByElbow(box, points, options_.max_initial_clusters, rng)) {
+      auto members = std::make_shared<std::vector<ActionVec>>();
+      for (int m : c.members) members->push_back(points[m]);
+      out.push_back({kind, c.center, std::max(c.radius, options_.d_lim), std::move(members)});
+    }
+    return OkStatus();
+  }
+
+  // The spheres of a kind, under the lock (a deep node may ask for a kind first seen there).
+  std::vector<Hypersphere> SpheresOf(int kind, Rng& rng, Status* status) {
+    *status = EnsureSpheres(kind, rng);
+    std::lock_guard<std::mutex> lock(spheres_mutex_);
+    return spheres_[kind];
+  }
+
+  Status InitList(Worker& w, int node, const State& s, Rng& rng) {
+    model_.ActionKinds(s, &w.scratch);
+    const std::vector<int> kinds = w.scratch;
+    for (int kind : kinds) {
+      Status st;
+      const std::vector<Hypersphere> list = SpheresOf(kind, rng, &st);
+      if (!st.ok()) return st;
+      if (model_.KindSpace(kind).dim() == 0) {
+        HybridAction a;
+        a.kind = kind;
+        Sphere data;
+        data.origin = Origin(kind, -1);
+        w.tree.NewActNode(node, std::move(a), std::move(data));
+        continue;
+      }
+      for (size_t i = 0; i < list.size(); ++i) {
+        AddSphere(w, node, list[i], Origin(kind, static_cast<int>(i)));
+      }
+    }
+    return OkStatus();
+  }
+
+  void AddSphere(Worker& w, int node, const Hypersphere& h, int64_t origin) {
+    HybridAction a;
+    a.kind = h.kind;
+    a.x = h.center;
+    Sphere data;
+    data.range = h.range;
+    data.origin = origin;
+    data.members = h.members;
+    w.tree.NewActNode(node, std::move(a), std::move(data));
+  }
+
+  // Update(T, C_a, R_a): the new spheres join every initialised list holding that kind.
+  void AddSpheresToTree(Worker& w) {
+    const int num_nodes = static_cast<int>(w.tree.obs.size());
+    for (int node = 0; node < num_nodes; ++node) {
+      if (w.tree.obs[node].actions.empty()) continue;
+      for (const auto& [kind, list] : spheres_) {
+        const bool has_kind =
+            std::any_of(w.tree.obs[node].actions.begin(), w.tree.obs[node].actions.end(),
+                        [&](int ai) { return w.tree.act[ai].action.kind == kind; });
+        if (!has_kind) continue;
+        for (size_t i = 0; i < list.size(); ++i) {
+          AddSphere(w, node, list[i], Origin(kind, static_cast<int>(i)));
+        }
+      }
+    }
+  }
+
+  // A reused root may lack kinds that became legal (e.g. objects detected since): add them.
+  Status EnsureRootKinds(Worker& w, const State& s, Rng& rng) {
+    const int root = w.tree.root;
+    if (w.tree.obs[root].actions.empty()) return OkStatus();
+    std::vector<int> kinds;
+    model_.ActionKinds(s, &kinds);
+    for (int kind : kinds) {
+      const bool present =
+          std::any_of(w.tree.obs[root].actions.begin(), w.tree.obs[root].actions.end(),
+                      [&](int ai) { return w.tree.act[ai].action.kind == kind; });
+      if (present) continue;
+      if (model_.KindSpace(kind).dim() == 0) {
+        HybridAction a;
+        a.kind = kind;
+        Sphere data;
+        data.origin = Origin(kind, -1);
+        w.tree.NewActNode(root, std::move(a), std::move(data));
+        continue;
+      }
+      Status st;
+      const std::vector<Hypersphere> list = SpheresOf(kind, rng, &st);
+      if (!st.ok()) return st;
+      for (size_t i = 0; i < list.size(); ++i) {
+        AddSphere(w, root, list[i], Origin(kind, static_cast<int>(i)));
+      }
+    }
+    return OkStatus();
+  }
+
+  // The rollout policy's action as a root sphere of radius D_lim, tried first.
+  void AddRolloutFirst(Worker& w, Rng& rng) {
+    if constexpr (requires(const State& s) {
+                    { model_.RolloutAction(s, rng) } -> std::same_as<HybridAction>;
+                  }) {
+      const HybridAction a = model_.RolloutAction(belief_.Sample(rng), rng);
+      if (model_.KindSpace(a.kind).dim() == 0) return;
+      AddSphere(w, w.tree.root, {a.kind, a.x, options_.d_lim, nullptr}, Origin(a.kind, 999999));
+      // Move it to the front so that it is the first untried entry U picks.
+      auto& list = w.tree.obs[w.tree.root].actions;
+      std::rotate(list.rbegin(), list.rbegin() + 1, list.rend());
+    }
+  }
+
+  double Normalized(const Worker& w, double q) const {
+    if (options_.normalization == KctOptions::Normalization::kValueScale) {
+      return q / used_.value_scale;
+    }
+    if (!(w.vmax > w.vmin)) return 0.0;
+    return (q - w.vmin) / (w.vmax - w.vmin);
+  }
+
+  int Select(const Worker& w, int node) const {
+    const auto& on = w.tree.obs[node];
+    const double log_n = std::log(static_cast<double>(std::max<int64_t>(on.n, 1)));
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    if (options_.normalization == KctOptions::Normalization::kSiblingRange) {
+      for (int ai : on.actions) {
+        if (w.tree.act[ai].n == 0) continue;
+        lo = std::min(lo, w.tree.act[ai].q);
+        hi = std::max(hi, w.tree.act[ai].q);
+      }
+    }
+    int best = on.actions.front();
+    double best_score = -std::numeric_limits<double>::infinity();
+    for (int ai : on.actions) {
+      const auto& an = w.tree.act[ai];
+      const double q = options_.normalization == KctOptions::Normalization::kSiblingRange
+                           ? (hi > lo ? (an.q - lo) / (hi - lo) : 0.0)
+                           : Normalized(w, an.q);
+      const double score = Ucb1(q, an.n, log_n, options_.w1) + used_.w2 * an.data.range;
+      if (score > best_score) {
+        best_score = score;
+        best = ai;
+      }
+    }
+    return best;
+  }
+
+  double VStar(const Tree& tree, int node) const {
+    double best = -std::numeric_limits<double>::infinity();
+    for (int ai : tree.obs[node].actions) {
+      if (tree.act[ai].n > 0) best = std::max(best, tree.act[ai].q);
+    }
+    return std::isfinite(best) ? best : tree.obs[node].leaf_value;
+  }
+
+  HybridAction SampleInSphere(const Tree& tree, int ai, Rng& rng) const {
+    const auto& an = tree.act[ai];
+    HybridAction a;
+    a.kind = an.action.kind;
+    const auto& members = an.data.members;
+    if (options_.sample_candidates && members && !members->empty()) {
+      a.x = (*members)[rng.UniformInt(static_cast<int64_t>(members->size()))];
+    } else {
+      a.x = model_.KindSpace(a.kind).SampleInBall(an.action.x, an.data.range, rng);
+    }
+    return a;
+  }
+
+  // A point of the sphere; with tree_feasibility_tries > 1 one that passes the reasonability
+  // check in state s (the last draw when none passes, so that the model's penalty teaches the tree
+  // to avoid the sphere).
+  HybridAction SampleFeasibleInSphere(const Tree& tree, int ai, const State& s, Rng& rng) const {
+    HybridAction a = SampleInSphere(tree, ai, rng);
+    if (model_.KindSpace(a.kind).dim() == 0) return a;
+    for (int tries = 1; tries < options_.tree_feasibility_tries && !IsFeasibleAction(model_, s, a);
+         ++tries) {
+      a = SampleInSphere(tree, ai, rng);
+    }
+    return a;
+  }
+
+  // Episode_simulation (algorithm 2). Returns the discounted return of the episode from `node`.
+  double Simulate(Worker& w, const State& s, int node, int depth, uint32_t episode) {
+    if (IsTerminalState(model_, s) || depth >= options_.search.max_depth ||
+        std::pow(model_.Discount(), depth) < options_.search.discount_horizon) {
+      return 0.0;
+    }
+    w.max_depth = std::max(w.max_depth, depth);
+    if (w.tree.obs[node].actions.empty()) {
+      if (Status st = InitList(w, node, s, w.rng); !st.ok()) {
+        w.status = st;
+        return 0.0;
+      }
+      if (w.tree.obs[node].actions.empty()) return 0.0;
+    }
+    const int ai = Select(w, node);
+    Refine(w, node, ai);
+    const HybridAction executed = SampleFeasibleInSphere(w.tree, ai, s, w.rng);
+    auto t = w.tree.Descend(model_, ai, executed, s, options_.observations, episode, w.rng);
+    const double gamma = model_.Discount();
+    double total = t.reward;
+    if (!t.terminal) {
+      if (t.new_node) {
+        const double v =
+            LeafEstimate(model_, t.state, depth + 1, options_.search, w.rng, &w.scratch);
+        w.tree.AddLeafValue(t.child, v);
+        total += gamma * v;
+      } else {
+        total += gamma * Simulate(w, t.state, t.child, depth + 1, episode);
+      }
+    }
+    // Backup (algorithm 6).
+    ++w.tree.obs[node].n;
+    auto& an = w.tree.act[ai];
+    ++an.n;
+    if (options_.backup == KctOptions::Backup::kMonteCarlo) {
+      an.q += (total - an.q) / static_cast<double>(an.n);
+    } else {
+      const double target = t.reward + (t.terminal ? 0.0 : gamma * VStar(w.tree, t.child));
+      an.q += (target - an.q) / static_cast<double>(an.n);
+    }
+    w.vmin = std::min({w.vmin, total, an.q});
+    w.vmax = std::max({w.vmax, total, an.q});
+    Sphere& sp = w.tree.act[ai].data;
+    sp.ids.push_back(episode);
+    sp.returns.push_back(total);
+    sp.rewards.push_back(t.reward);
+    sp.entries.push_back(t.terminal ? -1 : t.entry);
+    for (int i = 0; i < executed.x.size(); ++i) {
+      sp.points.push_back(static_cast<float>(executed.x[i]));
+    }
+    return total;
+  }
+
+  // Refine (algorithm 3).
+  void Refine(Worker& w, int node, int ai) {
+    Tree& tree = w.tree;
+    const BoxSpace& box = model_.KindSpace(tree.act[ai].action.kind);
+    const double range = tree.act[ai].data.range;
+    const int dim = box.dim();
+    if (dim == 0 || !(range > options_.d_lim)) return;
+    if (static_cast<double>(tree.act[ai].n) < 1.0 / (used_.c_r * range * range)) return;
+    const Sphere& data = tree.act[ai].data;
+    const int n = static_cast<int>(data.ids.size());
+    if (n < options_.k) return;
+    std::vector<ActionVec> points(n, ActionVec(dim));
+    for (int r = 0; r < n; ++r) {
+      for (int i = 0; i < dim; ++i) points[r][i] = data.points[static_cast<size_t>(r) * dim + i];
+    }
+    std::vector<Cluster> clusters = KMeans(box, points, options_.k, w.rng);
+    if (clusters.size() < 2) return;
+    std::vector<std::vector<uint32_t>> ids(clusters.size());
+    for (size_t j = 0; j < clusters.size(); ++j) {
+      for (int m : clusters[j].members) ids[j].push_back(data.ids[m]);
+      std::sort(ids[j].begin(), ids[j].end());
+    }
+    // The candidates the sphere covers go to the nearest new center.
+    std::vector<std::shared_ptr<const std::vector<ActionVec>>> members(clusters.size());
+    if (const auto& parent = tree.act[ai].data.members; parent && !parent->empty()) {
+      std::vector<std::vector<ActionVec>> split(clusters.size());
+      for (const ActionVec& m : *parent) {
+        size_t nearest = 0;
+        double best = std::numeric_limits<double>::infinity();
+        for (size_t j = 0; j < clusters.size(); ++j) {
+          const double d = box.SquaredDistance(m, clusters[j].center);
+          if (d < best) {
+            best = d;
+            nearest = j;
+          }
+        }
+        split[nearest].push_back(m);
+      }
+      for (size_t j = 0; j < clusters.size(); ++j) {
+        if (!split[j].empty()) {
+          members[j] = std::make_shared<const std::vector<ActionVec>>(std::move(split[j]));
+        }
+      }
+    }
+    // New spheres 2..k get filtered copies of the subtree; sphere 1 replaces the original.
+    for (size_t j = 1; j < clusters.size(); ++j) {
+      const int copy = CopyAction(w, ai, ids[j]);
+      tree.act[copy].action.x = clusters[j].center;
+      tree.act[copy].data.range = FLim(clusters[j].radius, range, options_);
+      tree.act[copy].data.members = members[j];
+      tree.obs[node].actions.push_back(copy);
+    }
+    const int first = CopyAction(w, ai, ids[0]);
+    tree.act[ai] = std::move(tree.act[first]);
+    tree.act[first] = {};
+    tree.act[ai].action.x = clusters[0].center;
+    tree.act[ai].data.range = FLim(clusters[0].radius, range, options_);
+    tree.act[ai].data.members = members[0];
+    ++w.refinements;
+  }
+
+  static bool Contains(const std::vector<uint32_t>& sorted, uint32_t id) {
+    return std::binary_search(sorted.begin(), sorted.end(), id);
+  }
+
+  // Copies action node `ai` and its subtree keeping only the episodes in `keep`; returns the new
+  // (unattached) action node.
+  int CopyAction(Worker& w, int ai, const std::vector<uint32_t>& keep) {
+    Tree& tree = w.tree;
+    typename Tree::ActNode out;
+    {
+      const auto& src = tree.act[ai];
+      out.action = src.action;
+      out.data.range = src.data.range;
+      out.data.origin = src.data.origin;
+      out.data.members = src.data.members;
+    }
+    const int dim = static_cast<int>(tree.act[ai].action.x.size());
+    std::vector<int> entry_map(tree.act[ai].children.size(), -1);
+    const int records = static_cast<int>(tree.act[ai].data.ids.size());
+    for (int r = 0; r < records; ++r) {
+      const auto& src = tree.act[ai].data;
+      if (!Contains(keep, src.ids[r])) continue;
+      const int e = src.entries[r];
+      int new_entry = -1;
+      if (e >= 0) {
+        if (entry_map[e] < 0) {
+          const int old_child = tree.act[ai].children.child(e);
+          const int new_child = CopyObs(w, old_child, keep);
+          const auto& children = tree.act[ai].children;
+          out.children.Add(children.observation(e), children.hash(e), new_child);
+          out.generated.push_back(0);
+          entry_map[e] = out.children.size() - 1;
+        }
+        new_entry = entry_map[e];
+        ++out.generated[new_entry];
+        ++out.total_generated;
+      }
+      const auto& src2 = tree.act[ai].data;
+      out.data.ids.push_back(src2.ids[r]);
+      out.data.returns.push_back(src2.returns[r]);
+      out.data.rewards.push_back(src2.rewards[r]);
+      out.data.entries.push_back(new_entry);
+      for (int i = 0; i < dim && !src2.points.empty(); ++i) {
+        out.data.points.push_back(src2.points[static_cast<size_t>(r) * dim + i]);
+      }
+    }
+    out.n = static_cast<int64_t>(out.data.ids.size());
+    out.q = 0.0;
+    const double gamma = model_.Discount();
+    for (size_t r = 0; r < out.data.ids.size(); ++r) {
+      double v = out.data.returns[r];
+      if (options_.backup == KctOptions::Backup::kBellman) {
+        const int e = out.data.entries[r];
+        v = out.data.rewards[r] + (e < 0 ? 0.0 : gamma * VStar(tree, out.children.child(e)));
+      }
+      out.q += (v - out.q) / static_cast<double>(r + 1);
+    }
+    tree.act.push_back(std::move(out));
+    return static_cast<int>(tree.act.size()) - 1;
+  }
+
+  // Copies observation node `node` and its subtree keeping only the episodes in `keep`.
+  int CopyObs(Worker& w, int node, const std::vector<uint32_t>& keep) {
+    Tree& tree = w.tree;
+    typename Tree::ObsNode out;
+    {
+      const auto& src = tree.obs[node];
+      out.leaf_value = src.leaf_value;
+      out.leaf_count = src.leaf_count;
+      double previous = 0.0;
+      for (size_t i = 0; i < src.states.size(); ++i) {
+        const double wgt = src.cumulative[i] - previous;
+        previous = src.cumulative[i];
+        if (!Contains(keep, src.episodes[i])) continue;
+        out.states.push_back(src.states[i]);
+        out.rewards.push_back(src.rewards[i]);
+        out.episodes.push_back(src.episodes[i]);
+        out.cumulative.push_back((out.cumulative.empty() ? 0.0 : out.cumulative.back()) + wgt);
+      }
+    }
+    const std::vector<int> actions = tree.obs[node].actions;
+    for (int ai : actions) {
+      const int copy = CopyAction(w, ai, keep);
+      out.actions.push_back(copy);
+      out.n += tree.act[copy].n;
+    }
+    tree.obs.push_back(std::move(out));
+    return static_cast<int>(tree.obs.size()) - 1;
+  }
+
+  // Merges the workers' root statistics by origin and picks the entry to execute: the group
+  // chosen by the final-choice rule, then its most visited entry.
+  bool ChooseRootEntry(const std::set<std::pair<int, int>>& excluded, int* worker,
+                       int* entry) const {
+    struct Group {
+      int64_t n = 0;
+      double q_sum = 0.0;
+    };
+    std::map<int64_t, Group> groups;
+    for (int t = 0; t < static_cast<int>(workers_.size()); ++t) {
+      const Worker& w = workers_[t];
+      if (w.tree.root < 0) continue;
+      for (int ai : w.tree.obs[w.tree.root].actions) {
+        if (excluded.count({t, ai})) continue;
+        const auto& an = w.tree.act[ai];
+        Group& g = groups[an.data.origin];
+        g.n += an.n;
+        g.q_sum += an.q * static_cast<double>(an.n);
+      }
+    }
+    if (groups.empty()) return false;
+    const bool by_visits = options_.final_choice == KctOptions::FinalChoice::kMostVisited;
+    int64_t best_origin = groups.begin()->first;
+    double best_key = -std::numeric_limits<double>::infinity();
+    int64_t best_n = -1;
+    for (const auto& [origin, g] : groups) {
+      if (g.n == 0) continue;
+      const double q = g.q_sum / static_cast<double>(g.n);
+      const double key = by_visits ? static_cast<double>(g.n) : q;
+      if (key > best_key || (key == best_key && g.n > best_n)) {
+        best_key = key;
+        best_n = g.n;
+        best_origin = origin;
+      }
+    }
+    *worker = -1;
+    *entry = -1;
+    int64_t most = -1;
+    double most_q = -std::numeric_limits<double>::infinity();
+    for (int t = 0; t < static_cast<int>(workers_.size()); ++t) {
+      const Worker& w = workers_[t];
+      if (w.tree.root < 0) continue;
+      for (int ai : w.tree.obs[w.tree.root].actions) {
+        const auto& an = w.tree.act[ai];
+        if (an.data.origin != best_origin || excluded.count({t, ai})) continue;
+        const bool better = by_visits ? (an.n > most || (an.n == most && an.q > most_q))
+                                      : (an.n > 0 && (an.q > most_q || *entry < 0));
+        if (*entry < 0 || better) {
+          most = an.n;
+          most_q = an.q;
+          *worker = t;
+          *entry = ai;
+        }
+      }
+    }
+    return *entry >= 0;
+  }
+
+  // Action_sam with the reasonability check: a feasible point drawn uniformly in the sphere (or
+  // its center), else the best-returning feasible point tried in it; false when there is none.
+  bool SampleExecutable(const Worker& w, int ai, const State& s, Rng& rng,
+                        HybridAction* out) const {
+    const auto& an = w.tree.act[ai];
+    *out = an.action;
+    if (model_.KindSpace(an.action.kind).dim() == 0) return true;
+    if (options_.sample_candidates && an.data.members && !an.data.members->empty()) {
+      // The sphere's tried candidate with the best mean return (a candidate is a point, so it
+      // gathers returns over the episodes that drew it), else any feasible candidate.
+      if (BestTriedPoint(an, s, out)) return true;
+      std::vector<int> order(an.data.members->size());
+      for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
+      for (size_t i = order.size(); i > 1; --i) {
+        std::swap(order[i - 1], order[rng.UniformInt(static_cast<int64_t>(i))]);
+      }
+      for (int i : order) {
+        HybridAction a{an.action.kind, (*an.data.members)[i]};
+        if (IsFeasibleAction(model_, s, a)) {
+          *out = std::move(a);
+          return true;
+        }
+      }
+    }
+    if (options_.final_action == KctOptions::FinalAction::kUniformInSphere) {
+      for (int i = 0; i < options_.max_feasibility_tries; ++i) {
+        HybridAction a = SampleInSphere(w.tree, ai, rng);
+        if (IsFeasibleAction(model_, s, a)) {
+          *out = std::move(a);
+          return true;
+        }
+      }
+    }
+    if (IsFeasibleAction(model_, s, an.action)) return true;
+    const auto& data = an.data;
+    const int dim = static_cast<int>(an.action.x.size());
+    int best = -1;
+    HybridAction a = an.action;
+    for (size_t r = 0; r < data.ids.size() && !data.points.empty(); ++r) {
+      for (int i = 0; i < dim; ++i) a.x[i] = data.points[r * dim + i];
+      if (!IsFeasibleAction(model_, s, a)) continue;
+      if (best < 0 || data.returns[r] > data.returns[best]) best = static_cast<int>(r);
+    }
+    if (best < 0) return false;
+    for (int i = 0; i < dim; ++i) out->x[i] = data.points[static_cast<size_t>(best) * dim + i];
+    return true;
+  }
+
+  // Among the points executed in a sphere, the feasible one with the best mean return over the
+  // episodes that executed it, counting only points executed at least twice when any was.
+  bool BestTriedPoint(const typename Tree::ActNode& an, const State& s, HybridAction* out) const {
+    const auto& data = an.data;
+    const int dim = static_cast<int>(an.action.x.size());
+    if (data.points.empty() || dim == 0) return false;
+    std::map<std::vector<float>, std::pair<int, double>> stats;  // point -> (count, sum)
+    for (size_t r = 0; r < data.ids.size(); ++r) {
+      std::vector<float> key(data.points.begin() + r * dim, data.points.begin() + (r + 1) * dim);
+      auto& [count, sum] = stats[key];
+      ++count;
+      sum += data.returns[r];
+    }
+    int min_count = 1;
+    for (const auto& [key, cs] : stats) min_count = std::max(min_count, std::min(cs.first, 2));
+    double best = -std::numeric_limits<double>::infinity();
+    bool found = false;
+    for (const auto& [key, cs] : stats) {
+      if (cs.first < min_count) continue;
+      const double mean = cs.second / cs.first;
+      if (mean <= best) continue;
+      HybridAction a = an.action;
+      for (int i = 0; i < dim; ++i) a.x[i] = key[i];
+      if (!IsFeasibleAction(model_, s, a)) continue;
+      best = mean;
+      *out = std::move(a);
+      found = true;
+    }
+    return found;
+  }
+
+  // The root entry an executed action came from: the last decision's sphere when it contains the
+  // action, else the closest containing sphere of the same kind.
+  int EntryContaining(const Worker& w, const HybridAction& a) const {
+    const Tree& tree = w.tree;
+    auto contains = [&](int ai) {
+      const auto& an = tree.act[ai];
+      if (an.action.kind != a.kind) return false;
+      const BoxSpace& box = model_.KindSpace(a.kind);
+      if (box.dim() == 0) return true;
+      return box.Distance(a.x, an.action.x) <= an.data.range * (1.0 + 1e-9) + 1e-12;
+    };
+    if (w.last_entry >= 0 && w.last_entry < static_cast<int>(tree.act.size()) &&
+        contains(w.last_entry)) {
+      return w.last_entry;
+    }
+    int best = -1;
+    double best_ratio = std::numeric_limits<double>::infinity();
+    for (int ai : tree.obs[tree.root].actions) {
+      if (!contains(ai)) continue;
+      const auto& an = tree.act[ai];
+      const double range = std::max(an.data.range, 1e-12);
+      const double ratio = model_.KindSpace(a.kind).dim() == 0
+                               ? 0.0
+                               : model_.KindSpace(a.kind).Distance(a.x, an.action.x) / range;
+      if (ratio < best_ratio) {
+        best_ratio = ratio;
+        best = ai;
+      }
+    }
+    return best;
+  }
+
+  Status CheckTree(const Tree& tree) const {
+    if (tree.root < 0) return OkStatus();
+    std::vector<int> stack = {tree.root};
     while (!stack.empty()) {
       const int node = stack.back();
       stack.pop_back();
-      const auto& on = tree_.obs[node];
+      const auto& on = tree.obs[node];
       int64_t sum = 0;
       for (int ai : on.actions) {
-        const auto& an = tree_.act[ai];
+        const auto& an = tree.act[ai];
         sum += an.n;
         const auto& d = an.data;
         if (an.n != static_cast<int64_t>(d.ids.size())) {
@@ -310,437 +1138,16 @@ class KCenterTree {
     return OkStatus();
   }
 
-  /// The root's action list: (sphere, visits, value) per entry.
-  std::vector<std::pair<Hypersphere, RootActionStat<Action>>> RootList() const {
-    std::vector<std::pair<Hypersphere, RootActionStat<Action>>> out;
-    if (tree_.root < 0) return out;
-    for (int ai : tree_.obs[tree_.root].actions) {
-      const auto& an = tree_.act[ai];
-      out.push_back({{an.action.kind, an.action.x, an.data.range}, {an.action, an.n, an.q}});
-    }
-    return out;
-  }
-
- private:
-  // Per action node: the sphere's range (the center is action.x) and the episodes that chose it.
-  struct Sphere {
-    double range = 0.0;
-    std::vector<uint32_t> ids;     // episode ids, increasing
-    std::vector<double> returns;   // discounted return from the node
-    std::vector<double> rewards;   // immediate reward
-    std::vector<int32_t> entries;  // children entry reached, -1 when terminal
-    std::vector<float> points;     // executed point, dim floats per record (continuous kinds)
-  };
-  using Tree = BeliefTree<M, Sphere>;
-
-  void KeepChild(const Action& a, const Observation& o) {
-    int next = -1;
-    if (options_.search.reuse_tree && tree_.root >= 0) {
-      const int ai = EntryContaining(a);
-      if (ai >= 0) next = tree_.act[ai].children.Find(o, HashObservation(o));
-    }
-    last_entry_ = -1;
-    if (next < 0) {
-      tree_.Clear();
-    } else {
-      tree_.KeepSubtree(next);
-    }
-  }
-
-  static Decision<Action> Fail(Decision<Action> d, Status s) {
-    d.status = std::move(s);
-    d.stats.budget_exhausted = false;
-    return d;
-  }
-
-  Status EnsureSpheres(int kind, Rng& rng) {
-    if (spheres_.count(kind)) return OkStatus();
-    const BoxSpace& box = model_.KindSpace(kind);
-    std::vector<Hypersphere>& out = spheres_[kind];
-    if (box.dim() == 0) return OkStatus();
-    // Candidates that fail the reasonability check are dropped; a few rounds top them up.
-    std::vector<ActionVec> points;
-    const auto t0 = Clock::now();
-    for (int round = 0; round < 4 && static_cast<int>(points.size()) < options_.num_candidates;
-         ++round) {
-      std::vector<ActionVec> batch;
-      Status s = sampler_->Sample(belief_, kind, box, options_.num_candidates, rng, &batch,
-                                  &candidate_stats_);
-      if (!s.ok()) {
-        candidate_stats_.elapsed_ms += MillisSince(t0);
-        return s;
-      }
-      for (const ActionVec& p : batch) {
-        if (!box.Contains(p)) {
-          return InternalError("candidate sampler returned a point outside the action box");
-        }
-        if (IsFeasibleAction(model_, belief_.Sample(rng), HybridAction{kind, p})) {
-          points.push_back(p);
-        }
-      }
-      // A sampler that returns fewer than asked (the neural filter) has nothing more to offer.
-      if (static_cast<int>(batch.size()) < options_.num_candidates) break;
-    }
-    candidate_stats_.elapsed_ms += MillisSince(t0);
-    if (points.empty()) {
-      // Nothing usable: fall back to one sphere around the whole box.
-      out.push_back({kind, box.Clamp((box.lower() + box.upper()) / 2.0),
-                     std::max(box.Diameter() / 2.0, options_.d_lim)});
-      return OkStatus();
-    }
-    for (const Cluster& c : ClusterByElbow(box, points, options_.max_initial_clusters, rng)) {
-      out.push_back({kind, c.center, std::max(c.radius, options_.d_lim)});
-    }
-    return OkStatus();
-  }
-
-  Status InitList(int node, const State& s, Rng& rng) {
-    model_.ActionKinds(s, &scratch_);
-    for (int kind : std::vector<int>(scratch_)) {
-      if (Status st = EnsureSpheres(kind, rng); !st.ok()) return st;
-      if (model_.KindSpace(kind).dim() == 0) {
-        HybridAction a;
-        a.kind = kind;
-        tree_.NewActNode(node, std::move(a));
-        continue;
-      }
-      for (const Hypersphere& h : spheres_[kind]) AddSphere(node, h);
-    }
-    return OkStatus();
-  }
-
-  void AddSphere(int node, const Hypersphere& h) {
-    HybridAction a;
-    a.kind = h.kind;
-    a.x = h.center;
-    Sphere data;
-    data.range = h.range;
-    tree_.NewActNode(node, std::move(a), std::move(data));
-  }
-
-  // Update(T, C_a, R_a): the new spheres join every initialised list holding that kind.
-  void AddSpheresToTree() {
-    const int num_nodes = static_cast<int>(tree_.obs.size());
-    for (int node = 0; node < num_nodes; ++node) {
-      if (tree_.obs[node].actions.empty()) continue;
-      for (const auto& [kind, list] : spheres_) {
-        const bool has_kind =
-            std::any_of(tree_.obs[node].actions.begin(), tree_.obs[node].actions.end(),
-                        [&](int ai) { return tree_.act[ai].action.kind == kind; });
-        if (!has_kind) continue;
-        for (const Hypersphere& h : list) AddSphere(node, h);
-      }
-    }
-  }
-
-  // A reused root may lack kinds that became legal (e.g. objects detected since): add them.
-  Status EnsureRootKinds(const State& s, Rng& rng) {
-    const int root = tree_.root;
-    if (tree_.obs[root].actions.empty()) return OkStatus();
-    model_.ActionKinds(s, &scratch_);
-    for (int kind : std::vector<int>(scratch_)) {
-      const bool present =
-          std::any_of(tree_.obs[root].actions.begin(), tree_.obs[root].actions.end(),
-                      [&](int ai) { return tree_.act[ai].action.kind == kind; });
-      if (present) continue;
-      if (model_.KindSpace(kind).dim() == 0) {
-        HybridAction a;
-        a.kind = kind;
-        tree_.NewActNode(root, std::move(a));
-        continue;
-      }
-      if (Status st = EnsureSpheres(kind, rng); !st.ok()) return st;
-      for (const Hypersphere& h : spheres_[kind]) AddSphere(root, h);
-    }
-    return OkStatus();
-  }
-
-  int Select(int node) const {
-    const auto& on = tree_.obs[node];
-    const double log_n = std::log(static_cast<double>(std::max<int64_t>(on.n, 1)));
-    int best = on.actions.front();
-    double best_score = -std::numeric_limits<double>::infinity();
-    for (int ai : on.actions) {
-      const auto& an = tree_.act[ai];
-      const double score =
-          Ucb1(an.q / scale_, an.n, log_n, options_.w1) + options_.w2 * an.data.range;
-      if (score > best_score) {
-        best_score = score;
-        best = ai;
-      }
-    }
-    return best;
-  }
-
-  double VStar(int node) const {
-    double best = -std::numeric_limits<double>::infinity();
-    for (int ai : tree_.obs[node].actions) {
-      if (tree_.act[ai].n > 0) best = std::max(best, tree_.act[ai].q);
-    }
-    return std::isfinite(best) ? best : tree_.obs[node].leaf_value;
-  }
-
-  HybridAction SampleInSphere(int ai, Rng& rng) const {
-    const auto& an = tree_.act[ai];
-    HybridAction a;
-    a.kind = an.action.kind;
-    a.x = model_.KindSpace(a.kind).SampleInBall(an.action.x, an.data.range, rng);
-    return a;
-  }
-
-  // A point of the sphere that passes the reasonability check in state s (a few draws; the last
-  // draw when none passes, so that the model's penalty teaches the tree to avoid the sphere).
-  HybridAction SampleFeasibleInSphere(int ai, const State& s, Rng& rng) const {
-    HybridAction a = SampleInSphere(ai, rng);
-    if (model_.KindSpace(a.kind).dim() == 0) return a;
-    for (int tries = 1; tries < options_.tree_feasibility_tries && !IsFeasibleAction(model_, s, a);
-         ++tries) {
-      a = SampleInSphere(ai, rng);
-    }
-    return a;
-  }
-
-  // Episode_simulation (algorithm 2). Returns the discounted return of the episode from `node`.
-  double Simulate(const State& s, int node, int depth, uint32_t episode, Rng& rng, Status* status) {
-    if (IsTerminalState(model_, s) || depth >= options_.search.max_depth ||
-        std::pow(model_.Discount(), depth) < options_.search.discount_horizon) {
-      return 0.0;
-    }
-    max_depth_ = std::max(max_depth_, depth);
-    if (tree_.obs[node].actions.empty()) {
-      if (Status st = InitList(node, s, rng); !st.ok()) {
-        *status = st;
-        return 0.0;
-      }
-      if (tree_.obs[node].actions.empty()) return 0.0;
-    }
-    const int ai = Select(node);
-    Refine(node, ai, rng);
-    const HybridAction executed = SampleFeasibleInSphere(ai, s, rng);
-    auto t = tree_.Descend(model_, ai, executed, s, options_.observations, episode, rng);
-    const double gamma = model_.Discount();
-    double total = t.reward;
-    if (!t.terminal) {
-      if (t.new_node) {
-        const double v = LeafEstimate(model_, t.state, depth + 1, options_.search, rng, &scratch_);
-        tree_.AddLeafValue(t.child, v);
-        total += gamma * v;
-      } else {
-        total += gamma * Simulate(t.state, t.child, depth + 1, episode, rng, status);
-      }
-    }
-    // Backup (algorithm 6).
-    ++tree_.obs[node].n;
-    auto& an = tree_.act[ai];
-    ++an.n;
-    if (options_.backup == KctOptions::Backup::kMonteCarlo) {
-      an.q += (total - an.q) / static_cast<double>(an.n);
-    } else {
-      const double target = t.reward + (t.terminal ? 0.0 : gamma * VStar(t.child));
-      tree_.act[ai].q += (target - tree_.act[ai].q) / static_cast<double>(tree_.act[ai].n);
-    }
-    Sphere& sp = tree_.act[ai].data;
-    sp.ids.push_back(episode);
-    sp.returns.push_back(total);
-    sp.rewards.push_back(t.reward);
-    sp.entries.push_back(t.terminal ? -1 : t.entry);
-    for (int i = 0; i < executed.x.size(); ++i) {
-      sp.points.push_back(static_cast<float>(executed.x[i]));
-    }
-    return total;
-  }
-
-  // Refine (algorithm 3).
-  void Refine(int node, int ai, Rng& rng) {
-    const BoxSpace& box = model_.KindSpace(tree_.act[ai].action.kind);
-    const double range = tree_.act[ai].data.range;
-    const int dim = box.dim();
-    if (dim == 0 || !(range > options_.d_lim)) return;
-    if (static_cast<double>(tree_.act[ai].n) < 1.0 / (options_.c_r * range * range)) return;
-    const Sphere& data = tree_.act[ai].data;
-    const int n = static_cast<int>(data.ids.size());
-    if (n < options_.k) return;
-    std::vector<ActionVec> points(n, ActionVec(dim));
-    for (int r = 0; r < n; ++r) {
-      for (int i = 0; i < dim; ++i) points[r][i] = data.points[static_cast<size_t>(r) * dim + i];
-    }
-    std::vector<Cluster> clusters = KMeans(box, points, options_.k, rng);
-    if (clusters.size() < 2) return;
-    std::vector<std::vector<uint32_t>> ids(clusters.size());
-    for (size_t j = 0; j < clusters.size(); ++j) {
-      for (int m : clusters[j].members) ids[j].push_back(data.ids[m]);
-      std::sort(ids[j].begin(), ids[j].end());
-    }
-    // New spheres 2..k get filtered copies of the subtree; sphere 1 replaces the original.
-    for (size_t j = 1; j < clusters.size(); ++j) {
-      const int copy = CopyAction(ai, ids[j]);
-      tree_.act[copy].action.x = clusters[j].center;
-      tree_.act[copy].data.range = FLim(clusters[j].radius, range, options_);
-      tree_.obs[node].actions.push_back(copy);
-    }
-    const int first = CopyAction(ai, ids[0]);
-    tree_.act[ai] = std::move(tree_.act[first]);
-    tree_.act[first] = {};
-    tree_.act[ai].action.x = clusters[0].center;
-    tree_.act[ai].data.range = FLim(clusters[0].radius, range, options_);
-    ++refinements_;
-  }
-
-  static bool Contains(const std::vector<uint32_t>& sorted, uint32_t id) {
-    return std::binary_search(sorted.begin(), sorted.end(), id);
-  }
-
-  // Copies action node `ai` and its subtree keeping only the episodes in `keep`; returns the new
-  // (unattached) action node.
-  int CopyAction(int ai, const std::vector<uint32_t>& keep) {
-    typename Tree::ActNode out;
-    {
-      const auto& src = tree_.act[ai];
-      out.action = src.action;
-      out.data.range = src.data.range;
-    }
-    const int dim = static_cast<int>(tree_.act[ai].action.x.size());
-    std::vector<int> entry_map(tree_.act[ai].children.size(), -1);
-    const int records = static_cast<int>(tree_.act[ai].data.ids.size());
-    for (int r = 0; r < records; ++r) {
-      const auto& src = tree_.act[ai].data;
-      if (!Contains(keep, src.ids[r])) continue;
-      const int e = src.entries[r];
-      int new_entry = -1;
-      if (e >= 0) {
-        if (entry_map[e] < 0) {
-          const int old_child = tree_.act[ai].children.child(e);
-          const int new_child = CopyObs(old_child, keep);
-          const auto& children = tree_.act[ai].children;
-          out.children.Add(children.observation(e), children.hash(e), new_child);
-          out.generated.push_back(0);
-          entry_map[e] = out.children.size() - 1;
-        }
-        new_entry = entry_map[e];
-        ++out.generated[new_entry];
-        ++out.total_generated;
-      }
-      const auto& src2 = tree_.act[ai].data;
-      out.data.ids.push_back(src2.ids[r]);
-      out.data.returns.push_back(src2.returns[r]);
-      out.data.rewards.push_back(src2.rewards[r]);
-      out.data.entries.push_back(new_entry);
-      for (int i = 0; i < dim && !src2.points.empty(); ++i) {
-        out.data.points.push_back(src2.points[static_cast<size_t>(r) * dim + i]);
-      }
-    }
-    out.n = static_cast<int64_t>(out.data.ids.size());
-    out.q = 0.0;
-    const double gamma = model_.Discount();
-    for (size_t r = 0; r < out.data.ids.size(); ++r) {
-      double v = out.data.returns[r];
-      if (options_.backup == KctOptions::Backup::kBellman) {
-        const int e = out.data.entries[r];
-        v = out.data.rewards[r] + (e < 0 ? 0.0 : gamma * VStar(out.children.child(e)));
-      }
-      out.q += (v - out.q) / static_cast<double>(r + 1);
-    }
-    tree_.act.push_back(std::move(out));
-    return static_cast<int>(tree_.act.size()) - 1;
-  }
-
-  // Copies observation node `node` and its subtree keeping only the episodes in `keep`.
-  int CopyObs(int node, const std::vector<uint32_t>& keep) {
-    typename Tree::ObsNode out;
-    {
-      const auto& src = tree_.obs[node];
-      out.leaf_value = src.leaf_value;
-      out.leaf_count = src.leaf_count;
-      double previous = 0.0;
-      for (size_t i = 0; i < src.states.size(); ++i) {
-        const double w = src.cumulative[i] - previous;
-        previous = src.cumulative[i];
-        if (!Contains(keep, src.episodes[i])) continue;
-        out.states.push_back(src.states[i]);
-        out.rewards.push_back(src.rewards[i]);
-        out.episodes.push_back(src.episodes[i]);
-        out.cumulative.push_back((out.cumulative.empty() ? 0.0 : out.cumulative.back()) + w);
-      }
-    }
-    const std::vector<int> actions = tree_.obs[node].actions;
-    for (int ai : actions) {
-      const int copy = CopyAction(ai, keep);
-      out.actions.push_back(copy);
-      out.n += tree_.act[copy].n;
-    }
-    tree_.obs.push_back(std::move(out));
-    return static_cast<int>(tree_.obs.size()) - 1;
-  }
-
-  HybridAction SampleExecutable(int ai, const State& s, Rng& rng) const {
-    const auto& an = tree_.act[ai];
-    if (model_.KindSpace(an.action.kind).dim() == 0) return an.action;
-    if (options_.final_action == KctOptions::FinalAction::kUniformInSphere) {
-      for (int i = 0; i < options_.max_feasibility_tries; ++i) {
-        HybridAction a = SampleInSphere(ai, rng);
-        if (IsFeasibleAction(model_, s, a)) return a;
-      }
-    }
-    if (IsFeasibleAction(model_, s, an.action)) return an.action;
-    // Fall back to the best tried point of the sphere.
-    const auto& data = an.data;
-    const int dim = static_cast<int>(an.action.x.size());
-    int best = -1;
-    for (size_t r = 0; r < data.ids.size(); ++r) {
-      if (best < 0 || data.returns[r] > data.returns[best]) best = static_cast<int>(r);
-    }
-    HybridAction a = an.action;
-    if (best >= 0 && !data.points.empty()) {
-      for (int i = 0; i < dim; ++i) a.x[i] = data.points[static_cast<size_t>(best) * dim + i];
-    }
-    return a;
-  }
-
-  // The root entry an executed action came from: the last decision's sphere when it contains the
-  // action, else the closest containing sphere of the same kind.
-  int EntryContaining(const HybridAction& a) const {
-    auto contains = [&](int ai) {
-      const auto& an = tree_.act[ai];
-      if (an.action.kind != a.kind) return false;
-      const BoxSpace& box = model_.KindSpace(a.kind);
-      if (box.dim() == 0) return true;
-      return box.Distance(a.x, an.action.x) <= an.data.range * (1.0 + 1e-9) + 1e-12;
-    };
-    if (last_entry_ >= 0 && last_entry_ < static_cast<int>(tree_.act.size()) &&
-        contains(last_entry_)) {
-      return last_entry_;
-    }
-    int best = -1;
-    double best_ratio = std::numeric_limits<double>::infinity();
-    for (int ai : tree_.obs[tree_.root].actions) {
-      if (!contains(ai)) continue;
-      const auto& an = tree_.act[ai];
-      const double range = std::max(an.data.range, 1e-12);
-      const double ratio = model_.KindSpace(a.kind).dim() == 0
-                               ? 0.0
-                               : model_.KindSpace(a.kind).Distance(a.x, an.action.x) / range;
-      if (ratio < best_ratio) {
-        best_ratio = ratio;
-        best = ai;
-      }
-    }
-    return best;
-  }
-
   const M& model_;
   KctOptions options_;
   std::shared_ptr<CandidateSampler<State>> sampler_;
-  double scale_ = 1.0;
   ParticleBelief<State> belief_;
-  Tree tree_;
+  std::vector<Worker> workers_;
   std::map<int, std::vector<Hypersphere>> spheres_;
+  std::mutex spheres_mutex_;
   CandidateStats candidate_stats_;
+  KctUsed used_;
   Hypersphere last_sphere_;
-  int last_entry_ = -1;
-  uint32_t next_episode_ = 1;
-  int max_depth_ = 0;
-  int64_t refinements_ = 0;
-  std::vector<int> scratch_;
 };
 
 }  // namespace npfkct

@@ -74,8 +74,12 @@ Status Apply(const std::map<std::string, Setter<O>, std::less<>>& table, O* o, s
     }
     if (matches != 1) return InvalidArgumentError("unknown option '" + std::string(key) + "'");
   }
-  if (std::isnan(value) && it->first.find("exploration_c") == std::string::npos &&
-      it->first.find("value_scale") == std::string::npos) {
+  // NaN selects the automatic value of the options that have one (the reward range, appendix J's
+  // rules); everywhere else it is an error.
+  const std::string_view leaf = std::string_view(it->first).substr(it->first.rfind('.') + 1);
+  const bool nan_means_auto =
+      leaf == "exploration_c" || leaf == "value_scale" || leaf == "w2" || leaf == "c_r";
+  if (std::isnan(value) && !nan_means_auto) {
     return InvalidArgumentError("option " + it->first + ": value must be a number");
   }
   if (std::isinf(value)) return InvalidArgumentError("option " + it->first + ": value is infinite");

@@ -225,6 +225,13 @@ struct SearchOptions {
   /// HeuristicValue(s) (e.g. the fully observable MDP value, as POMCPOW's FOValue).
   enum class LeafValue { kRollout, kHeuristic };
   LeafValue leaf_value = LeafValue::kRollout;
+  /// Search threads per planning call. kCT runs that many independent trees over the same belief
+  /// and root candidates (root parallelism) and merges their root statistics; the other planners
+  /// plan on one thread and reject more.
+  int threads = 1;
+  /// Try the model's rollout action first at the root (VOOTreeSearch's RolloutFirst): continuous
+  /// planners add it to the root's actions before any sampled one. Needs RolloutAction.
+  bool rollout_first = false;
 
   /// Checks the shared fields.
   Status Validate() const {
@@ -233,6 +240,7 @@ struct SearchOptions {
       return InvalidArgumentError("discount_horizon must be in (0, 1)");
     }
     if (num_particles < 1) return InvalidArgumentError("num_particles must be >= 1");
+    if (threads < 1 || threads > 64) return InvalidArgumentError("threads must be in [1, 64]");
     if (Status s = belief.Validate(); !s.ok()) return Status(s.code(), "belief." + s.message());
     return OkStatus();
   }

@@ -75,6 +75,10 @@ class Pomcp {
     Decision<Action> d;
     if (Status s = options_.Validate(); !s.ok()) return Fail(std::move(d), std::move(s));
     if (Status s = stop.budget().Validate(); !s.ok()) return Fail(std::move(d), std::move(s));
+    if (options_.search.threads != 1) {
+      return Fail(std::move(d), InvalidArgumentError("search.threads: only kCT plans on several "
+                                                     "threads; this planner needs 1"));
+    }
     if (belief_.empty()) return Fail(std::move(d), FailedPreconditionError("belief is empty"));
     if (!options_.search.reuse_tree && root_ >= 0) {
       const auto t0 = Clock::now();

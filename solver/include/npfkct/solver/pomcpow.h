@@ -96,6 +96,10 @@ requires HasObservationLikelihood<M> &&
     d.stats.budget_exhausted = false;
     if (Status s = options_.Validate(); !s.ok()) return Fail(std::move(d), std::move(s));
     if (Status s = stop.budget().Validate(); !s.ok()) return Fail(std::move(d), std::move(s));
+    if (options_.search.threads != 1) {
+      return Fail(std::move(d), InvalidArgumentError("search.threads: only kCT plans on several "
+                                                     "threads; this planner needs 1"));
+    }
     if (belief_.empty()) return Fail(std::move(d), FailedPreconditionError("belief is empty"));
     if (!options_.search.reuse_tree && tree_.root >= 0) {
       const auto t0 = Clock::now();
@@ -187,6 +191,13 @@ requires HasObservationLikelihood<M> &&
       }
       if (!untried.empty()) tree_.NewActNode(node, untried[rng.UniformInt(untried.size())]);
     } else {
+      // RolloutFirst (VOOTreeSearch): the root's first action is the rollout policy's.
+      if constexpr (requires { model_.RolloutAction(s, rng); }) {
+        if (options_.search.rollout_first && node == tree_.root && actions.empty()) {
+          tree_.NewActNode(node, model_.RolloutAction(s, rng));
+          return;
+        }
+      }
       existing_.clear();
       for (int ai : actions) existing_.push_back(&tree_.act[ai].action);
       if (options_.use_voo && existing_.size() > 1 &&

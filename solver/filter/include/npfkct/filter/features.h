@@ -1,6 +1,7 @@
 // Inputs of the neural process filter (paper section 4.1, figure 15): the scene as a point cloud
 // of the known objects and a top-down image of the grid world's odds, and per candidate action the
-// robot configuration and the guessed target's 8 face odds; and the score g the network learns.
+// robot configuration and the target candidate (the guessed target before detection, the most
+// likely detected target after) with its 8 face odds; and the score g the network learns.
 // Plain arrays only: no libtorch here.
 #pragma once
 
@@ -8,6 +9,7 @@
 #include <vector>
 
 #include "npfkct/object_search/model.h"
+#include "npfkct/object_search/proposals.h"
 #include "npfkct/solver/rng.h"
 
 namespace npfkct::filter {
@@ -27,9 +29,13 @@ inline constexpr int kPointDim = 5;
 inline constexpr int kImageSize = 64;
 inline constexpr int kImageChannels = 4;
 /// A query (one candidate action): 13 configuration values (x, y, cos yaw, sin yaw, lift, pan,
-/// tilt normalised; camera position and viewing direction) then the 8 face odds of object 0.
+/// tilt normalised; camera position and viewing direction), 12 values describing the target
+/// candidate (1 when it is the guessed target; for a detected candidate its center, sizes, cos and
+/// sin of its yaw, and its center in the camera's frame (depth, left, up) over the camera's far
+/// range), then the candidate's 8 face odds over the odds limit.
 inline constexpr int kConfigDim = 13;
-inline constexpr int kQueryDim = kConfigDim + 8;
+inline constexpr int kCandidateDim = 12;
+inline constexpr int kQueryDim = kConfigDim + kCandidateDim + 8;
 /// Actions with a score above this are efficient (paper appendix G).
 inline constexpr double kEfficientScore = 0.05;
 
@@ -43,35 +49,36 @@ struct SceneFeatures {
 /// (objects 1.., not removed; zeros when there are none) and the top-down image over the map.
 SceneFeatures SceneOf(const World& world, Rng& rng);
 
-/// Writes the kQueryDim values of configuration `config` with object 0's face odds `odds`.
-void QueryOf(const World& world, const RobotConfig& config, const std::array<float, 8>& odds,
-             float* out);
+/// Writes the kQueryDim values of configuration `config` for target candidate `candidate` (an
+/// object index of `world`; 0: the guessed target, whose odds are the re-initialised guess odds).
+void QueryOf(const World& world, const RobotConfig& config, int candidate, float* out);
 
 /// Target placements drawn from the grid world's odds, as the model places the guessed target.
 std::vector<Vec3> SamplePlacements(const World& world, int count, Rng& rng);
 
-/// The score g of algorithm 4: the fraction of `placements` at which the guessed target (object 0
-/// of `s`, moved there) would be seen from `config`, with every other object of `s` occluding.
-double VisibilityScore(const ObjectSearchModel& model, const State& s, const RobotConfig& config,
-                       const std::vector<Vec3>& placements);
+/// The score g the network learns, by the model's own observation rule: for the guessed target
+/// (candidate 0), the fraction of `placements` at which object 0 of `s`, moved there, would be
+/// seen from `config`; for a detected candidate i, the share of its not yet confirmed face grids
+/// (odds at most the declaration threshold) that a view from `config` would update - the model
+/// updates the 4 grids nearest to the camera of every object it sees - over min(4, unconfirmed);
+/// 0 when all are confirmed.
+double TargetScore(const ObjectSearchModel& model, const State& s, int candidate,
+                   const RobotConfig& config, const std::vector<Vec3>& placements);
+
+/// The mix of proposals the network is trained on and scores at run time: aimed at the target
+/// candidate, at other known objects, and uniform.
+object_search::ProposalOptions TrainingProposals();
 
 /// Configurations scored exactly, with their queries.
 struct ScoredConfigs {
   std::vector<RobotConfig> configs;
   std::vector<float> queries;  ///< configs.size() x kQueryDim.
-  std::vector<float> scores;   ///< VisibilityScore of each.
+  std::vector<float> scores;   ///< TargetScore of each.
 };
 
-/// `n` configurations drawn by SampleConfig, even ones aimed at a placement and odd ones uniform
-/// (the mix of the training data and of Net_sam's context), with their queries (object 0's odds
-/// of `s`) and exact scores against `placements`.
+/// `n` configurations proposed by object_search::ProposeMoves with the training mix, with their
+/// queries and exact scores for the target candidate of the model's world.
 ScoredConfigs ScoreConfigs(const ObjectSearchModel& model, const State& s,
                            const std::vector<Vec3>& placements, int n, Rng& rng);
-
-/// A configuration whose base is feasible in `world`: uniform over the action box (up to 64
-/// draws; the last draw otherwise), or, when `aimed`, looking at one of `placements` from a base
-/// 0.6-1.6 m away. The action box is the model's move space.
-RobotConfig SampleConfig(const ObjectSearchModel& model, const std::vector<Vec3>& placements,
-                         bool aimed, Rng& rng);
 
 }  // namespace npfkct::filter

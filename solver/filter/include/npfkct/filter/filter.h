@@ -21,9 +21,14 @@ struct FilterOptions {
   int context = 16;         ///< Configurations scored exactly to condition the network.
   int placements = 64;      ///< Target placements per exact score.
   int min_keep = 16;        ///< When fewer pass, the best min_keep by mu - beta* sigma.
-  /// Share of the candidates returned that are uniform ones the filter did not keep, so that the
-  /// hyperspheres still cover views the score g does not value (views of known objects' faces).
+  /// Share of the candidates returned that are uniform ones the filter did not keep.
   double explore = 0.0;
+  /// The proposals scored: share aimed at the target candidate (placements of the guessed target
+  /// or unconfirmed faces of a detected one), share aimed at other known objects' unconfirmed
+  /// faces (kept unscored, up to that share of the candidates returned: g does not value views
+  /// that confirm an obstacle), the rest uniform.
+  double target_share = 0.7;
+  double object_share = 0.2;
   /// Checks every field; the message names the offending one.
   Status Validate() const;
   /// beta* of the confidence.
@@ -31,8 +36,8 @@ struct FilterOptions {
 };
 
 /// Sets FilterOptions field `key` (snake_case: candidates, confidence, context, placements,
-/// min_keep, explore) to `value`; unknown keys and non-integers for integer fields are
-/// INVALID_ARGUMENT naming the key (Validate() checks the ranges).
+/// min_keep, explore, target_share, object_share) to `value`; unknown keys and non-integers for
+/// integer fields are INVALID_ARGUMENT naming the key (Validate() checks the ranges).
 Status SetOption(FilterOptions* o, std::string_view key, double value);
 
 /// The network's prediction of the score of each query.
