@@ -8,6 +8,9 @@
                                    planner, the mean over scenes of its share of the oracle's
                                    reward with a Student's t interval over the scenes, success rate
                                    and mean steps over every trial.
+  results_table.py ablation DIR    The ablation (scripts/bench_ablation.sh): rows from
+                                   DIR/ROW/SCENE.jsonl in the script's order, a column per scene
+                                   and the mean reward over the scenes.
   results_table.py compare A B     Whether two runs of the same cells agree: each mean inside the
                                    other run's 95% interval.
   results_table.py flat FILE       A table from one file of JSON lines (rows planners, columns
@@ -168,6 +171,37 @@ def generated(root):
         print(f"| {p} | {100 * m:.1f}% ± {100 * ci:.1f} | {succ:.1f}% | {sm:.1f} ± {sci:.1f} | {n} |")
 
 
+ABLATION_ROWS = ["paper", "aimed", "candidates", "sibling", "visits", "w2-rule", "filter"]
+
+
+def ablation(root):
+    cells = {}
+    for path in sorted(glob.glob(os.path.join(root, "*", "*.jsonl"))):
+        with open(path, encoding="utf-8") as f:
+            line = f.readline()
+        if line.strip():
+            r = json.loads(line)
+            cells[(os.path.basename(os.path.dirname(path)), r["scenario"])] = r
+    rows = order({row for row, _ in cells}, ABLATION_ROWS)
+    scenes = order({s for _, s in cells}, PAPER_SCENES)
+    print("| Row | Planner and options |" + "".join(f" {s} |" for s in scenes) + " Mean |")
+    print("|---|---|" + "---|" * (len(scenes) + 1))
+    for row in rows:
+        first = next(r for (rw, _), r in cells.items() if rw == row)
+        opts = " ".join(first.get("options", []))
+        line = f"| {row} | `{first['planner']}{' ' + opts if opts else ''}` |"
+        means = []
+        for s in scenes:
+            r = cells.get((row, s))
+            if r is None:
+                line += " – |"
+            else:
+                line += f" {cell_text(r)} |"
+                means.append(r["mean_discounted_reward"])
+        line += f" {sum(means) / len(means):.1f} |" if len(means) == len(scenes) else " – |"
+        print(line)
+
+
 def compare(a_root, b_root):
     a, b = load_cells(a_root), load_cells(b_root)
     keys = [k for k in a if k in b]
@@ -210,13 +244,16 @@ def flat(path):
 
 
 def main():
-    if len(sys.argv) < 3 or sys.argv[1] not in ("table1", "generated", "compare", "flat"):
+    if len(sys.argv) < 3 or sys.argv[1] not in ("table1", "generated", "ablation", "compare",
+                                                 "flat"):
         print(__doc__)
         sys.exit(2)
     if sys.argv[1] == "table1":
         table1(sys.argv[2])
     elif sys.argv[1] == "generated":
         generated(sys.argv[2])
+    elif sys.argv[1] == "ablation":
+        ablation(sys.argv[2])
     elif sys.argv[1] == "compare":
         compare(sys.argv[2], sys.argv[3])
     else:

@@ -12,8 +12,8 @@ source "$NPFKCT_ROOT/scripts/deps.sh"
 npfkct_prepare
 DATA_DIR="${DATA_DIR:-$BUILD_DIR/filter-data}"
 MODEL="${MODEL:-$NPFKCT_ROOT/solver/filter/model/filter.pt}"
-EPOCHS="${EPOCHS:-30}"
-TRAIN_SAMPLES="${TRAIN_SAMPLES:-12000}"
+EPOCHS="${EPOCHS:-20}"
+TRAIN_SAMPLES="${TRAIN_SAMPLES:-20000}"
 RESULTS="$NPFKCT_ROOT/bench/results"
 TRAIN="$BUILD_DIR/solver/filter/npfkct-train"
 SCENES="$NPFKCT_ROOT/scenarios/data"
@@ -21,9 +21,9 @@ PAPER="$SCENES/loose1.json,$SCENES/loose2.json,$SCENES/hidden1.json,$SCENES/cove
 PAPER="$PAPER,$SCENES/complex1.json,$SCENES/fig16.json"
 mkdir -p "$DATA_DIR" "$RESULTS" "$(dirname "$MODEL")"
 "$TRAIN" generate --out "$DATA_DIR/train.bin" --samples "$TRAIN_SAMPLES" \
-  --scene-seed 1 --scene-count 20000 --seed 11
+  --scene-seed 1 --scene-count 20000 --max-steps 4 --seed 11
 "$TRAIN" generate --out "$DATA_DIR/val.bin" --samples 1000 --scene-seed 20001 --scene-count 2000 \
-  --seed 12
+  --max-steps 4 --seed 12
 "$TRAIN" generate --out "$DATA_DIR/test_heldout.bin" --samples 1500 --scene-seed 900001 \
   --scene-count 30 --seed 13
 "$TRAIN" generate --out "$DATA_DIR/test_paper.bin" --samples 1500 --scenarios "$PAPER" --seed 14

@@ -9,6 +9,7 @@
 
 #include "episode_runner.h"
 #include "npfkct/solver/advt.h"
+#include "npfkct/solver/discrete_as_hybrid.h"
 #include "npfkct/solver/kct.h"
 #include "npfkct/solver/models/light_dark.h"
 #include "npfkct/solver/models/rock_sample.h"
@@ -213,6 +214,22 @@ int RunLightDark(const Config& c) {
     return Run<models::SimpleLightDark, Pomcpow<models::SimpleLightDark>>(c, model, o, 100, true,
                                                                           declared_at_zero);
   }
+  if (c.planner == "kct") {
+    // The actions are discrete: kCT's list holds them as points (no spheres to refine), with the
+    // POMCPOW paper's observation widening, depth, particles and leaf values.
+    static const models::SimpleLightDark base;
+    static const DiscreteAsHybrid<models::SimpleLightDark> hybrid(base);
+    KctOptions o;
+    o.observations.k = 5.0;
+    o.observations.alpha = 1.0 / 15.0;
+    o.observations.check_repeat = false;
+    o.search.max_depth = 20;
+    o.search.num_particles = 10000;
+    o.search.leaf_value = SearchOptions::LeafValue::kHeuristic;
+    return Run<DiscreteAsHybrid<models::SimpleLightDark>,
+               KCenterTree<DiscreteAsHybrid<models::SimpleLightDark>>>(c, hybrid, o, 100, true,
+                                                                       declared_at_zero);
+  }
   return Unsupported(c);
 }
 
@@ -318,6 +335,7 @@ int main(int argc, char** argv) {
                  "scenarios: how the robot observes, geometric (the simulator's shortcut) and/or "
                  "perception (rendered RGB-D frames through the perception pipeline)")
       ->delimiter(',');
+  app.add_flag("--trace", search.trace, "scenarios: print each step of the first trial on stderr");
   app.add_option("--render", search.render_dir,
                  "scenarios: write per-step PNGs of the first trial into this directory");
   CLI11_PARSE(app, argc, argv);

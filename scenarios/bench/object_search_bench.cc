@@ -34,6 +34,7 @@ struct TrialContext {
   int max_steps;
   uint64_t seed;
   std::string render_prefix;  // empty: no pictures
+  bool trace = false;         // each step on stderr
   bool perception = false;    // observe through rendered frames and the perception pipeline
   std::shared_ptr<const filter::NeuralFilter> filter;  // Net_sam of the npfkct planner
 };
@@ -213,6 +214,13 @@ EpisodeResult RunTrial(const TrialContext& ctx) {
         planner->AdvanceTo(d.action, key, std::move(belief));
       }
     }
+    if (ctx.trace) {
+      std::fprintf(stderr, "%s %s trial %llu step %2d: %-62s %-32s sims %7lld value %9.1f\n",
+                   ctx.scenario->name.c_str(), ctx.planner.c_str(),
+                   static_cast<unsigned long long>(ctx.seed % 1000003ULL), t + 1,
+                   Describe(d.action, world).c_str(), outcome.detail.c_str(),
+                   static_cast<long long>(d.stats.simulations), d.value);
+    }
     if (!ctx.render_prefix.empty()) {
       char name[32];
       std::snprintf(name, sizeof name, "-step%02d.png", t + 1);
@@ -373,6 +381,7 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
                          max_steps,
                          config.seed * 1000003ULL + static_cast<uint64_t>(trial),
                          render_prefix,
+                         config.trace && trial == 0,
                          mode == "perception",
                          net};
         return RunTrial(ctx);

@@ -23,6 +23,7 @@ struct SearchBenchConfig {
   std::vector<std::string> options;  ///< Planner options key=value; filter.* go to Net_sam.
   std::string table_path;            ///< Markdown table output (Table 1 layout).
   std::string render_dir;            ///< Per-step PNGs (first trial of each run).
+  bool trace = false;                ///< Each step of the first trial on stderr.
   /// Neural filter model of the npfkct planner (default: the shipped one; "none": uniform).
   std::string filter_model;
   /// Observation modes compared: "geometric" (the simulator's visibility shortcut) and/or

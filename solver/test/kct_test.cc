@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <thread>
+
 #include "npfkct/solver/models/vdp_tag.h"
 #include "test_models.h"
 
@@ -181,6 +183,41 @@ TEST(KctTest, CandidateSamplerShapesTheInitialSpheres) {
   auto e = broken.Plan(Budget::Simulations(10), rng);
   EXPECT_EQ(e.status.code(), StatusCode::kInternal);
   EXPECT_NE(e.status.message().find("outside the action box"), std::string::npos);
+}
+
+TEST(KctTest, RootParallelSearchMergesTheTreesAndFindsThePeak) {
+  PeakSearch model;
+  Rng rng(10);
+  KctOptions o = PeakOptions();
+  o.search.threads = 2;
+  KCenterTree<PeakSearch> planner(model, o);
+  planner.Reset(rng);
+  auto d = planner.Plan(Budget::Simulations(20000), rng);
+  ASSERT_TRUE(d.status.ok()) << d.status.ToString();
+  EXPECT_EQ(d.stats.simulations, 20000);  // shared out between the two trees
+  EXPECT_EQ(planner.used().threads, 2);
+  ASSERT_EQ(d.action.kind, 0);
+  EXPECT_LT((d.action.x - model.Peak(0)).norm(), 0.15);
+  EXPECT_EQ(planner.RootVisits(), 20000);
+  EXPECT_TRUE(planner.CheckInvariants().ok());
+  // Both trees follow the executed step.
+  Rng sim(11);
+  auto step = model.Step(0, d.action, sim);
+  planner.Advance(d.action, step.observation, rng);
+  EXPECT_GT(planner.RootVisits(), 0);
+  auto d2 = planner.Plan(Budget::Simulations(2000), rng);
+  ASSERT_TRUE(d2.status.ok());
+  EXPECT_TRUE(planner.CheckInvariants().ok());
+  // A cancellation reaches every thread.
+  TerminationCondition stop(Budget::Time(30000.0));
+  std::thread canceller([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(30));
+    stop.Terminate();
+  });
+  auto d3 = planner.Plan(stop, rng);
+  canceller.join();
+  EXPECT_EQ(d3.status.code(), StatusCode::kCancelled);
+  EXPECT_LT(d3.stats.elapsed_ms, 5000.0);
 }
 
 TEST(KctTest, VdpTagWithObservationWideningHonoursTheTimeBudget) {

@@ -67,7 +67,7 @@ TEST(LinearQuadraticTest, KctFirstActionIsAsCloseToTheOptimumAsVomcpows) {
   const LinearQuadratic model;
   const ActionVec best = model.OptimalFirstAction();
   std::vector<double> kct_error, voo_error;
-  for (uint64_t seed = 1; seed <= 12; ++seed) {
+  for (uint64_t seed = 1; seed <= 60; ++seed) {
     {
       KctOptions o;
       o.search.num_particles = 1000;

@@ -116,7 +116,8 @@ SceneFeatures SceneOf(const World& world, Rng& rng) {
   return f;
 }
 
-void QueryOf(const World& world, const RobotConfig& config, int candidate, float* out) {
+void QueryOf(const World& world, const RobotConfig& config, int candidate,
+             const std::vector<Vec3>& probe, float* out) {
   const Frame2 frame(world);
   const auto& r = world.robot;
   out[0] = frame.X(config.x);
@@ -137,8 +138,27 @@ void QueryOf(const World& world, const RobotConfig& config, int candidate, float
   std::fill(c, c + kCandidateDim, 0.0f);
   const float limit = static_cast<float>(world.params.face_odds_limit);
   float* odds = c + kCandidateDim;
+  const double tan_h = world.camera.TanHalfHorizontal(), tan_v = world.camera.TanHalfVertical();
+  // The share of `points` inside the frustum and their mean position in the image.
+  auto frustum = [&](const std::vector<Vec3>& points, double* share, Vec3* mean) {
+    int inside = 0;
+    *mean = Vec3::Zero();
+    for (const Vec3& p : points) {
+      if (!object_search::InFrustum(world.camera, pose, p)) continue;
+      const Vec3 q = pose.ToCamera(p);
+      *mean += Vec3(q.x() / world.camera.far, q.y() / (q.x() * tan_h), q.z() / (q.x() * tan_v));
+      ++inside;
+    }
+    *share = points.empty() ? 0.0 : static_cast<double>(inside) / points.size();
+    if (inside > 0) *mean /= inside;
+  };
+  double share = 0.0;
+  Vec3 mean = Vec3::Zero();
   if (candidate <= 0 || candidate >= static_cast<int>(world.objects.size())) {
     c[0] = 1.0f;  // the guessed target: where it may be is in the image
+    frustum(probe, &share, &mean);
+    c[12] = static_cast<float>(share);
+    for (int k = 0; k < 3; ++k) c[13 + k] = static_cast<float>(mean[k]);
     for (int k = 0; k < 8; ++k) odds[k] = static_cast<float>(world.params.guess_odds) / limit;
     return;
   }
@@ -155,6 +175,25 @@ void QueryOf(const World& world, const RobotConfig& config, int candidate, float
   c[9] = static_cast<float>(in_camera.x());
   c[10] = static_cast<float>(in_camera.y());
   c[11] = static_cast<float>(in_camera.z());
+  // The unconfirmed face grids among the 4 corners nearest the camera, with points in the
+  // frustum.
+  const uint32_t unconfirmed = object_search::UnconfirmedFaces(world, candidate, +1);
+  if (unconfirmed != 0) {
+    const auto corners = b.Corners();
+    std::array<std::pair<double, int>, 8> by_distance;
+    for (int k = 0; k < 8; ++k) by_distance[k] = {(corners[k] - pose.position).squaredNorm(), k};
+    std::partial_sort(by_distance.begin(), by_distance.begin() + 4, by_distance.end());
+    std::vector<Vec3> points;
+    for (int n = 0; n < 4; ++n) {
+      const int k = by_distance[n].second;
+      if (unconfirmed >> k & 1u) points.push_back(object_search::FacePoint(b, k));
+    }
+    const size_t candidates = points.size();
+    frustum(points, &share, &mean);
+    share = share * candidates / std::min(4, std::popcount(unconfirmed));
+  }
+  c[12] = static_cast<float>(share);
+  for (int k = 0; k < 3; ++k) c[13 + k] = static_cast<float>(mean[k]);
   for (int k = 0; k < 8; ++k) odds[k] = world.objects[candidate].odds[k] / limit;
 }
 
@@ -196,14 +235,15 @@ object_search::ProposalOptions TrainingProposals() {
 }
 
 ScoredConfigs ScoreConfigs(const ObjectSearchModel& model, const State& s,
-                           const std::vector<Vec3>& placements, int n, Rng& rng) {
+                           const std::vector<Vec3>& placements, const std::vector<Vec3>& probe,
+                           int n, Rng& rng) {
   ScoredConfigs out;
   const int candidate = object_search::TargetCandidate(model.world());
   object_search::ProposeMoves(model, TrainingProposals(), n, rng, &out.configs, nullptr);
   out.queries.resize(static_cast<size_t>(n) * kQueryDim);
   out.scores.resize(n);
   for (int i = 0; i < n; ++i) {
-    QueryOf(model.world(), out.configs[i], candidate,
+    QueryOf(model.world(), out.configs[i], candidate, probe,
             &out.queries[static_cast<size_t>(i) * kQueryDim]);
     out.scores[i] =
         static_cast<float>(TargetScore(model, s, candidate, out.configs[i], placements));

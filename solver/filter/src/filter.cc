@@ -65,9 +65,10 @@ class NetSam final : public CandidateSampler<State> {
       return OkStatus();
     }
     const std::vector<Vec3> placements = SamplePlacements(w, options_.placements, rng);
+    const std::vector<Vec3> probe = SamplePlacements(w, kProbePlacements, rng);
     const SceneFeatures scene = SceneOf(w, rng);
     // Context: configurations scored exactly, drawn as in training.
-    const ScoredConfigs context = ScoreConfigs(model_, s, placements, options_.context, rng);
+    const ScoredConfigs context = ScoreConfigs(model_, s, placements, probe, options_.context, rng);
     std::vector<std::pair<double, ActionVec>> known_good;
     for (int i = 0; i < options_.context; ++i) {
       const ActionVec x = ObjectSearchModel::VecOf(context.configs[i]);
@@ -83,7 +84,7 @@ class NetSam final : public CandidateSampler<State> {
     }
     std::vector<float> q(scored.size() * kQueryDim);
     for (size_t j = 0; j < scored.size(); ++j) {
-      QueryOf(w, configs[scored[j]], candidate, &q[j * kQueryDim]);
+      QueryOf(w, configs[scored[j]], candidate, probe, &q[j * kQueryDim]);
     }
     const Prediction p = filter_->Predict(scene, context.queries, context.scores, q);
     const double beta = options_.Beta();

@@ -44,6 +44,9 @@ Status TrainOptions::Validate() const {
   if (!(learning_rate > 0.0) || !std::isfinite(learning_rate)) {
     return InvalidArgumentError("learning_rate must be > 0");
   }
+  if (!(weight_decay >= 0.0) || !std::isfinite(weight_decay)) {
+    return InvalidArgumentError("weight_decay must be >= 0");
+  }
   if (min_context < 1 || max_context < min_context) {
     return InvalidArgumentError("min_context and max_context must satisfy 1 <= min <= max");
   }
@@ -68,7 +71,9 @@ StatusOr<TrainReport> TrainFilter(const Dataset& train, const Dataset& val,
   std::mt19937_64 gen(options.seed);
   NpNet net;
   net->train();
-  torch::optim::Adam optimizer(net->parameters(), torch::optim::AdamOptions(options.learning_rate));
+  torch::optim::Adam optimizer(
+      net->parameters(),
+      torch::optim::AdamOptions(options.learning_rate).weight_decay(options.weight_decay));
   TrainReport report;
   report.best_val_loss = std::numeric_limits<double>::infinity();
   const int n = static_cast<int>(train.samples.size());

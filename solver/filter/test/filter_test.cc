@@ -109,7 +109,9 @@ TEST(FeaturesTest, QueryEncodesConfigurationAndTargetCandidate) {
   c.pan = 0.0;
   c.tilt = w.robot.tilt_min;
   std::vector<float> q(kQueryDim);
-  QueryOf(w, c, 0, q.data());
+  Rng probe_rng(2);
+  const std::vector<Vec3> probe = SamplePlacements(w, kProbePlacements, probe_rng);
+  QueryOf(w, c, 0, probe, q.data());
   EXPECT_NEAR(q[2], 0.0, 1e-6);   // cos yaw
   EXPECT_NEAR(q[3], 1.0, 1e-6);   // sin yaw
   EXPECT_NEAR(q[4], 1.0, 1e-6);   // lift at its maximum
@@ -128,7 +130,7 @@ TEST(FeaturesTest, QueryEncodesConfigurationAndTargetCandidate) {
   c.y = center.y();
   c.yaw = 0.0;
   c.tilt = 0.3;
-  QueryOf(w, c, 1, q.data());
+  QueryOf(w, c, 1, probe, q.data());
   EXPECT_EQ(q[kConfigDim], 0.0f);
   EXPECT_GT(q[kConfigDim + 9], 0.4f);            // depth along the optical axis, over far
   EXPECT_NEAR(q[kConfigDim + 10], 0.0f, 0.05f);  // centred left-right
@@ -373,13 +375,14 @@ TEST(FilterTest, NetSamReturnsBetterCandidatesThanUniform) {
   // The network alone ranks proposals: its top 10% score far above their average.
   const State& s = belief.Sample(rng);
   const SceneFeatures scene = SceneOf(w, rng);
-  const ScoredConfigs context = ScoreConfigs(model, s, placements, 16, rng);
+  const std::vector<Vec3> probe = SamplePlacements(w, kProbePlacements, rng);
+  const ScoredConfigs context = ScoreConfigs(model, s, placements, probe, 16, rng);
   ASSERT_EQ(context.queries.size(), 16u * kQueryDim);
   for (int i = 0; i < 16; ++i) {
     EXPECT_EQ(context.scores[i],
               static_cast<float>(TargetScore(model, s, candidate, context.configs[i], placements)));
   }
-  const ScoredConfigs proposals = ScoreConfigs(model, s, placements, 500, rng);
+  const ScoredConfigs proposals = ScoreConfigs(model, s, placements, probe, 500, rng);
   const Prediction p =
       (*filter)->Predict(scene, context.queries, context.scores, proposals.queries);
   std::vector<int> order(500);

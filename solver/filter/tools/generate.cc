@@ -17,8 +17,9 @@ Sample MakeSample(const ObjectSearchModel& model, const GenerateOptions& o, Rng&
   Sample out;
   const State s = model.SampleInitialState(rng);
   const std::vector<Vec3> placements = SamplePlacements(w, o.placements, rng);
+  const std::vector<Vec3> probe = SamplePlacements(w, kProbePlacements, rng);
   out.scene = SceneOf(w, rng);
-  ScoredConfigs scored = ScoreConfigs(model, s, placements, o.queries_per_sample, rng);
+  ScoredConfigs scored = ScoreConfigs(model, s, placements, probe, o.queries_per_sample, rng);
   out.queries = std::move(scored.queries);
   out.scores = std::move(scored.scores);
   return out;

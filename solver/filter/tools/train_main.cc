@@ -81,6 +81,7 @@ int main(int argc, char** argv) {
   tr->add_option("--epochs", train.epochs, "epochs");
   tr->add_option("--batch", train.batch, "snapshots per step");
   tr->add_option("--lr", train.learning_rate, "Adam learning rate");
+  tr->add_option("--weight-decay", train.weight_decay, "Adam L2 penalty");
   tr->add_option("--seed", train.seed, "random seed");
   tr->add_option("--threads", threads, "libtorch threads");
 
@@ -191,13 +192,14 @@ int main(int argc, char** argv) {
     const State& s = particles[0];
     const auto placements = SamplePlacements(*world, fo.placements, rng);
     const SceneFeatures scene = SceneOf(*world, rng);
-    const ScoredConfigs context = ScoreConfigs(model, s, placements, fo.context, rng);
+    const std::vector<Vec3> probe = SamplePlacements(*world, kProbePlacements, rng);
+    const ScoredConfigs context = ScoreConfigs(model, s, placements, probe, fo.context, rng);
     const int candidate = object_search::TargetCandidate(*world);
     std::vector<float> q(fo.candidates * kQueryDim);
     std::vector<object_search::RobotConfig> configs;
     object_search::ProposeMoves(model, TrainingProposals(), fo.candidates, rng, &configs, nullptr);
     for (int i = 0; i < fo.candidates; ++i)
-      QueryOf(*world, configs[i], candidate, &q[i * kQueryDim]);
+      QueryOf(*world, configs[i], candidate, probe, &q[i * kQueryDim]);
     std::vector<double> network, netsam, exact, scene_ms;
     auto sampler = MakeNetSam(*filter, model, fo);
     if (!sampler.ok()) return Fail(sampler.status());

@@ -29,12 +29,19 @@ inline constexpr int kPointDim = 5;
 inline constexpr int kImageSize = 64;
 inline constexpr int kImageChannels = 4;
 /// A query (one candidate action): 13 configuration values (x, y, cos yaw, sin yaw, lift, pan,
-/// tilt normalised; camera position and viewing direction), 12 values describing the target
-/// candidate (1 when it is the guessed target; for a detected candidate its center, sizes, cos and
+/// tilt normalised; camera position and viewing direction); 16 values describing the target
+/// candidate: 1 when it is the guessed target; for a detected candidate its center, sizes, cos and
 /// sin of its yaw, and its center in the camera's frame (depth, left, up) over the camera's far
-/// range), then the candidate's 8 face odds over the odds limit.
+/// range; then what the frustum alone (no occlusion) would show of it - for the guessed target the
+/// share of the probe placements inside the frustum, for a detected one the share of its
+/// unconfirmed face grids among the 4 nearest the camera whose points are inside - and the mean
+/// position of those points in the image (depth over far, left and up over the frustum's half
+/// extents); then the candidate's 8 face odds over the odds limit. Occlusion is the network's to
+/// learn from the scene.
 inline constexpr int kConfigDim = 13;
-inline constexpr int kCandidateDim = 12;
+inline constexpr int kCandidateDim = 16;
+/// Placements drawn once per scene that the frustum features of the guessed target probe.
+inline constexpr int kProbePlacements = 32;
 inline constexpr int kQueryDim = kConfigDim + kCandidateDim + 8;
 /// Actions with a score above this are efficient (paper appendix G).
 inline constexpr double kEfficientScore = 0.05;
@@ -50,8 +57,10 @@ struct SceneFeatures {
 SceneFeatures SceneOf(const World& world, Rng& rng);
 
 /// Writes the kQueryDim values of configuration `config` for target candidate `candidate` (an
-/// object index of `world`; 0: the guessed target, whose odds are the re-initialised guess odds).
-void QueryOf(const World& world, const RobotConfig& config, int candidate, float* out);
+/// object index of `world`; 0: the guessed target, whose odds are the re-initialised guess odds,
+/// probed at `probe`: kProbePlacements placements drawn by SamplePlacements).
+void QueryOf(const World& world, const RobotConfig& config, int candidate,
+             const std::vector<Vec3>& probe, float* out);
 
 /// Target placements drawn from the grid world's odds, as the model places the guessed target.
 std::vector<Vec3> SamplePlacements(const World& world, int count, Rng& rng);
@@ -77,8 +86,10 @@ struct ScoredConfigs {
 };
 
 /// `n` configurations proposed by object_search::ProposeMoves with the training mix, with their
-/// queries and exact scores for the target candidate of the model's world.
+/// queries (probing the guessed target at `probe`) and exact scores for the target candidate of
+/// the model's world (the guessed target's against `placements`).
 ScoredConfigs ScoreConfigs(const ObjectSearchModel& model, const State& s,
-                           const std::vector<Vec3>& placements, int n, Rng& rng);
+                           const std::vector<Vec3>& placements, const std::vector<Vec3>& probe,
+                           int n, Rng& rng);
 
 }  // namespace npfkct::filter

@@ -16,7 +16,8 @@ struct TrainOptions {
   int epochs = 40;
   int batch = 16;  ///< Samples (scenes) per step.
   double learning_rate = 1e-3;
-  int min_context = 8;  ///< Context size drawn per step in [min_context, max_context].
+  double weight_decay = 1e-4;  ///< L2 penalty of Adam.
+  int min_context = 8;         ///< Context size drawn per step in [min_context, max_context].
   int max_context = 24;
   int eval_context = 16;  ///< Context size of the validation loss.
   uint64_t seed = 1;
