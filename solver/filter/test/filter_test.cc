@@ -9,6 +9,7 @@
 #include <numeric>
 #include <string>
 
+#include "generate.h"
 #include "npfkct/filter/dataset.h"
 #include "npfkct/filter/features.h"
 #include "npfkct/filter/train.h"

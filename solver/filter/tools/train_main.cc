@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "generate.h"
 #include "npfkct/filter/dataset.h"
 #include "npfkct/filter/filter.h"
 #include "npfkct/filter/train.h"
