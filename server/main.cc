@@ -33,7 +33,8 @@ int main(int argc, char** argv) {
   app.add_option("--head-timeout", o.head_timeout_seconds, "seconds to send a request's head");
   app.add_option("--body-timeout", o.body_timeout_seconds, "seconds to send a request's body");
   app.add_option("--idle-timeout", o.idle_timeout_seconds, "keep-alive seconds between requests");
-  app.add_option("--default-plan-ms", o.limits.default_plan_ms, "budget of a :plan that gives none");
+  app.add_option("--default-plan-ms", o.limits.default_plan_ms,
+                 "budget of a :plan that gives none");
   app.add_option("--max-plan-ms", o.limits.max_plan_ms,
                  "largest wall-clock or CPU budget one :plan may ask for (ms)");
   app.add_option("--max-plan-simulations", o.limits.max_plan_simulations,

@@ -194,11 +194,11 @@ double DistanceToBox(const Box& b, const PointXYZ& p) {
 
 Status CameraIntrinsics::Validate() const {
   if (width < 8 || height < 8 || width > 8192 || height > 8192) {
-    return InvalidArgumentError("camera: width and height must be in [8, 8192]");
+    return InvalidFieldError("camera", "width and height must be in [8, 8192]");
   }
   if (!(fx > 0) || !(fy > 0) || !std::isfinite(fx) || !std::isfinite(fy) || !std::isfinite(cx) ||
       !std::isfinite(cy)) {
-    return InvalidArgumentError("camera: focal lengths must be positive and finite");
+    return InvalidFieldError("camera", "focal lengths must be positive and finite");
   }
   return OkStatus();
 }
@@ -444,23 +444,24 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
   // ---- input checks: nothing changes on error ----
   if (Status s = frame.intrinsics.Validate(); !s.ok()) return s;
   if (!frame.cloud || frame.cloud->empty()) {
-    return InvalidArgumentError("pointCloud.data: the cloud is empty");
+    return InvalidFieldError("pointCloud.data", "the cloud is empty");
   }
   if (static_cast<int64_t>(frame.cloud->size()) > o.max_points) {
-    return InvalidArgumentError("pointCloud.data: more than " + std::to_string(o.max_points) +
-                                " points");
+    return InvalidFieldError("pointCloud.data",
+                             "more than " + std::to_string(o.max_points) + " points");
   }
   for (size_t i = 0; i < frame.cloud->size(); ++i) {
     const auto& p = (*frame.cloud)[i];
     if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
-      return InvalidArgumentError("pointCloud.data: point " + std::to_string(i) +
-                                  " is not finite (drop NaN points before sending)");
+      return InvalidFieldError(
+          "pointCloud.data",
+          "point " + std::to_string(i) + " is not finite (drop NaN points before sending)");
     }
     if (std::abs(p.x) > o.max_coordinate || std::abs(p.y) > o.max_coordinate ||
         std::abs(p.z) > o.max_coordinate) {
-      return InvalidArgumentError("pointCloud.data: point " + std::to_string(i) +
-                                  " has a coordinate beyond " +
-                                  std::to_string(static_cast<int64_t>(o.max_coordinate)) + " m");
+      return InvalidFieldError("pointCloud.data",
+                               "point " + std::to_string(i) + " has a coordinate beyond " +
+                                   std::to_string(static_cast<int64_t>(o.max_coordinate)) + " m");
     }
   }
   if (!frame.cloud_in_map_frame) {
@@ -478,24 +479,27 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
     }
     const size_t n = frame.cloud->size();
     if (behind * 20 > n) {
-      return InvalidArgumentError(
-          "pointCloud.frame: " + std::to_string(100 * behind / n) +
-          "% of the points are behind the camera; is the cloud really in the camera frame?");
+      return InvalidFieldError(
+          "pointCloud.frame",
+          std::to_string(100 * behind / n) +
+              "% of the points are behind the camera; is the cloud really in the camera frame?");
     }
     if (outside * 20 > n) {
-      return InvalidArgumentError(
-          "pointCloud.frame: " + std::to_string(100 * outside / n) +
-          "% of the points fall outside the camera's field of view; is the cloud really in the "
-          "camera's optical frame, and are the camera intrinsics right?");
+      return InvalidFieldError(
+          "pointCloud.frame",
+          std::to_string(100 * outside / n) +
+              "% of the points fall outside the camera's field of view; is the cloud really in the "
+              "camera's optical frame, and are the camera intrinsics right?");
     }
   }
   if (!frame.image.empty() &&
       (frame.image.cols != frame.intrinsics.width || frame.image.rows != frame.intrinsics.height ||
        frame.image.type() != CV_8UC3)) {
-    return InvalidArgumentError(
-        "image.data: the image is " + std::to_string(frame.image.cols) + "x" +
-        std::to_string(frame.image.rows) + " (3 channels expected), the camera says " +
-        std::to_string(frame.intrinsics.width) + "x" + std::to_string(frame.intrinsics.height));
+    return InvalidFieldError("image.data", "the image is " + std::to_string(frame.image.cols) +
+                                               "x" + std::to_string(frame.image.rows) +
+                                               " (3 channels expected), the camera says " +
+                                               std::to_string(frame.intrinsics.width) + "x" +
+                                               std::to_string(frame.intrinsics.height));
   }
   PerceptionResult result;
 

@@ -46,7 +46,8 @@ bool WriteAll(int fd, const char* data, size_t size, Clock::duration timeout) {
       continue;
     }
     if (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR) return false;
-    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now());
+    const auto left =
+        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now());
     if (left.count() <= 0) return false;
     pollfd p{fd, POLLOUT, 0};
     if (::poll(&p, 1, static_cast<int>(left.count())) <= 0) return false;
@@ -81,19 +82,19 @@ const char* Reason(int status) {
 // A connection and the bytes of its current request.
 struct HttpFront::Conn {
   int fd = -1;
-  std::string buf;           // received and not yet consumed
-  size_t head_end = 0;       // past the head's "\r\n\r\n"; 0 while the head is incomplete
-  size_t request_end = 0;    // past the body; 0 while the body is incomplete
+  std::string buf;         // received and not yet consumed
+  size_t head_end = 0;     // past the head's "\r\n\r\n"; 0 while the head is incomplete
+  size_t request_end = 0;  // past the body; 0 while the body is incomplete
   bool chunked = false;
   size_t content_length = 0;
-  size_t chunk_pos = 0;      // the next chunk-size line
-  size_t body_bytes = 0;     // payload of the chunks consumed so far
-  bool health = false;       // GET /healthz or /metrics
-  bool registered = false;   // in the epoll set
+  size_t chunk_pos = 0;     // the next chunk-size line
+  size_t body_bytes = 0;    // payload of the chunks consumed so far
+  bool health = false;      // GET /healthz or /metrics
+  bool registered = false;  // in the epoll set
   Clock::time_point deadline;
   int served = 0;
-  size_t accounted = 0;      // bytes counted in the front's in-flight total
-  bool head_started = false; // a request's first bytes arrived (the head deadline runs)
+  size_t accounted = 0;       // bytes counted in the front's in-flight total
+  bool head_started = false;  // a request's first bytes arrived (the head deadline runs)
   Connection view;
 };
 
@@ -302,9 +303,10 @@ bool HttpFront::process_and_close_socket(socket_t sock) {
   if (stopping_ || open_connections_.fetch_add(1) >= options_.max_connections) {
     if (!stopping_) --open_connections_;
     const std::string body = render_error_(429, "too many open connections; retry later");
-    const std::string reply = "HTTP/1.1 429 Too Many Requests\r\nContent-Type: application/json\r\n"
-                              "Retry-After: 1\r\nConnection: close\r\nContent-Length: " +
-                              std::to_string(body.size()) + "\r\n\r\n" + body;
+    const std::string reply =
+        "HTTP/1.1 429 Too Many Requests\r\nContent-Type: application/json\r\n"
+        "Retry-After: 1\r\nConnection: close\r\nContent-Length: " +
+        std::to_string(body.size()) + "\r\n\r\n" + body;
     WriteAll(sock, reply.data(), reply.size(), std::chrono::milliseconds(100));
     if (observe_) observe_(429);
     ::shutdown(sock, SHUT_RDWR);
@@ -393,16 +395,18 @@ void HttpFront::Reactor() {
       const size_t end = c->buf.find("\r\n\r\n");
       if (end == std::string::npos) {
         if (c->buf.size() > options_.max_head_bytes) {
-          refuse(std::move(c), 431, "the request head is larger than " +
-                                        std::to_string(options_.max_head_bytes) + " bytes");
+          refuse(std::move(c), 431,
+                 "the request head is larger than " + std::to_string(options_.max_head_bytes) +
+                     " bytes");
           return -1;
         }
         // Leading empty lines between requests are allowed (RFC 9112 2.2).
         return 0;
       }
       if (end + 4 > options_.max_head_bytes) {
-        refuse(std::move(c), 431, "the request head is larger than " +
-                                      std::to_string(options_.max_head_bytes) + " bytes");
+        refuse(std::move(c), 431,
+               "the request head is larger than " + std::to_string(options_.max_head_bytes) +
+                   " bytes");
         return -1;
       }
       // Parse the head: request line, then "name: value" lines.
@@ -458,8 +462,9 @@ void HttpFront::Reactor() {
         }
         c->content_length = std::stoull(content_length);
         if (c->content_length > options_.max_body_bytes) {
-          refuse(std::move(c), 413, "the body of " + content_length + " bytes is larger than " +
-                                        std::to_string(options_.max_body_bytes) + " bytes");
+          refuse(std::move(c), 413,
+                 "the body of " + content_length + " bytes is larger than " +
+                     std::to_string(options_.max_body_bytes) + " bytes");
           return -1;
         }
       }
@@ -480,7 +485,8 @@ void HttpFront::Reactor() {
         const std::string method = request_line.substr(0, sp1);
         std::string path = request_line.substr(sp1 + 1, sp2 - sp1 - 1);
         path = path.substr(0, path.find('?'));
-        c->health = (method == "GET" || method == "HEAD") && (path == "/healthz" || path == "/metrics");
+        c->health =
+            (method == "GET" || method == "HEAD") && (path == "/healthz" || path == "/metrics");
       }
       c->deadline = Clock::now() + Seconds(options_.body_timeout_s);
     }
@@ -517,8 +523,9 @@ void HttpFront::Reactor() {
         return 1;
       }
       if (c->body_bytes + size > options_.max_body_bytes) {
-        refuse(std::move(c), 413, "the chunked body is larger than " +
-                                      std::to_string(options_.max_body_bytes) + " bytes");
+        refuse(std::move(c), 413,
+               "the chunked body is larger than " + std::to_string(options_.max_body_bytes) +
+                   " bytes");
         return -1;
       }
       // Framing may at most double the wire size of the body (no floods of 1-byte chunks).

@@ -29,19 +29,19 @@ namespace npfkct::server {
 
 /// Settings of the front.
 struct HttpFrontOptions {
-  int workers = 16;                 ///< Threads running request handlers.
-  int health_workers = 2;           ///< Threads serving only GET /healthz and GET /metrics.
-  int max_connections = 512;        ///< Open connections; more are refused (429).
-  double head_timeout_s = 10.0;     ///< From the first byte of a request to the end of its head.
-  double body_timeout_s = 60.0;     ///< From the end of the head to the end of the body.
-  double idle_timeout_s = 5.0;      ///< Keep-alive: between requests on one connection.
-  double write_timeout_s = 10.0;    ///< Sending a response.
-  size_t max_head_bytes = 16384;    ///< Request line and headers.
-  size_t max_body_bytes = 32 << 20; ///< Request body, in any framing.
+  int workers = 16;                  ///< Threads running request handlers.
+  int health_workers = 2;            ///< Threads serving only GET /healthz and GET /metrics.
+  int max_connections = 512;         ///< Open connections; more are refused (429).
+  double head_timeout_s = 10.0;      ///< From the first byte of a request to the end of its head.
+  double body_timeout_s = 60.0;      ///< From the end of the head to the end of the body.
+  double idle_timeout_s = 5.0;       ///< Keep-alive: between requests on one connection.
+  double write_timeout_s = 10.0;     ///< Sending a response.
+  size_t max_head_bytes = 16384;     ///< Request line and headers.
+  size_t max_body_bytes = 32 << 20;  ///< Request body, in any framing.
   /// Request bytes buffered across all connections (read but not yet answered); a request that
   /// would go past it is refused (429).
   size_t max_inflight_bytes = 128 << 20;
-  int keep_alive_max = 100;         ///< Requests per connection.
+  int keep_alive_max = 100;  ///< Requests per connection.
 };
 
 /// One client connection, as a handler sees it.
@@ -64,8 +64,7 @@ class HttpFront : public httplib::Server {
   /// Called for every response the front writes itself (status code), for metrics.
   using FrontResponseObserver = std::function<void(int http_status)>;
 
-  HttpFront(HttpFrontOptions options, ErrorRenderer render_error,
-            FrontResponseObserver observe);
+  HttpFront(HttpFrontOptions options, ErrorRenderer render_error, FrontResponseObserver observe);
   ~HttpFront() override;
 
   /// Starts the reactor and the worker threads.

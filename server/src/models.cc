@@ -19,7 +19,8 @@ std::shared_ptr<ModelRegistry> ModelRegistry::Open(const std::string& dir, size_
   if (d == nullptr) return r;
   while (dirent* e = ::readdir(d)) {
     const std::string name = e->d_name;
-    if (!api::IsModelName(name) || name.size() < 4 || name.compare(name.size() - 3, 3, ".pt") != 0) {
+    if (!api::IsModelName(name) || name.size() < 4 ||
+        name.compare(name.size() - 3, 3, ".pt") != 0) {
       continue;
     }
     struct stat st {};
@@ -44,9 +45,8 @@ StatusOr<std::shared_ptr<const filter::NeuralFilter>> ModelRegistry::Get(const s
   if (file == files_.end()) {
     std::string known;
     for (const auto& [n, path] : files_) known += (known.empty() ? "" : ", ") + n;
-    return InvalidFieldError("planner.model",
-                             "no model '" + name + "' on this server (models: " +
-                                 (known.empty() ? "none" : known) + ")");
+    return InvalidFieldError("planner.model", "no model '" + name + "' on this server (models: " +
+                                                  (known.empty() ? "none" : known) + ")");
   }
   std::lock_guard<std::mutex> lock(mutex_);
   for (auto it = loaded_.begin(); it != loaded_.end(); ++it) {
@@ -57,8 +57,8 @@ StatusOr<std::shared_ptr<const filter::NeuralFilter>> ModelRegistry::Get(const s
   }
   auto net = filter::NeuralFilter::Load(file->second);
   if (!net.ok()) {
-    return InvalidFieldError("planner.model", "model '" + name + "' does not load: " +
-                                                  net.status().message());
+    return InvalidFieldError("planner.model",
+                             "model '" + name + "' does not load: " + net.status().message());
   }
   loaded_.emplace_front(name, *net);
   while (loaded_.size() > max_loaded_) loaded_.pop_back();

@@ -18,7 +18,8 @@ StatusOr<int> Registry::Open(const SamplerFactory& samplers) {
     store_ = MakeMemoryStore();
     return 0;
   }
-  auto store = DirectoryStore::Open(options_.state_dir, options_.limits, options_.max_snapshot_bytes);
+  auto store =
+      DirectoryStore::Open(options_.state_dir, options_.limits, options_.max_snapshot_bytes);
   if (!store.ok()) return store.status();
   store_ = std::move(store).value();
   const size_t max = static_cast<size_t>(options_.max_sessions);
@@ -36,8 +37,8 @@ StatusOr<int> Registry::Open(const SamplerFactory& samplers) {
       spdlog::warn("skipping snapshot {}: {}", id, loaded.status().ToString());
       continue;
     }
-    auto session = Session::Restore(std::move(loaded->record), loaded->version, samplers,
-                                    session_limits_);
+    auto session =
+        Session::Restore(std::move(loaded->record), loaded->version, samplers, session_limits_);
     if (!session.ok()) {
       spdlog::warn("skipping snapshot {}: {}", id, session.status().ToString());
       continue;

@@ -110,18 +110,21 @@ struct Server::Impl {
     auto req = api::ParseCreateSession(body, options.limits);
     if (!req.ok()) return Fail(res, req.status());
     if (req->ttl_seconds && *req->ttl_seconds > options.session_ttl_seconds) {
-      return Fail(res, InvalidFieldError("ttlSeconds",
-                                         "must be <= " + std::to_string(static_cast<int64_t>(
-                                                             options.session_ttl_seconds)) +
-                                             " (the server's --session-ttl)"));
+      return Fail(res, InvalidFieldError("ttlSeconds", "must be <= " +
+                                                           std::to_string(static_cast<int64_t>(
+                                                               options.session_ttl_seconds)) +
+                                                           " (the server's --session-ttl)"));
     }
     if (registry.size() >= options.max_sessions) return Fail(res, registry.FullError(), 0, 5);
     auto world = api::BuildWorld(req->world, options.limits);
     if (!world.ok()) return Fail(res, world.status());
-    SessionConfig config{NewSessionId(), req->display_name, req->planner, req->target,
-                         req->seed.value_or(std::random_device{}()) ^
-                             (uint64_t{std::random_device{}()} << 32),
-                         req->ttl_seconds.value_or(options.session_ttl_seconds)};
+    SessionConfig config{
+        NewSessionId(),
+        req->display_name,
+        req->planner,
+        req->target,
+        req->seed.value_or(std::random_device{}()) ^ (uint64_t{std::random_device{}()} << 32),
+        req->ttl_seconds.value_or(options.session_ttl_seconds)};
     if (req->seed) config.seed = *req->seed;
     auto session = Session::Create(std::move(config), std::move(world).value(), samplers,
                                    registry.session_limits());
@@ -181,10 +184,12 @@ struct Server::Impl {
     StatusOr<api::PlanReply> reply = Status(StatusCode::kInternal, "not planned");
     {
       BatchScheduling batch;
-      reply = s->Plan(budget, [] { return HttpFront::ClientGone(); }, registry.store());
+      reply = s->Plan(
+          budget, [] { return HttpFront::ClientGone(); }, registry.store());
     }
     if (!reply.ok()) return Fail(res, reply.status());
-    const double total = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const double total =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     const double planning = reply->stats.elapsed_ms / 1000.0;
     metrics.ObservePlan(planning, std::max(0.0, total - planning), reply->stats.simulations);
     Json(res, 200, api::RenderPlan(*reply));
@@ -334,8 +339,7 @@ struct Server::Impl {
       return R::Unhandled;
     });
     // Errors httplib answers itself (a malformed request line, a URI too long): JSON too.
-    http->set_error_handler(httplib::Server::HandlerWithResponse([](const Request&,
-                                                                    Response& res) {
+    http->set_error_handler(httplib::Server::HandlerWithResponse([](const Request&, Response& res) {
       using R = httplib::Server::HandlerResponse;
       if (!res.body.empty()) return R::Unhandled;
       const int code = res.status;
@@ -351,8 +355,9 @@ struct Server::Impl {
     http->set_exception_handler([](const Request&, Response& res, std::exception_ptr) {
       Fail(res, InternalError("unexpected error"));
     });
-    // Every response, with its real status code.
-    http->set_logger([this](const Request& req, const Response& res) {
+    // Every response, with its real status code, counted before it is written (so that a client
+    // that reads /metrics next sees its previous request).
+    http->set_post_routing_handler([this](const Request& req, Response& res) {
       const Connection* c = HttpFront::Current();
       const double seconds =
           c ? std::chrono::duration<double>(std::chrono::steady_clock::now() - c->start).count()
@@ -400,7 +405,8 @@ Status Server::Start() {
   o.threads = std::max(o.threads, o.plan_slots + o.plan_queue + 4);
   impl_ = std::make_unique<Impl>(o);
   Impl& im = *impl_;
-  im.samplers = samplers_ ? samplers_ : FilterSamplerFactory(ModelRegistry::Open(o.model_dir, o.max_models));
+  im.samplers =
+      samplers_ ? samplers_ : FilterSamplerFactory(ModelRegistry::Open(o.model_dir, o.max_models));
   auto restored = im.registry.Open(im.samplers);
   if (!restored.ok()) return restored.status();
   restored_ = *restored;

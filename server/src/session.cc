@@ -91,7 +91,8 @@ StatusOr<std::unique_ptr<Session>> Session::Restore(api::SessionRecord r, int64_
     perception::TargetModel target;
     for (const std::string& photo : s->target_.photos) {
       auto image = api::DecodeImage(photo, limits.max_photo_pixels, "target.photos");
-      if (!image.ok()) return Status(StatusCode::kDataLoss, "snapshot: " + image.status().message());
+      if (!image.ok())
+        return Status(StatusCode::kDataLoss, "snapshot: " + image.status().message());
       target.photos.push_back(*image);
     }
     s->perception_ = std::make_unique<perception::Perception>(*s->world_, std::move(target),
@@ -125,8 +126,9 @@ Status Session::Init(const SamplerFactory& samplers) {
   }
   auto planner = object_search::MakeSearchPlanner(spec_.name, *model_, options, sampler);
   if (!planner.ok()) {
-    return InvalidFieldError(object_search::FindSearchPlanner(spec_.name) ? "planner.options" : "planner.name",
-                             planner.status().message());
+    return InvalidFieldError(
+        object_search::FindSearchPlanner(spec_.name) ? "planner.options" : "planner.name",
+        planner.status().message());
   }
   planner_ = std::move(planner).value();
   planner_->SetBelief(FreshBelief());
@@ -159,7 +161,8 @@ void Session::Cancel() {
   if (running_ != nullptr) running_->Terminate();
 }
 
-StatusOr<api::PlanReply> Session::Plan(const Budget& asked, const std::function<bool()>& client_gone,
+StatusOr<api::PlanReply> Session::Plan(const Budget& asked,
+                                       const std::function<bool()>& client_gone,
                                        SessionStore* store) {
   std::unique_lock<std::mutex> op(op_mutex_, std::try_to_lock);
   if (!op.owns_lock()) return Busy();
@@ -174,7 +177,7 @@ StatusOr<api::PlanReply> Session::Plan(const Budget& asked, const std::function<
                                      " is pending: POST :observe with its outcome first");
     }
     const double left_ms = 1000.0 * (limits_.max_plan_seconds - planning_seconds_);
-    if (left_ms < 1.0) {
+    if (left_ms < 10.0) {  // a few milliseconds plan nothing
       return FieldError(StatusCode::kResourceExhausted, "budget",
                         "this session has spent its " +
                             std::to_string(static_cast<int64_t>(limits_.max_plan_seconds)) +

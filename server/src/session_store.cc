@@ -113,7 +113,8 @@ StatusOr<int64_t> DirectoryStore::Save(const api::SessionRecord& record, int64_t
     auto it = versions_.find(record.id);
     const int64_t stored = it == versions_.end() ? 0 : it->second;
     if (stored != expected_version) {
-      return Status(StatusCode::kAborted, "sessions/" + record.id + " was saved meanwhile (version " +
+      return Status(StatusCode::kAborted, "sessions/" + record.id +
+                                              " was saved meanwhile (version " +
                                               std::to_string(stored) + ", expected " +
                                               std::to_string(expected_version) + ")");
     }
@@ -205,8 +206,8 @@ StatusOr<SessionStore::Loaded> DirectoryStore::Load(const std::string& id) {
   unsigned crc = 0;
   char magic[32] = "";
   if (newline == std::string::npos || newline > 100 ||
-      std::sscanf(data.substr(0, newline).c_str(), "%31s 2 %lld %zu %8x", magic, &version,
-                  &length, &crc) != 4 ||
+      std::sscanf(data.substr(0, newline).c_str(), "%31s 2 %lld %zu %8x", magic, &version, &length,
+                  &crc) != 4 ||
       data.compare(0, sizeof kMagic - 1, kMagic) != 0 || version < 1) {
     return Status(StatusCode::kDataLoss, "snapshot: not an npfkct snapshot (format 2)");
   }
