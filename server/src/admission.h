@@ -3,6 +3,8 @@
 // queue is refused at once (429 with Retry-After) instead of piling up.
 #pragma once
 
+#include <sched.h>
+
 #include <condition_variable>
 #include <functional>
 #include <mutex>
@@ -51,6 +53,28 @@ class Admission {
   std::condition_variable cv_;
   int running_ = 0;
   int waiting_ = 0;
+};
+
+// Runs the search loop under SCHED_BATCH: planners keep their fair share of the CPU, but threads
+// that wake up to parse a request or send a reply (SCHED_OTHER) preempt them, so that many
+// sessions planning on few cores delay each other's responses less. The policy is restored on
+// scope exit (an unprivileged thread may switch back to SCHED_OTHER).
+class BatchScheduling {
+ public:
+  BatchScheduling() {
+    sched_param p{};
+    active_ = sched_setscheduler(0, SCHED_BATCH, &p) == 0;
+  }
+  ~BatchScheduling() {
+    if (!active_) return;
+    sched_param p{};
+    sched_setscheduler(0, SCHED_OTHER, &p);
+  }
+  BatchScheduling(const BatchScheduling&) = delete;
+  BatchScheduling& operator=(const BatchScheduling&) = delete;
+
+ private:
+  bool active_ = false;
 };
 
 }  // namespace npfkct::server

@@ -3,7 +3,6 @@
 // http_front.h underneath. Request and reply bodies are the API layer's business (npfkct/api).
 #include "npfkct/server/server.h"
 
-#include <sched.h>
 #include <spdlog/spdlog.h>
 
 #include <random>
@@ -13,6 +12,7 @@
 #include "admission.h"
 #include "http_front.h"
 #include "npfkct/api/api.h"
+#include "options.h"
 #include "registry.h"
 
 namespace npfkct::server {
@@ -20,28 +20,6 @@ namespace {
 
 using Request = httplib::Request;
 using Response = httplib::Response;
-
-// Runs the search loop under SCHED_BATCH: planners keep their fair share of the CPU, but threads
-// that wake up to parse a request or send a reply (SCHED_OTHER) preempt them, so that many
-// sessions planning on few cores delay each other's responses less. The policy is restored on
-// scope exit (an unprivileged thread may switch back to SCHED_OTHER).
-class BatchScheduling {
- public:
-  BatchScheduling() {
-    sched_param p{};
-    active_ = sched_setscheduler(0, SCHED_BATCH, &p) == 0;
-  }
-  ~BatchScheduling() {
-    if (!active_) return;
-    sched_param p{};
-    sched_setscheduler(0, SCHED_OTHER, &p);
-  }
-  BatchScheduling(const BatchScheduling&) = delete;
-  BatchScheduling& operator=(const BatchScheduling&) = delete;
-
- private:
-  bool active_ = false;
-};
 
 std::string NewSessionId() {
   static thread_local std::mt19937_64 gen(std::random_device{}());
@@ -68,8 +46,9 @@ struct Server::Impl {
   using Handler = void (Impl::*)(const Request&, Response&, const std::string& body);
   struct Route {
     const char* method;
-    const char* name;  // the route template, for metrics and logs
-    std::regex pattern;
+    const char* name;     // the route template, for metrics and logs
+    const char* pattern;  // the path's regular expression (httplib's and ours)
+    std::regex regex;
     bool auth;
     bool body;  // reads a request body (POST, DELETE)
     Handler handler;
@@ -243,7 +222,8 @@ struct Server::Impl {
   }
 
   void AddRoute(const char* method, const char* name, const char* pattern, bool auth, Handler h) {
-    routes.push_back({method, name, std::regex(pattern), auth, std::string(method) != "GET", h});
+    routes.push_back(
+        {method, name, pattern, std::regex(pattern), auth, std::string(method) != "GET", h});
   }
 
   void Register() {
@@ -258,19 +238,10 @@ struct Server::Impl {
              &Impl::Observe);
     AddRoute("GET", "/v1/sessions/{id}/belief", R"(/v1/sessions/([^/:]+)/belief)", true,
              &Impl::Belief);
-    static const char* kPatterns[] = {"/healthz",
-                                      "/metrics",
-                                      "/v1/sessions",
-                                      "/v1/sessions",
-                                      R"(/v1/sessions/([^/:]+))",
-                                      R"(/v1/sessions/([^/:]+))",
-                                      R"(/v1/sessions/([^/:]+):plan)",
-                                      R"(/v1/sessions/([^/:]+):observe)",
-                                      R"(/v1/sessions/([^/:]+)/belief)"};
-    for (size_t i = 0; i < routes.size(); ++i) {
-      const Route* r = &routes[i];
+    for (const Route& route : routes) {
+      const Route* r = &route;
       if (!r->body) {
-        http->Get(kPatterns[i], [this, r](const Request& req, Response& res) {
+        http->Get(r->pattern, [this, r](const Request& req, Response& res) {
           Invoke(*r, req, res, std::string());
         });
         continue;
@@ -294,9 +265,9 @@ struct Server::Impl {
         Invoke(*r, req, res, body);
       };
       if (std::string(r->method) == "POST") {
-        http->Post(kPatterns[i], with_body);
+        http->Post(r->pattern, with_body);
       } else {
-        http->Delete(kPatterns[i], with_body);
+        http->Delete(r->pattern, with_body);
       }
     }
     // Authentication and protocol limits, for every route, before any body is looked at.
@@ -310,7 +281,7 @@ struct Server::Impl {
       const Route* route = nullptr;
       std::string allow;
       for (const Route& r : routes) {
-        if (!std::regex_match(req.path, r.pattern)) continue;
+        if (!std::regex_match(req.path, r.regex)) continue;
         allow += (allow.empty() ? "" : ", ") + std::string(r.method);
         if (req.method == r.method || (req.method == "HEAD" && std::string(r.method) == "GET")) {
           route = &r;
@@ -368,41 +339,13 @@ struct Server::Impl {
   }
 };
 
-Status ServerOptions::Validate() const {
-  if (port < 0 || port > 65535) return InvalidFieldError("port", "must be in [0, 65535]");
-  if (!(session_ttl_seconds > 0.0)) return InvalidFieldError("session-ttl", "must be > 0");
-  if (max_sessions < 1) return InvalidFieldError("max-sessions", "must be >= 1");
-  if (threads < 1 || threads > 1024) return InvalidFieldError("threads", "must be in [1, 1024]");
-  if (plan_slots < 0 || plan_slots > 1024 || plan_queue < 0 || plan_queue > 100000) {
-    return InvalidFieldError("plan-slots", "plan slots in [0, 1024], queue in [0, 100000]");
-  }
-  if (max_body_bytes < 1024) return InvalidFieldError("max-body-mb", "must be >= 1 KiB");
-  if (max_inflight_bytes < max_body_bytes) {
-    return InvalidFieldError("max-inflight-mb", "must be >= the body limit");
-  }
-  if (max_connections < 4 || max_connections > 4096) {
-    return InvalidFieldError("max-connections", "must be in [4, 4096]");
-  }
-  for (double t : {head_timeout_seconds, body_timeout_seconds, idle_timeout_seconds}) {
-    if (!(t > 0.0 && t <= 3600.0)) return InvalidFieldError("timeouts", "must be in (0, 3600] s");
-  }
-  if (max_models < 1) return InvalidFieldError("max-models", "must be >= 1");
-  if (Status s = limits.Validate(); !s.ok()) return s;
-  return OkStatus();
-}
-
 Server::Server(ServerOptions options) : options_(std::move(options)) {}
 
 Server::~Server() { Stop(); }
 
 Status Server::Start() {
   if (Status s = options_.Validate(); !s.ok()) return s;
-  ServerOptions o = options_;
-  const int cores = std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
-  if (o.plan_slots == 0) o.plan_slots = cores;
-  if (o.plan_queue == 0) o.plan_queue = 2 * o.plan_slots;
-  // Plans waiting for a slot hold a request thread: keep threads for everything else too.
-  o.threads = std::max(o.threads, o.plan_slots + o.plan_queue + 4);
+  const ServerOptions o = Resolved(options_);
   impl_ = std::make_unique<Impl>(o);
   Impl& im = *impl_;
   im.samplers =
@@ -412,14 +355,7 @@ Status Server::Start() {
   restored_ = *restored;
   if (restored_ > 0) spdlog::info("restored {} sessions from {}", restored_, o.state_dir);
 
-  HttpFrontOptions front;
-  front.workers = o.threads;
-  front.max_connections = o.max_connections;
-  front.head_timeout_s = o.head_timeout_seconds;
-  front.body_timeout_s = o.body_timeout_seconds;
-  front.idle_timeout_s = o.idle_timeout_seconds;
-  front.max_body_bytes = o.max_body_bytes;
-  front.max_inflight_bytes = o.max_inflight_bytes;
+  const HttpFrontOptions front = FrontOptions(o);
   im.http = std::make_unique<HttpFront>(
       front,
       [](int code, const std::string& message) {
@@ -452,9 +388,11 @@ void Server::Stop() {
   if (!impl_) return;
   impl_->registry.StopReaper();
   impl_->registry.CancelAll();
-  impl_->http->stop();
-  if (impl_->serve_thread.joinable()) impl_->serve_thread.join();
-  impl_->http->Shutdown();
+  if (impl_->http) {
+    impl_->http->stop();
+    if (impl_->serve_thread.joinable()) impl_->serve_thread.join();
+    impl_->http->Shutdown();
+  }
   impl_.reset();
 }
 
