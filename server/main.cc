@@ -1,6 +1,7 @@
 // npfkct-server: the planning server (see README.md, "The server and its API", and
 // schemas/openapi.yaml).
 #include <malloc.h>
+#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
@@ -49,6 +50,8 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   o.max_body_bytes = static_cast<size_t>(max_body_mb * (1 << 20));
   o.max_inflight_bytes = static_cast<size_t>(max_inflight_mb * (1 << 20));
+  // The log goes to stderr; stdout carries only "listening on HOST:PORT" for scripts.
+  spdlog::set_default_logger(spdlog::stderr_color_mt("npfkct"));
   spdlog::set_level(spdlog::level::from_str(log_level));
   // One malloc arena per thread would reserve 64 MiB of address space each: a few arenas keep
   // the server's address space small enough to run under a cap (prlimit --as).

@@ -68,6 +68,8 @@ const char* Reason(int status) {
       return "Payload Too Large";
     case 415:
       return "Unsupported Media Type";
+    case 416:
+      return "Range Not Satisfiable";
     case 429:
       return "Too Many Requests";
     case 431:
@@ -95,6 +97,8 @@ struct HttpFront::Conn {
   int served = 0;
   size_t accounted = 0;       // bytes counted in the front's in-flight total
   bool head_started = false;  // a request's first bytes arrived (the head deadline runs)
+  size_t discard = 0;  // closing: request bytes still to read and drop (lingering close)
+  bool closing = false;
   Connection view;
 };
 
@@ -377,7 +381,9 @@ void HttpFront::Reactor() {
   std::map<int, std::unique_ptr<Conn>> conns;
   std::vector<epoll_event> events(64);
 
-  // Answers an error itself and closes the connection.
+  // Answers an error itself and closes the connection after a lingering close: the client
+  // may still be sending the request it is refused, and closing with unread bytes would reset
+  // the connection and lose the answer, so what it sends is read and dropped for a while.
   auto refuse = [&](std::unique_ptr<Conn> c, int status, const std::string& message) {
     const std::string body = render_error_(status, message);
     std::string reply = "HTTP/1.1 " + std::to_string(status) + " " + Reason(status) +
@@ -386,7 +392,22 @@ void HttpFront::Reactor() {
     reply += "Content-Length: " + std::to_string(body.size()) + "\r\n\r\n" + body;
     WriteAll(c->fd, reply.data(), reply.size(), std::chrono::milliseconds(100));
     if (observe_) observe_(status);
-    Close(std::move(c));
+    ::shutdown(c->fd, SHUT_WR);
+    ReleaseBytes(c.get(), c->accounted);
+    c->buf.clear();
+    c->buf.shrink_to_fit();
+    c->closing = true;
+    c->discard = 4u << 20;
+    c->deadline = Clock::now() + std::chrono::seconds(1);
+    if (!c->registered) {
+      epoll_event ev{};
+      ev.events = EPOLLIN | EPOLLRDHUP;
+      ev.data.fd = c->fd;
+      if (::epoll_ctl(epoll_fd_, EPOLL_CTL_ADD, c->fd, &ev) != 0) return Close(std::move(c));
+      c->registered = true;
+    }
+    const int fd = c->fd;
+    conns[fd] = std::move(c);
   };
 
   // Advances a connection's request: 1 complete, 0 waiting for bytes, -1 refused (closed).
@@ -414,7 +435,9 @@ void HttpFront::Reactor() {
       const std::string request_line = c->buf.substr(0, line_end);
       std::string content_length, transfer_encoding, content_encoding;
       int content_length_count = 0;
-      size_t expect_line = std::string::npos, expect_len = 0;
+      bool expect_continue = false;
+      // Header lines httplib must not see: Expect (answered here) and Range (see below).
+      std::vector<std::pair<size_t, size_t>> hidden;
       for (size_t pos = line_end + 2; pos < end + 2;) {
         const size_t next = c->buf.find("\r\n", pos);
         const std::string line = c->buf.substr(pos, next - pos);
@@ -429,12 +452,22 @@ void HttpFront::Reactor() {
             }
             content_length = value;
           } else if (name == "transfer-encoding") {
-            transfer_encoding += (transfer_encoding.empty() ? "" : ",") + Lower(value);
+            if (!transfer_encoding.empty()) transfer_encoding.push_back(',');
+            transfer_encoding.append(Lower(value));
           } else if (name == "content-encoding") {
             content_encoding = Lower(value);
           } else if (name == "expect" && Lower(value) == "100-continue") {
-            expect_line = pos;
-            expect_len = next + 2 - pos;
+            expect_continue = true;
+            hidden.emplace_back(pos, next + 2 - pos);
+          } else if (name == "range") {
+            // httplib 0.11.4 cuts every response to the ranges asked for, error bodies included,
+            // and answers N ranges with N copies: several ranges are refused, one is ignored
+            // (RFC 9110 14.2 allows it) and the whole response sent.
+            if (value.find(',') != std::string::npos) {
+              refuse(std::move(c), 416, "Range: at most one range, and it is ignored");
+              return -1;
+            }
+            hidden.emplace_back(pos, next + 2 - pos);
           }
         }
         pos = next + 2;
@@ -470,12 +503,14 @@ void HttpFront::Reactor() {
       }
       // Requests without Content-Length or Transfer-Encoding have no body (RFC 9112 6.3).
       size_t head_end = end + 4;
-      if (expect_line != std::string::npos) {
-        // Answer the 100 here (the body is read here) and hide the header from httplib.
+      if (expect_continue) {
+        // The body is read here: answer the 100 here (httplib never sees the header).
         static const char kContinue[] = "HTTP/1.1 100 Continue\r\n\r\n";
         WriteAll(c->fd, kContinue, sizeof kContinue - 1, std::chrono::milliseconds(100));
-        c->buf.erase(expect_line, expect_len);
-        head_end -= expect_len;
+      }
+      for (auto it = hidden.rbegin(); it != hidden.rend(); ++it) {
+        c->buf.erase(it->first, it->second);
+        head_end -= it->second;
       }
       c->head_end = head_end;
       c->chunk_pos = head_end;
@@ -590,8 +625,21 @@ void HttpFront::Reactor() {
       if (it == conns.end()) continue;
       std::unique_ptr<Conn> c = std::move(it->second);
       conns.erase(it);
-      bool eof = false, over = false;
       char chunk[16384];
+      if (c->closing) {
+        ssize_t got = 0;
+        while ((got = ::recv(fd, chunk, sizeof chunk, 0)) > 0 && c->discard > 0) {
+          c->discard -= std::min(c->discard, static_cast<size_t>(got));
+        }
+        const bool again = got < 0 && (errno == EAGAIN || errno == EWOULDBLOCK);
+        if (again && c->discard > 0) {
+          conns[fd] = std::move(c);
+        } else {
+          Close(std::move(c));
+        }
+        continue;
+      }
+      bool eof = false, over = false;
       for (;;) {
         const ssize_t got = ::recv(fd, chunk, sizeof chunk, 0);
         if (got > 0) {
@@ -661,7 +709,7 @@ void HttpFront::Reactor() {
       }
       std::unique_ptr<Conn> c = std::move(it->second);
       it = conns.erase(it);
-      if (c->buf.empty()) {
+      if (c->buf.empty() || c->closing) {
         Close(std::move(c));
       } else {
         refuse(std::move(c), 408,

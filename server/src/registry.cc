@@ -22,16 +22,19 @@ StatusOr<int> Registry::Open(const SamplerFactory& samplers) {
       DirectoryStore::Open(options_.state_dir, options_.limits, options_.max_snapshot_bytes);
   if (!store.ok()) return store.status();
   store_ = std::move(store).value();
+  // Entries that do not restore do not count against --max-sessions; the listing itself is
+  // bounded so that a directory full of junk cannot stall the start.
   const size_t max = static_cast<size_t>(options_.max_sessions);
-  auto ids = store_->List(max + 1);
+  auto ids = store_->List(16 * max + 1024);
   if (!ids.ok()) return ids.status();
-  if (ids->size() > max) {
-    spdlog::warn("the state directory holds more than --max-sessions={} sessions; restoring {}",
-                 max, max);
-    ids->resize(max);
-  }
   int restored = 0;
   for (const std::string& id : *ids) {
+    if (static_cast<size_t>(restored) >= max) {
+      spdlog::warn("the state directory holds more than --max-sessions={} sessions; the rest "
+                   "stay on disk, not restored",
+                   max);
+      break;
+    }
     auto loaded = store_->Load(id);
     if (!loaded.ok()) {
       spdlog::warn("skipping snapshot {}: {}", id, loaded.status().ToString());

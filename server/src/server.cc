@@ -297,10 +297,6 @@ struct Server::Impl {
         res.set_header("Allow", allow);
         return R::Handled;
       }
-      if (req.ranges.size() > 1) {
-        Fail(res, OutOfRangeError("Range: at most one range per request"), 416);
-        return R::Handled;
-      }
       if (route->auth && !options.api_key.empty() &&
           req.get_header_value("Authorization") != "Bearer " + options.api_key) {
         Fail(res, Status(StatusCode::kUnauthenticated,
@@ -360,6 +356,7 @@ Status Server::Start() {
       front,
       [](int code, const std::string& message) {
         const StatusCode status = code == 408   ? StatusCode::kDeadlineExceeded
+                                  : code == 416 ? StatusCode::kOutOfRange
                                   : code == 413 ? StatusCode::kResourceExhausted
                                   : code == 429 ? StatusCode::kResourceExhausted
                                   : code == 431 ? StatusCode::kResourceExhausted
