@@ -97,7 +97,7 @@ struct HttpFront::Conn {
   int served = 0;
   size_t accounted = 0;       // bytes counted in the front's in-flight total
   bool head_started = false;  // a request's first bytes arrived (the head deadline runs)
-  size_t discard = 0;  // closing: request bytes still to read and drop (lingering close)
+  size_t discard = 0;         // closing: request bytes still to read and drop (lingering close)
   bool closing = false;
   Connection view;
 };

@@ -1,7 +1,10 @@
 #include "options.h"
 
 #include <algorithm>
+#include <string>
 #include <thread>
+
+#include "npfkct/api/api.h"
 
 namespace npfkct::server {
 
@@ -47,6 +50,18 @@ Status ServerOptions::Validate() const {
   if (max_models < 1) return InvalidFieldError("max-models", "must be >= 1");
   if (Status s = limits.Validate(); !s.ok()) return s;
   return OkStatus();
+}
+
+HttpFront::ErrorRenderer FrontErrors() {
+  return [](int code, const std::string& message) {
+    const StatusCode status = code == 408   ? StatusCode::kDeadlineExceeded
+                              : code == 416 ? StatusCode::kOutOfRange
+                              : code == 413 ? StatusCode::kResourceExhausted
+                              : code == 429 ? StatusCode::kResourceExhausted
+                              : code == 431 ? StatusCode::kResourceExhausted
+                                            : StatusCode::kInvalidArgument;
+    return api::RenderError(Status(status, message), code, code == 429 ? 1 : 0);
+  };
 }
 
 }  // namespace npfkct::server

@@ -17,4 +17,9 @@ ServerOptions Resolved(ServerOptions o);
 /// The HTTP front's settings of a server.
 HttpFrontOptions FrontOptions(const ServerOptions& o);
 
+/// The bodies of the errors the front answers itself: the API's error body with the canonical
+/// status of each HTTP status (408 DEADLINE_EXCEEDED, 413/429/431 RESOURCE_EXHAUSTED, 416
+/// OUT_OF_RANGE, else INVALID_ARGUMENT).
+HttpFront::ErrorRenderer FrontErrors();
+
 }  // namespace npfkct::server

@@ -30,9 +30,10 @@ StatusOr<int> Registry::Open(const SamplerFactory& samplers) {
   int restored = 0;
   for (const std::string& id : *ids) {
     if (static_cast<size_t>(restored) >= max) {
-      spdlog::warn("the state directory holds more than --max-sessions={} sessions; the rest "
-                   "stay on disk, not restored",
-                   max);
+      spdlog::warn(
+          "the state directory holds more than --max-sessions={} sessions; the rest "
+          "stay on disk, not restored",
+          max);
       break;
     }
     auto loaded = store_->Load(id);

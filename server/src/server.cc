@@ -6,7 +6,6 @@
 #include <spdlog/spdlog.h>
 
 #include <random>
-#include <regex>
 #include <thread>
 
 #include "admission.h"
@@ -34,6 +33,21 @@ void Json(Response& res, int status, std::string body) {
   res.set_content(std::move(body), "application/json");
 }
 
+// Whether `path` matches a route template: literal, with "{id}" standing for one non-empty
+// segment without '/' or ':' (the `([^/:]+)` of the route's pattern).
+bool Matches(std::string_view route, std::string_view path) {
+  const size_t hole = route.find("{id}");
+  if (hole == std::string_view::npos) return route == path;
+  const std::string_view prefix = route.substr(0, hole), suffix = route.substr(hole + 4);
+  if (path.size() <= prefix.size() + suffix.size() || path.substr(0, prefix.size()) != prefix ||
+      path.substr(path.size() - suffix.size()) != suffix) {
+    return false;
+  }
+  const std::string_view id =
+      path.substr(prefix.size(), path.size() - prefix.size() - suffix.size());
+  return id.find_first_of("/:") == std::string_view::npos;
+}
+
 void Fail(Response& res, const Status& s, int http_status = 0, int retry_after = 0) {
   const int code = http_status > 0 ? http_status : api::HttpStatusOf(s.code());
   Json(res, code, api::RenderError(s, code, retry_after));
@@ -47,8 +61,7 @@ struct Server::Impl {
   struct Route {
     const char* method;
     const char* name;     // the route template, for metrics and logs
-    const char* pattern;  // the path's regular expression (httplib's and ours)
-    std::regex regex;
+    const char* pattern;  // the path's regular expression, for httplib's dispatch
     bool auth;
     bool body;  // reads a request body (POST, DELETE)
     Handler handler;
@@ -222,8 +235,7 @@ struct Server::Impl {
   }
 
   void AddRoute(const char* method, const char* name, const char* pattern, bool auth, Handler h) {
-    routes.push_back(
-        {method, name, pattern, std::regex(pattern), auth, std::string(method) != "GET", h});
+    routes.push_back({method, name, pattern, auth, std::string(method) != "GET", h});
   }
 
   void Register() {
@@ -281,7 +293,7 @@ struct Server::Impl {
       const Route* route = nullptr;
       std::string allow;
       for (const Route& r : routes) {
-        if (!std::regex_match(req.path, r.regex)) continue;
+        if (!Matches(r.name, req.path)) continue;
         allow += (allow.empty() ? "" : ", ") + std::string(r.method);
         if (req.method == r.method || (req.method == "HEAD" && std::string(r.method) == "GET")) {
           route = &r;
@@ -353,17 +365,7 @@ Status Server::Start() {
 
   const HttpFrontOptions front = FrontOptions(o);
   im.http = std::make_unique<HttpFront>(
-      front,
-      [](int code, const std::string& message) {
-        const StatusCode status = code == 408   ? StatusCode::kDeadlineExceeded
-                                  : code == 416 ? StatusCode::kOutOfRange
-                                  : code == 413 ? StatusCode::kResourceExhausted
-                                  : code == 429 ? StatusCode::kResourceExhausted
-                                  : code == 431 ? StatusCode::kResourceExhausted
-                                                : StatusCode::kInvalidArgument;
-        return api::RenderError(Status(status, message), code, code == 429 ? 1 : 0);
-      },
-      [&im](int code) { im.metrics.ObserveRequest("-", "-", code, 0.0); });
+      front, FrontErrors(), [&im](int code) { im.metrics.ObserveRequest("-", "-", code, 0.0); });
   im.http->set_payload_max_length(o.max_body_bytes);
   im.http->set_keep_alive_max_count(front.keep_alive_max);
   im.http->set_keep_alive_timeout(static_cast<time_t>(std::max(1.0, o.idle_timeout_seconds)));
