@@ -146,7 +146,12 @@ def hostile_server(tmp_path):
                            "--head-timeout", "2", "--body-timeout", "3", "--plan-slots", "2",
                            "--plan-queue", "4")
     yield server
-    server.stop()
+    assert_clean_exit(server)
+
+
+def assert_clean_exit(server):
+    code = server.stop()
+    assert code == 0, f"exit status {code}:\n" + "".join(server.output[-40:])
 
 
 def assert_alive_and_intact(server, before, recorder):
@@ -226,7 +231,7 @@ def test_worlds_whose_cells_overflow_are_refused_before_allocation(tmp_path):
     assert [s["id"] for s in http("GET", server.url + "/v1/sessions").json()["sessions"]] == [keeper]
     assert http("GET", f"{server.url}/v1/sessions/{keeper}/belief").json() == before[keeper][1]
     assert_alive_and_intact(server, {}, rec)
-    server.stop()
+    assert_clean_exit(server)
 
 
 # ---- 3. bodies: chunked, no length, compressed, ranges ----
@@ -419,7 +424,7 @@ def test_memory_bombs_under_a_2_gib_address_space_cap(tmp_path):
     assert "bad_alloc" not in log and "out of memory" not in log.lower(), log[-2000:]
     assert all(c != 429 or w == "flood" for c, w in rec.codes)
     assert_alive_and_intact(server, before, rec)
-    server.stop()
+    assert_clean_exit(server)
 
 
 # ---- 6. DELETE racing plans and observes, then a restart ----
@@ -464,7 +469,7 @@ def test_deletes_racing_plans_and_observes_never_come_back_after_a_restart(tmp_p
     assert alive == set(keepers), f"{len(alive & set(deleted))} deleted sessions came back"
     assert not [f for f in os.listdir(state) if not f.endswith(".snap")]
     assert_alive_and_intact(server, before, rec)
-    server.stop()
+    assert_clean_exit(server)
 
 
 # ---- 7. TTL shorter than a plan ----
@@ -517,7 +522,7 @@ def test_hostile_state_directory_entries(tmp_path):
     url, rec = server.url, Recorder()
     keepers = [create(url, rec) for _ in range(3)]
     before = {k: snapshot_of(url, k) for k in keepers}
-    server.stop()
+    assert_clean_exit(server)
     snaps = sorted(p.name for p in state.iterdir())
     victim = tmp_path / "victim.txt"
     victim.write_text("keep me")
@@ -546,12 +551,12 @@ def test_hostile_state_directory_entries(tmp_path):
     # The server is full (2 of 2): creation is refused with 429, not a crash or an overflow.
     r = http("POST", server.url + "/v1/sessions", rec, json={"world": world_of("loose1")})
     assert r.status_code == 429 and r.headers.get("Retry-After")
-    server.stop()
+    assert_clean_exit(server)
     server = ServerProcess("--state-dir", str(state))
     assert {s["id"] for s in http("GET", server.url + "/v1/sessions", rec).json()["sessions"]} \
         == set(keepers)
     assert_alive_and_intact(server, before, rec)
-    server.stop()
+    assert_clean_exit(server)
 
 
 # ---- 10. everything at once: random hostile traffic, then the survivors ----
