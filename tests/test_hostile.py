@@ -197,6 +197,30 @@ def test_huge_finite_coordinates_are_refused_before_they_reach_pcl(hostile_serve
     # The session whose observations were refused still has its action pending and goes on.
     assert http("POST", f"{url}/v1/sessions/{sid}:observe", rec,
                 json=observation(plan["actionId"])).status_code == 200
+    # At the limit, inside it: a real rendered frame with points at 9,999 m reaches PCL (whose
+    # voxel grid cannot index such an extent and keeps the points) and is processed.
+    robot = SimRobot("loose1", seed=4, raw=True)
+    raw = create(url, rec)
+    processed = 0
+    for _ in range(4):
+        plan = http("POST", f"{url}/v1/sessions/{raw}:plan", rec,
+                    json={"budget": {"simulations": 30}}).json()
+        body = dict(robot.execute(plan["action"])["observation"], actionId=plan["actionId"])
+        if "pointCloud" in body:
+            extreme = b"".join(struct.pack("<fffI", x, y, z, 0) for x, y, z in
+                               [(9999.0, 9999.0, 9999.0), (-9999.0, 9999.0, 0.5),
+                                (0.001, -9999.0, 9999.0)])
+            data = extreme + base64.b64decode(body["pointCloud"]["data"])
+            body["pointCloud"] = dict(body["pointCloud"], frame="map",
+                                      data=base64.b64encode(data).decode())
+        r = http("POST", f"{url}/v1/sessions/{raw}:observe", rec, json=body)
+        processed += r.status_code == 200 and "perception" in r.json()
+        if r.status_code != 200:
+            del body["pointCloud"], body["image"], body["camera"]
+            assert http("POST", f"{url}/v1/sessions/{raw}:observe", rec,
+                        json=body).status_code == 200
+    robot.close()
+    assert processed > 0
     assert_alive_and_intact(hostile_server, before, rec)
 
 

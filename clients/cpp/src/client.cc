@@ -49,7 +49,8 @@ StatusOr<json> Client::Call(const std::string& method, const std::string& path, 
         for (const json& d : e["details"]) {
           if (!d.is_object() || !d.contains("fieldViolations")) continue;
           for (const json& v : d["fieldViolations"]) {
-            if (v.is_object()) s.WithFieldViolation(v.value("field", ""), v.value("description", ""));
+            if (v.is_object())
+              s.WithFieldViolation(v.value("field", ""), v.value("description", ""));
           }
         }
       }
