@@ -5,7 +5,7 @@ set -euo pipefail
 NPFKCT_PACKAGES=(
   build-essential cmake pkg-config ccache curl
   libeigen3-dev libgtest-dev libgmock-dev libcli11-dev
-  nlohmann-json3-dev libcpp-httplib-dev libspdlog-dev
+  nlohmann-json3-dev libcpp-httplib-dev libspdlog-dev libvalijson-dev zlib1g-dev
   libopencv-dev libpcl-dev libtorch-dev libopenblas0-pthread
   python3 python3-requests python3-pytest python3-jsonschema python3-yaml
   ros-core-dev python3-rospy python3-rosgraph python3-roslaunch

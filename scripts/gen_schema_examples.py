@@ -49,7 +49,7 @@ def main():
     try:
         write("health", requests.get(url + "/healthz").json())
         create = {"displayName": "kitchen search", "world": world_of("loose1"), "seed": 42,
-                  "planner": {"name": "npfkct", "particles": 300,
+                  "planner": {"name": "npfkct", "particles": 300, "model": "filter.pt",
                               "options": {"k": 3, "dLim": 0.2}},
                   "target": {"description": "blue snack box"},
                   "ttlSeconds": 1800}

@@ -68,7 +68,10 @@ def main():
     args = parser.parse_args()
 
     server = subprocess.Popen([os.path.join(args.build, "server", "npfkct-server"), "--port", "0",
-                               "--threads", str(args.sessions + 8), "--log-level", "warn"],
+                               "--threads", str(args.sessions + 8), "--log-level", "warn",
+                               # every session may wait for a planning slot: this measures
+                               # queueing, not refusals (429 beyond slots + queue)
+                               "--plan-queue", str(args.sessions)],
                               stdout=subprocess.PIPE, text=True)
     port = int(server.stdout.readline().strip().rsplit(":", 1)[1])
     url = f"http://127.0.0.1:{port}"

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The main job: builds npfkct, starts the planning server and drives the simulated Fetch robot
 # through the Loose1 scenario over HTTP, printing each step and the outcome. The npfkct planner
-# uses the shipped neural filter model (MODEL= to plan without it, MODEL=path for another).
+# uses the shipped neural filter model, filter.pt of the server's model folder (MODEL= to plan
+# without it, MODEL=name for another model of that folder).
 # Usage: scripts/run.sh [scenario.json] [planner]
 set -euo pipefail
 NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -9,9 +10,9 @@ source "$NPFKCT_ROOT/scripts/deps.sh"
 npfkct_prepare
 SCENARIO="${1:-$NPFKCT_ROOT/scenarios/data/loose1.json}"
 PLANNER="${2:-npfkct}"
-MODEL="${MODEL-$NPFKCT_ROOT/solver/filter/model/filter.pt}"
+MODEL="${MODEL-filter.pt}"
 FILTER_ARGS=()
-if [ "$PLANNER" = npfkct ] && [ -n "$MODEL" ]; then FILTER_ARGS=(--model-path "$MODEL"); fi
+if [ "$PLANNER" = npfkct ] && [ -n "$MODEL" ]; then FILTER_ARGS=(--model "$MODEL"); fi
 
 LOG="$(mktemp)"
 "$BUILD_DIR/server/npfkct-server" --port 0 >"$LOG" 2>&1 &

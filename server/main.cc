@@ -1,16 +1,21 @@
-// npfkct-server: the planning server (see README.md and schemas/openapi.yaml).
+// npfkct-server: the planning server (see README.md, "The server and its API", and
+// schemas/openapi.yaml).
+#include <malloc.h>
+#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 
 #include "npfkct/server/server.h"
 
 int main(int argc, char** argv) {
   npfkct::server::ServerOptions o;
+  o.model_dir = NPFKCT_MODEL_DIR;
   std::string log_level = "info";
-  double max_body_mb = 64;
+  double max_body_mb = 32, max_inflight_mb = 128;
   CLI::App app{"npfkct-server: an embeddable planning server for robot object search"};
   app.add_option("--host", o.host, "address to bind");
   app.add_option("--port", o.port, "port to bind (0: any free port, printed on stdout)");
@@ -19,14 +24,38 @@ int main(int argc, char** argv) {
   app.add_option("--api-key", o.api_key, "require 'Authorization: Bearer KEY' on /v1");
   app.add_option("--session-ttl", o.session_ttl_seconds, "idle seconds before a session expires");
   app.add_option("--max-sessions", o.max_sessions, "most sessions held at once");
-  app.add_option("--threads", o.threads, "request worker threads");
-  app.add_option("--max-body-mb", max_body_mb, "largest request body in MiB");
-  app.add_option("--default-plan-ms", o.default_plan_ms, "budget of a :plan that gives none");
-  app.add_option("--max-plan-ms", o.max_plan_ms, "largest budget a :plan may ask for");
+  app.add_option("--threads", o.threads, "request threads (health and metrics have their own)");
+  app.add_option("--plan-slots", o.plan_slots, "plans running at once (0: one per core)");
+  app.add_option("--plan-queue", o.plan_queue, "plans waiting for a slot (0: twice the slots)");
+  app.add_option("--max-body-mb", max_body_mb, "largest request body in MiB, in any framing");
+  app.add_option("--max-inflight-mb", max_inflight_mb,
+                 "request bytes buffered across all connections, in MiB");
+  app.add_option("--max-connections", o.max_connections, "open connections");
+  app.add_option("--head-timeout", o.head_timeout_seconds, "seconds to send a request's head");
+  app.add_option("--body-timeout", o.body_timeout_seconds, "seconds to send a request's body");
+  app.add_option("--idle-timeout", o.idle_timeout_seconds, "keep-alive seconds between requests");
+  app.add_option("--default-plan-ms", o.limits.default_plan_ms,
+                 "budget of a :plan that gives none");
+  app.add_option("--max-plan-ms", o.limits.max_plan_ms,
+                 "largest wall-clock or CPU budget one :plan may ask for (ms)");
+  app.add_option("--max-plan-simulations", o.limits.max_plan_simulations,
+                 "largest simulation budget one :plan may ask for");
+  app.add_option("--max-session-plan-seconds", o.limits.max_session_plan_seconds,
+                 "planning (wall-clock seconds) one session may spend over its life");
+  app.add_option("--max-particles", o.limits.max_particles, "largest planner.particles");
+  app.add_option("--model-dir", o.model_dir,
+                 "folder of the neural filter models clients may name (planner.model)");
+  app.add_option("--max-models", o.max_models, "models kept loaded at once");
   app.add_option("--log-level", log_level, "trace | debug | info | warn | error");
   CLI11_PARSE(app, argc, argv);
   o.max_body_bytes = static_cast<size_t>(max_body_mb * (1 << 20));
+  o.max_inflight_bytes = static_cast<size_t>(max_inflight_mb * (1 << 20));
+  // The log goes to stderr; stdout carries only "listening on HOST:PORT" for scripts.
+  spdlog::set_default_logger(spdlog::stderr_color_mt("npfkct"));
   spdlog::set_level(spdlog::level::from_str(log_level));
+  // One malloc arena per thread would reserve 64 MiB of address space each: a few arenas keep
+  // the server's address space small enough to run under a cap (prlimit --as).
+  if (std::getenv("MALLOC_ARENA_MAX") == nullptr) mallopt(M_ARENA_MAX, 4);
 
   // Signals are taken by sigwait in this thread, not by handlers.
   sigset_t signals;
@@ -34,6 +63,7 @@ int main(int argc, char** argv) {
   sigaddset(&signals, SIGINT);
   sigaddset(&signals, SIGTERM);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+  signal(SIGPIPE, SIG_IGN);
 
   npfkct::server::Server server(o);
   if (npfkct::Status s = server.Start(); !s.ok()) {

@@ -6,6 +6,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 
 import pytest
@@ -29,22 +30,38 @@ def world_of(name):
 
 
 class ServerProcess:
-    """npfkct-server started on a free port; stop() ends it (SIGTERM, or SIGKILL with kill())."""
+    """npfkct-server started on a free port; stop() ends it (SIGTERM, or SIGKILL with kill()).
+    Its output is drained by background threads (a full pipe would block the server) and kept in
+    `output` for the tests to inspect."""
 
-    def __init__(self, *args, binary=SERVER_BIN):
+    def __init__(self, *args, binary=SERVER_BIN, preexec_fn=None, env=None):
         self.proc = subprocess.Popen([binary, "--port", "0", "--log-level", "warn", *args],
-                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        line = self.proc.stdout.readline()
+                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                     errors="replace", preexec_fn=preexec_fn, env=env)
+        line, skipped = self.proc.stdout.readline(), []
+        while line and not line.startswith("listening on") and len(skipped) < 1000:
+            skipped.append(line)
+            line = self.proc.stdout.readline()
         if not line.startswith("listening on"):
             self.proc.kill()
-            raise RuntimeError("server did not start: " + line + self.proc.stderr.read())
+            raise RuntimeError("server did not start: " + "".join(skipped) + line +
+                               self.proc.stderr.read())
         self.port = int(line.strip().rsplit(":", 1)[1])
         self.url = f"http://127.0.0.1:{self.port}"
+        self.output = []
+        for stream in (self.proc.stdout, self.proc.stderr):
+            threading.Thread(target=self._drain, args=(stream,), daemon=True).start()
+
+    def _drain(self, stream):
+        for line in stream:
+            self.output.append(line)
 
     def alive(self):
         return self.proc.poll() is None
 
     def stop(self):
+        """SIGTERM, then the exit status (0 for an orderly shutdown; under the sanitizers, not 0
+        when they found something, leaks included)."""
         if self.alive():
             self.proc.send_signal(signal.SIGTERM)
             try:
@@ -52,6 +69,7 @@ class ServerProcess:
             except subprocess.TimeoutExpired:
                 self.proc.kill()
                 self.proc.wait()
+        return self.proc.returncode
 
     def kill(self):
         self.proc.kill()

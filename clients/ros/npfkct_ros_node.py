@@ -11,6 +11,7 @@ Parameters (private):
   ~scenario      scenario file whose prior map creates the session, or
   ~session_id    an existing session to drive
   ~planner       planner of a new session (default npfkct)
+  ~model         neural filter model of the server for npfkct (e.g. filter.pt; default none)
   ~budget_ms     planning time per step (default 1000)
   ~lift_joint, ~pan_joint, ~tilt_joint   joint names (Fetch: torso_lift_joint, head_pan_joint,
                  head_tilt_joint)
@@ -158,7 +159,8 @@ class NpfkctNode:
                     photos.append(f.read())
             session = self.client.create_session(
                 world_of_scenario(scenario), planner=rospy.get_param("~planner", "npfkct"),
-                seed=int(rospy.get_param("~seed", 1)), target_photos=photos or None)
+                seed=int(rospy.get_param("~seed", 1)), target_photos=photos or None,
+                model=rospy.get_param("~model", "") or None)
             self.session_id = session.id
         else:
             raise RuntimeError("set ~scenario or ~session_id")

@@ -21,7 +21,6 @@
 #include <numbers>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/features2d.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 namespace npfkct::perception {
@@ -195,11 +194,11 @@ double DistanceToBox(const Box& b, const PointXYZ& p) {
 
 Status CameraIntrinsics::Validate() const {
   if (width < 8 || height < 8 || width > 8192 || height > 8192) {
-    return InvalidArgumentError("camera: width and height must be in [8, 8192]");
+    return InvalidFieldError("camera", "width and height must be in [8, 8192]");
   }
   if (!(fx > 0) || !(fy > 0) || !std::isfinite(fx) || !std::isfinite(fy) || !std::isfinite(cx) ||
       !std::isfinite(cy)) {
-    return InvalidArgumentError("camera: focal lengths must be positive and finite");
+    return InvalidFieldError("camera", "focal lengths must be positive and finite");
   }
   return OkStatus();
 }
@@ -445,13 +444,24 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
   // ---- input checks: nothing changes on error ----
   if (Status s = frame.intrinsics.Validate(); !s.ok()) return s;
   if (!frame.cloud || frame.cloud->empty()) {
-    return InvalidArgumentError("pointCloud.data: the cloud is empty");
+    return InvalidFieldError("pointCloud.data", "the cloud is empty");
+  }
+  if (static_cast<int64_t>(frame.cloud->size()) > o.max_points) {
+    return InvalidFieldError("pointCloud.data",
+                             "more than " + std::to_string(o.max_points) + " points");
   }
   for (size_t i = 0; i < frame.cloud->size(); ++i) {
     const auto& p = (*frame.cloud)[i];
     if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
-      return InvalidArgumentError("pointCloud.data: point " + std::to_string(i) +
-                                  " is not finite (drop NaN points before sending)");
+      return InvalidFieldError(
+          "pointCloud.data",
+          "point " + std::to_string(i) + " is not finite (drop NaN points before sending)");
+    }
+    if (std::abs(p.x) > o.max_coordinate || std::abs(p.y) > o.max_coordinate ||
+        std::abs(p.z) > o.max_coordinate) {
+      return InvalidFieldError("pointCloud.data",
+                               "point " + std::to_string(i) + " has a coordinate beyond " +
+                                   std::to_string(static_cast<int64_t>(o.max_coordinate)) + " m");
     }
   }
   if (!frame.cloud_in_map_frame) {
@@ -469,24 +479,27 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
     }
     const size_t n = frame.cloud->size();
     if (behind * 20 > n) {
-      return InvalidArgumentError(
-          "pointCloud.frame: " + std::to_string(100 * behind / n) +
-          "% of the points are behind the camera; is the cloud really in the camera frame?");
+      return InvalidFieldError(
+          "pointCloud.frame",
+          std::to_string(100 * behind / n) +
+              "% of the points are behind the camera; is the cloud really in the camera frame?");
     }
     if (outside * 20 > n) {
-      return InvalidArgumentError(
-          "pointCloud.frame: " + std::to_string(100 * outside / n) +
-          "% of the points fall outside the camera's field of view; is the cloud really in the "
-          "camera's optical frame, and are the camera intrinsics right?");
+      return InvalidFieldError(
+          "pointCloud.frame",
+          std::to_string(100 * outside / n) +
+              "% of the points fall outside the camera's field of view; is the cloud really in the "
+              "camera's optical frame, and are the camera intrinsics right?");
     }
   }
   if (!frame.image.empty() &&
       (frame.image.cols != frame.intrinsics.width || frame.image.rows != frame.intrinsics.height ||
        frame.image.type() != CV_8UC3)) {
-    return InvalidArgumentError(
-        "image.data: the image is " + std::to_string(frame.image.cols) + "x" +
-        std::to_string(frame.image.rows) + " (3 channels expected), the camera says " +
-        std::to_string(frame.intrinsics.width) + "x" + std::to_string(frame.intrinsics.height));
+    return InvalidFieldError("image.data", "the image is " + std::to_string(frame.image.cols) +
+                                               "x" + std::to_string(frame.image.rows) +
+                                               " (3 channels expected), the camera says " +
+                                               std::to_string(frame.intrinsics.width) + "x" +
+                                               std::to_string(frame.intrinsics.height));
   }
   PerceptionResult result;
 
@@ -771,135 +784,21 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
   return result;
 }
 
-// ---- encodings ----
-
-std::string Base64Encode(const std::string& bytes) {
-  static const char* kAlphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-  std::string out;
-  out.reserve((bytes.size() + 2) / 3 * 4);
-  size_t i = 0;
-  for (; i + 2 < bytes.size(); i += 3) {
-    const uint32_t v = (static_cast<uint8_t>(bytes[i]) << 16) |
-                       (static_cast<uint8_t>(bytes[i + 1]) << 8) |
-                       static_cast<uint8_t>(bytes[i + 2]);
-    out += kAlphabet[v >> 18];
-    out += kAlphabet[(v >> 12) & 63];
-    out += kAlphabet[(v >> 6) & 63];
-    out += kAlphabet[v & 63];
+int64_t PriorMapPoints(const object_search::World& world, const PerceptionOptions& options) {
+  // The counts of SampleBox (step voxel / 2) and of the floor loop (step 2 voxel) in the
+  // constructor, in floating point so that nothing overflows.
+  const double step = 0.5 * options.voxel;
+  auto count = [](double extent, double s) { return std::floor(std::max(0.0, extent) / s) + 1.0; };
+  double total = 0.0;
+  for (const Box& b : world.furniture) {
+    const double nu = count(b.size.x(), step), nv = count(b.size.y(), step);
+    const double nw = count(b.size.z(), step);
+    total += nu * (nv + 2.0 * nw) + 2.0 * nv * nw;
   }
-  if (i < bytes.size()) {
-    uint32_t v = static_cast<uint8_t>(bytes[i]) << 16;
-    if (i + 1 < bytes.size()) v |= static_cast<uint8_t>(bytes[i + 1]) << 8;
-    out += kAlphabet[v >> 18];
-    out += kAlphabet[(v >> 12) & 63];
-    out += i + 1 < bytes.size() ? kAlphabet[(v >> 6) & 63] : '=';
-    out += '=';
-  }
-  return out;
-}
-
-StatusOr<std::string> Base64Decode(const std::string& text) {
-  auto value = [](char c) -> int {
-    if (c >= 'A' && c <= 'Z') return c - 'A';
-    if (c >= 'a' && c <= 'z') return c - 'a' + 26;
-    if (c >= '0' && c <= '9') return c - '0' + 52;
-    if (c == '+' || c == '-') return 62;
-    if (c == '/' || c == '_') return 63;
-    return -1;
-  };
-  std::string out;
-  out.reserve(text.size() * 3 / 4);
-  uint32_t buffer = 0;
-  int bits = 0;
-  size_t padding = 0;
-  for (char c : text) {
-    if (c == '\n' || c == '\r' || c == ' ') continue;
-    if (c == '=') {
-      ++padding;
-      continue;
-    }
-    if (padding > 0) return InvalidArgumentError("not base64: data after padding");
-    const int v = value(c);
-    if (v < 0) return InvalidArgumentError("not base64: unexpected character");
-    buffer = (buffer << 6) | static_cast<uint32_t>(v);
-    bits += 6;
-    if (bits >= 8) {
-      bits -= 8;
-      out += static_cast<char>((buffer >> bits) & 0xff);
-    }
-  }
-  if (padding > 2) return InvalidArgumentError("not base64: too much padding");
-  return out;
-}
-
-StatusOr<Cloud::Ptr> DecodeCloud(const std::string& base64, const std::string& fields,
-                                 const std::string& field) {
-  if (fields != "xyz" && fields != "xyzrgb") {
-    return InvalidArgumentError(field + ".fields: expected 'xyz' or 'xyzrgb'");
-  }
-  auto bytes = Base64Decode(base64);
-  if (!bytes.ok()) return InvalidArgumentError(field + ".data: " + bytes.status().message());
-  const size_t stride = fields == "xyz" ? 12 : 16;
-  if (bytes->empty()) return InvalidArgumentError(field + ".data: the cloud is empty");
-  if (bytes->size() % stride != 0) {
-    return InvalidArgumentError(field + ".data: " + std::to_string(bytes->size()) +
-                                " bytes is not a whole number of " + std::to_string(stride) +
-                                "-byte points");
-  }
-  auto cloud = pcl::make_shared<Cloud>();
-  const size_t n = bytes->size() / stride;
-  cloud->resize(n);
-  for (size_t i = 0; i < n; ++i) {
-    float v[4] = {0, 0, 0, 0};
-    std::memcpy(v, bytes->data() + i * stride, stride);
-    auto& p = (*cloud)[i];
-    p.x = v[0];
-    p.y = v[1];
-    p.z = v[2];
-    if (stride == 16) {
-      uint32_t rgb;
-      std::memcpy(&rgb, &v[3], 4);
-      p.r = (rgb >> 16) & 0xff;
-      p.g = (rgb >> 8) & 0xff;
-      p.b = rgb & 0xff;
-    } else {
-      p.r = p.g = p.b = 128;
-    }
-  }
-  cloud->width = static_cast<uint32_t>(n);
-  cloud->height = 1;
-  return cloud;
-}
-
-std::string EncodeCloud(const Cloud& cloud) {
-  std::string bytes(cloud.size() * 16, '\0');
-  for (size_t i = 0; i < cloud.size(); ++i) {
-    const auto& p = cloud[i];
-    const uint32_t rgb = (static_cast<uint32_t>(p.r) << 16) | (static_cast<uint32_t>(p.g) << 8) |
-                         static_cast<uint32_t>(p.b);
-    float v[4] = {p.x, p.y, p.z, 0.0f};
-    std::memcpy(&v[3], &rgb, 4);
-    std::memcpy(bytes.data() + i * 16, v, 16);
-  }
-  return Base64Encode(bytes);
-}
-
-StatusOr<cv::Mat> DecodeImage(const std::string& base64, const std::string& field) {
-  auto bytes = Base64Decode(base64);
-  if (!bytes.ok()) return InvalidArgumentError(field + ".data: " + bytes.status().message());
-  if (bytes->empty()) return InvalidArgumentError(field + ".data: empty");
-  const bool png = bytes->rfind("\x89PNG\r\n\x1a\n", 0) == 0;
-  const bool jpeg = bytes->rfind("\xff\xd8\xff", 0) == 0;
-  if (!png && !jpeg) return InvalidArgumentError(field + ".data: not a PNG or JPEG image");
-  cv::Mat image;
-  try {
-    image = cv::imdecode(cv::Mat(1, static_cast<int>(bytes->size()), CV_8U, bytes->data()),
-                         cv::IMREAD_COLOR);
-  } catch (const cv::Exception&) {
-    image.release();
-  }
-  if (image.empty()) return InvalidArgumentError(field + ".data: not a PNG or JPEG image");
-  return image;
+  const auto& occ = world.occupancy;
+  total += count(occ.max().x() - occ.min().x(), 2.0 * options.voxel) *
+           count(occ.max().y() - occ.min().y(), 2.0 * options.voxel);
+  return total > 9e18 ? INT64_MAX : static_cast<int64_t>(total);
 }
 
 }  // namespace npfkct::perception

@@ -5,7 +5,6 @@
 
 #include <cmath>
 #include <numbers>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <set>
 
@@ -272,52 +271,43 @@ TEST(PerceptionTest, BadFramesGetClearErrorsAndChangeNothing) {
   EXPECT_GT(p.tracks(), 0);
 }
 
-TEST(EncodingTest, CloudsAndImagesRoundTripAndBadDataIsNamed) {
-  Cloud c;
-  pcl::PointXYZRGB p;
-  p.x = 1.5f;
-  p.y = -2.0f;
-  p.z = 0.25f;
-  p.r = 10;
-  p.g = 20;
-  p.b = 30;
-  c.push_back(p);
-  auto back = DecodeCloud(EncodeCloud(c), "xyzrgb", "pointCloud");
-  ASSERT_TRUE(back.ok());
-  EXPECT_EQ((*back)->size(), 1u);
-  EXPECT_EQ((**back)[0].x, 1.5f);
-  EXPECT_EQ((**back)[0].g, 20);
-  EXPECT_NE(DecodeCloud(Base64Encode(std::string(13, 'x')), "xyz", "pointCloud")
-                .status()
-                .message()
-                .find("pointCloud.data: 13 bytes"),
-            std::string::npos);
-  EXPECT_NE(DecodeCloud("!!!", "xyz", "pointCloud").status().message().find("not base64"),
-            std::string::npos);
-  EXPECT_NE(DecodeCloud("", "xyz", "pointCloud").status().message().find("empty"),
-            std::string::npos);
-  EXPECT_NE(DecodeCloud("AAAA", "xyzw", "pointCloud").status().message().find("pointCloud.fields"),
-            std::string::npos);
-  cv::Mat img(16, 16, CV_8UC3, cv::Scalar(1, 2, 3));
-  std::vector<uchar> png;
-  cv::imencode(".png", img, png);
-  auto decoded = DecodeImage(Base64Encode(std::string(png.begin(), png.end())), "image");
-  ASSERT_TRUE(decoded.ok());
-  EXPECT_EQ(decoded->cols, 16);
-  EXPECT_NE(DecodeImage(Base64Encode("GIF89a nonsense"), "image")
-                .status()
-                .message()
-                .find("image.data: not a PNG or JPEG"),
-            std::string::npos);
-  std::vector<uchar> jpeg, bmp;
-  cv::imencode(".jpg", img, jpeg);
-  EXPECT_TRUE(DecodeImage(Base64Encode(std::string(jpeg.begin(), jpeg.end())), "image").ok());
-  // OpenCV decodes BMP too, but the API promises PNG or JPEG only.
-  cv::imencode(".bmp", img, bmp);
-  EXPECT_FALSE(DecodeImage(Base64Encode(std::string(bmp.begin(), bmp.end())), "image").ok());
-  // A PNG signature with a truncated body.
-  EXPECT_FALSE(DecodeImage(Base64Encode(std::string(png.begin(), png.begin() + 20)), "image").ok());
-  EXPECT_EQ(Base64Decode(Base64Encode("hello world")).value(), "hello world");
+TEST(PerceptionTest, HugeFiniteCoordinatesAndTooManyPointsAreRefusedBeforePcl) {
+  Simulator sim(Load("loose1"), 1);
+  Perception p(sim.InitialWorld().value(), TargetOf(sim), {});
+  const SensorFrame good = Capture(&sim, Config(0.05, 0.0, 0.0), Config(0.05, 0.0, 0.0));
+  // Three camera-frame points at depth 3e38 (once a SIGABRT inside PCL), and map-frame points at
+  // 1e37: finite, so only the coordinate bound stops them.
+  for (const bool in_map : {false, true}) {
+    SensorFrame far = good;
+    auto cloud = pcl::make_shared<Cloud>(*good.cloud);
+    for (int i = 0; i < 3; ++i) (*cloud)[i].z = in_map ? 1e37f : 3e38f;
+    far.cloud = cloud;
+    far.cloud_in_map_frame = in_map;
+    auto r = p.Process(far);
+    ASSERT_FALSE(r.ok());
+    EXPECT_NE(r.status().message().find("point 0 has a coordinate beyond 10000 m"),
+              std::string::npos)
+        << r.status().message();
+  }
+  PerceptionOptions few;
+  few.max_points = 100;
+  Perception q(sim.InitialWorld().value(), TargetOf(sim), few);
+  EXPECT_NE(q.Process(good).status().message().find("more than 100 points"), std::string::npos);
+  EXPECT_EQ(p.tracks(), 0);
+  EXPECT_TRUE(p.Process(good).ok());
+}
+
+TEST(PerceptionTest, PriorMapPointsBoundsTheMapBeforeItIsBuilt) {
+  Simulator sim(Load("loose1"), 1);
+  const auto world = sim.InitialWorld().value();
+  const int64_t estimate = PriorMapPoints(world, {});
+  Perception p(world, TargetOf(sim), {});
+  EXPECT_GE(estimate, static_cast<int64_t>(p.map()->size()));
+  EXPECT_LT(estimate, 4'000'000);  // the scenarios fit the documented limit
+  // A 200 m room would need 1e8 floor points: known without sampling them.
+  auto big = world;
+  big.occupancy = object_search::OccupancyMap({-100, -100}, {100, 100}, 1.0);
+  EXPECT_GT(PriorMapPoints(big, {}), 90'000'000);
 }
 
 }  // namespace

@@ -21,7 +21,7 @@ struct Options {
   std::string server = "http://127.0.0.1:8080";
   std::string scenario;
   std::string planner = "npfkct";
-  std::string model_path;
+  std::string model;
   std::string api_key;
   double budget_ms = 1000;
   int64_t simulations = 0;
@@ -56,8 +56,9 @@ int main(int argc, char** argv) {
   app.add_option("--server", o.server, "server URL");
   app.add_option("--scenario", o.scenario, "scenario file")->required();
   app.add_option("--planner", o.planner, "planner of the session");
-  app.add_option("--model-path", o.model_path,
-                 "neural filter model for npfkct (planner.modelPath; the server must read it)");
+  app.add_option("--model", o.model,
+                 "neural filter model of the server for npfkct (planner.model, a file name in "
+                 "the server's --model-dir, e.g. filter.pt)");
   app.add_option("--api-key", o.api_key, "bearer token");
   app.add_option("--budget-ms", o.budget_ms, "planning time per step");
   app.add_option("--simulations", o.simulations, "simulations per step (0: time only)");
@@ -87,7 +88,7 @@ int main(int argc, char** argv) {
                  {"world", npfkct::sim::WorldJsonOf(scenario_json)},
                  {"planner", {{"name", o.planner}}},
                  {"seed", o.seed}};
-  if (!o.model_path.empty()) create["planner"]["modelPath"] = o.model_path;
+  if (!o.model.empty()) create["planner"]["model"] = o.model;
   if (o.raw) create["target"] = {{"photos", robot.TargetPhotosJson()}};
   auto session = api.CreateSession(create);
   if (!session.ok()) return Fail("creating the session", session.status());

@@ -105,25 +105,14 @@ std::vector<object_search::Workspace> Scenario::Workspaces() const {
 
 namespace {
 
-// Parses a scenario, or with `world_only` its prior-map part (no objects, no noise, no name).
-StatusOr<Scenario> ParseScenarioJson(const json& j, bool world_only) {
+StatusOr<Scenario> ParseScenarioJson(const json& j) {
   if (!j.is_object()) return InvalidArgumentError("scenario: expected a JSON object");
-  if (world_only) {
-    NPFKCT_RETURN_IF_ERROR(CheckKeys(j, "",
-                                     {"robot", "room", "mapResolution", "furniture", "baseRegions",
-                                      "discretePoses", "start", "params"}));
-  } else {
-    NPFKCT_RETURN_IF_ERROR(
-        CheckKeys(j, "",
-                  {"name", "description", "robot", "room", "mapResolution", "furniture",
-                   "baseRegions", "discretePoses", "objects", "start", "noise", "params"}));
-  }
+  NPFKCT_RETURN_IF_ERROR(
+      CheckKeys(j, "",
+                {"name", "description", "robot", "room", "mapResolution", "furniture",
+                 "baseRegions", "discretePoses", "objects", "start", "noise", "params"}));
   Scenario sc;
-  if (world_only) {
-    sc.name = "world";
-  } else {
-    NPFKCT_RETURN_IF_ERROR(ReadString(j, "name", "", &sc.name, true));
-  }
+  NPFKCT_RETURN_IF_ERROR(ReadString(j, "name", "", &sc.name, true));
   NPFKCT_RETURN_IF_ERROR(ReadString(j, "description", "", &sc.description, false));
   NPFKCT_RETURN_IF_ERROR(ReadString(j, "robot", "", &sc.robot, false));
   if (Status s = object_search::RobotPreset::ByName(sc.robot).status(); !s.ok()) {
@@ -194,10 +183,10 @@ StatusOr<Scenario> ParseScenarioJson(const json& j, bool world_only) {
     }
   }
 
-  if (!world_only && (!j.contains("objects") || !j.at("objects").is_array())) {
+  if (!j.contains("objects") || !j.at("objects").is_array()) {
     return Err("objects", "expected an array");
   }
-  for (size_t i = 0; !world_only && i < j.at("objects").size(); ++i) {
+  for (size_t i = 0; i < j.at("objects").size(); ++i) {
     const json& o = j.at("objects")[i];
     const std::string path = "objects[" + std::to_string(i) + "].";
     if (!o.is_object()) return Err(path.substr(0, path.size() - 1), "expected an object");
@@ -275,11 +264,7 @@ StatusOr<Scenario> ParseScenarioJson(const json& j, bool world_only) {
     if (sc.noise.false_detection > 0.5) return Err("noise.falseDetection", "must be <= 0.5");
   }
   if (j.contains("params")) NPFKCT_RETURN_IF_ERROR(ParseParams(j.at("params"), &sc.params));
-  if (world_only) {
-    NPFKCT_RETURN_IF_ERROR(sc.ValidateWorld());
-  } else {
-    NPFKCT_RETURN_IF_ERROR(sc.Validate());
-  }
+  NPFKCT_RETURN_IF_ERROR(sc.Validate());
   return sc;
 }
 
@@ -288,17 +273,7 @@ StatusOr<Scenario> ParseScenarioJson(const json& j, bool world_only) {
 StatusOr<Scenario> ParseScenario(const std::string& json_text) {
   const json j = json::parse(json_text, nullptr, /*allow_exceptions=*/false);
   if (j.is_discarded()) return InvalidArgumentError("scenario: not valid JSON");
-  return ParseScenarioJson(j, /*world_only=*/false);
-}
-
-StatusOr<Scenario> ParseWorldSpec(const nlohmann::json& j, const std::string& prefix) {
-  StatusOr<Scenario> s = ParseScenarioJson(j, /*world_only=*/true);
-  if (!s.ok()) {
-    const std::string& m = s.status().message();
-    return Status(s.status().code(),
-                  m.rfind("scenario: ", 0) == 0 ? prefix + m.substr(8) : prefix + "." + m);
-  }
-  return s;
+  return ParseScenarioJson(j);
 }
 
 StatusOr<Scenario> LoadScenario(const std::string& path) {

@@ -69,7 +69,7 @@ void Metrics::RenderHistogram(std::string* out, const std::string& name, const s
   *out += name + "_count" + braces + " " + std::to_string(h.count) + "\n";
 }
 
-std::string Metrics::Render() const {
+std::string Metrics::Render(int planning, int waiting) const {
   std::lock_guard<std::mutex> lock(mutex_);
   std::string out;
   out += "# HELP npfkct_http_requests_total HTTP requests by method, route and status code.\n";
@@ -98,6 +98,12 @@ std::string Metrics::Render() const {
   out += "# HELP npfkct_sessions_expired_total Sessions deleted after their idle TTL.\n";
   out += "# TYPE npfkct_sessions_expired_total counter\n";
   out += "npfkct_sessions_expired_total " + std::to_string(expired_.load()) + "\n";
+  out += "# HELP npfkct_planning_slots_busy Planning slots in use.\n";
+  out += "# TYPE npfkct_planning_slots_busy gauge\n";
+  out += "npfkct_planning_slots_busy " + std::to_string(planning) + "\n";
+  out += "# HELP npfkct_planning_queue Plans waiting for a slot.\n";
+  out += "# TYPE npfkct_planning_queue gauge\n";
+  out += "npfkct_planning_queue " + std::to_string(waiting) + "\n";
   return out;
 }
 

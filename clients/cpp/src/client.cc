@@ -44,7 +44,17 @@ StatusOr<json> Client::Call(const std::string& method, const std::string& path, 
   if (r->status >= 400) {
     if (parsed.is_object() && parsed.contains("error") && parsed["error"].is_object()) {
       const json& e = parsed["error"];
-      return Status(CodeOf(e.value("status", "UNKNOWN")), e.value("message", r->body));
+      Status s(CodeOf(e.value("status", "UNKNOWN")), e.value("message", r->body));
+      if (e.contains("details") && e["details"].is_array()) {
+        for (const json& d : e["details"]) {
+          if (!d.is_object() || !d.contains("fieldViolations")) continue;
+          for (const json& v : d["fieldViolations"]) {
+            if (v.is_object())
+              s.WithFieldViolation(v.value("field", ""), v.value("description", ""));
+          }
+        }
+      }
+      return s;
     }
     return Status(StatusCode::kUnknown, "HTTP " + std::to_string(r->status) + ": " + r->body);
   }
@@ -63,9 +73,11 @@ StatusOr<json> Client::ListSessions() { return Call("GET", "/v1/sessions", nullp
 Status Client::DeleteSession(const std::string& id) {
   return Call("DELETE", "/v1/sessions/" + id, nullptr).status();
 }
-StatusOr<json> Client::Plan(const std::string& id, double time_ms, int64_t simulations) {
+StatusOr<json> Client::Plan(const std::string& id, double time_ms, int64_t simulations,
+                            double cpu_ms) {
   json budget = json::object();
   if (time_ms > 0) budget["timeMs"] = time_ms;
+  if (cpu_ms > 0) budget["cpuMs"] = cpu_ms;
   if (simulations > 0) budget["simulations"] = simulations;
   const json body = {{"budget", budget}};
   return Call("POST", "/v1/sessions/" + id + ":plan", &body);

@@ -1,7 +1,7 @@
 """npfkct: command-line client of the npfkct planning server.
 
-  npfkct --server URL create --scenario FILE [--planner NAME] [--seed N]
-  npfkct --server URL plan ID [--time-ms MS] [--simulations N]
+  npfkct --server URL create --scenario FILE [--planner NAME] [--model NAME] [--seed N]
+  npfkct --server URL plan ID [--time-ms MS] [--cpu-ms MS] [--simulations N]
   npfkct --server URL observe ID --action-id A --body FILE   (an :observe body as JSON)
   npfkct --server URL get ID | belief ID [--png OUT] | list | delete ID | health
 """
@@ -32,10 +32,12 @@ def main(argv=None) -> int:
     create = sub.add_parser("create", help="create a session from a scenario's prior map")
     create.add_argument("--scenario", required=True)
     create.add_argument("--planner", default="npfkct")
+    create.add_argument("--model", help="neural filter model of the server (e.g. filter.pt)")
     create.add_argument("--seed", type=int)
     plan = sub.add_parser("plan", help="plan the next action")
     plan.add_argument("id")
     plan.add_argument("--time-ms", type=float)
+    plan.add_argument("--cpu-ms", type=float)
     plan.add_argument("--simulations", type=int)
     observe = sub.add_parser("observe", help="report the outcome of the pending action")
     observe.add_argument("id")
@@ -55,11 +57,12 @@ def main(argv=None) -> int:
     try:
         if args.command == "create":
             out = client.create_session(world_of_scenario(args.scenario), planner=args.planner,
-                                        seed=args.seed).raw
+                                        seed=args.seed, model=args.model).raw
         elif args.command == "plan":
-            p = client.plan(args.id, time_ms=args.time_ms, simulations=args.simulations)
+            p = client.plan(args.id, time_ms=args.time_ms, simulations=args.simulations,
+                            cpu_ms=args.cpu_ms)
             out = {"actionId": p.action_id, "action": p.action.to_json(),
-                   "expectedValue": p.expected_value, "stats": p.stats}
+                   "expectedValue": p.expected_value, "stats": p.stats, "budget": p.budget}
         elif args.command == "observe":
             with open(args.body, encoding="utf-8") as f:
                 body = json.load(f)
@@ -83,7 +86,10 @@ def main(argv=None) -> int:
             out = client.health()
     except ApiError as e:
         print(json.dumps({"error": {"status": e.status, "message": e.message,
-                                    "field": e.field}}), file=sys.stderr)
+                                    "field": e.field,
+                                    "fieldViolations": [{"field": f, "description": d}
+                                                        for f, d in e.violations]}}),
+              file=sys.stderr)
         return 1
     print(json.dumps(out, indent=2))
     return 0

@@ -6,20 +6,26 @@ import base64
 import dataclasses
 import json
 import struct
-from typing import Any, Dict, Iterable, List, Optional, Sequence
+from typing import Any, Dict, Iterable, List, Optional, Sequence, Tuple
 
 import requests
 
 
 class ApiError(Exception):
-    """An error response: HTTP status, canonical status name, message and offending field."""
+    """An error response: HTTP status, canonical status name, message, the offending fields
+    (`violations`: (field, description) pairs, `field`: the first one) and, for 429, the
+    seconds to wait before retrying (`retry_after`)."""
 
-    def __init__(self, http_status: int, status: str, message: str, field: str = ""):
+    def __init__(self, http_status: int, status: str, message: str, field: str = "",
+                 violations: Optional[List[Tuple[str, str]]] = None,
+                 retry_after: Optional[float] = None):
         super().__init__(f"{status} ({http_status}): {message}")
         self.http_status = http_status
         self.status = status
         self.message = message
         self.field = field
+        self.violations = violations or []
+        self.retry_after = retry_after
 
 
 @dataclasses.dataclass
@@ -176,6 +182,7 @@ class Plan:
     expected_value: float
     stats: Dict[str, Any]
     session: Session
+    budget: Dict[str, Any] = dataclasses.field(default_factory=dict)  # as the planner used it
 
     @classmethod
     def from_json(cls, j: Dict[str, Any]) -> "Plan":
@@ -185,6 +192,7 @@ class Plan:
             expected_value=j["expectedValue"],
             stats=j["stats"],
             session=Session.from_json(j["session"]),
+            budget=j.get("budget", {}),
         )
 
 
@@ -221,12 +229,13 @@ class NpfkctClient:
                 err = response.json()["error"]
             except (ValueError, KeyError, TypeError):
                 raise ApiError(response.status_code, "UNKNOWN", response.text) from None
-            field = ""
-            for detail in err.get("details", []):
-                for violation in detail.get("fieldViolations", []):
-                    field = violation.get("field", field)
+            violations = [(v.get("field", ""), v.get("description", ""))
+                           for detail in err.get("details", [])
+                           for v in detail.get("fieldViolations", [])]
+            retry_after = response.headers.get("Retry-After")
             raise ApiError(response.status_code, err.get("status", "UNKNOWN"),
-                           err.get("message", ""), field)
+                           err.get("message", ""), violations[0][0] if violations else "",
+                           violations, float(retry_after) if retry_after else None)
         if raw:
             return response
         return response.json()
@@ -245,10 +254,14 @@ class NpfkctClient:
                        display_name: Optional[str] = None,
                        ttl_seconds: Optional[float] = None,
                        target_description: Optional[str] = None,
-                       target_photos: Optional[List[bytes]] = None) -> Session:
+                       target_photos: Optional[List[bytes]] = None,
+                       model: Optional[str] = None) -> Session:
         """Creates a session; `target_photos` are PNG or JPEG files' bytes of the target, for
-        the server's perception to match camera images against."""
+        the server's perception to match camera images against; `model` names a neural filter
+        model of the server's model folder (e.g. "filter.pt", npfkct only)."""
         body: Dict[str, Any] = {"world": world, "planner": {"name": planner}}
+        if model:
+            body["planner"]["model"] = model
         if particles is not None:
             body["planner"]["particles"] = particles
         if options:
@@ -287,10 +300,14 @@ class NpfkctClient:
         self._call("DELETE", f"/v1/sessions/{session_id}")
 
     def plan(self, session_id: str, time_ms: Optional[float] = None,
-             simulations: Optional[int] = None) -> Plan:
+             simulations: Optional[int] = None, cpu_ms: Optional[float] = None) -> Plan:
+        """Plans within a budget of wall-clock milliseconds, CPU milliseconds of the planning
+        thread and/or simulations (none: the server's default)."""
         budget: Dict[str, Any] = {}
         if time_ms is not None:
             budget["timeMs"] = time_ms
+        if cpu_ms is not None:
+            budget["cpuMs"] = cpu_ms
         if simulations is not None:
             budget["simulations"] = simulations
         body = {"budget": budget} if budget else {}

@@ -78,6 +78,11 @@ struct PerceptionOptions {
   double match_threshold = 0.08;
   int min_inliers = 6;        ///< Consistent matches that mean "target".
   double gripper_max = 0.25;  ///< Largest graspable horizontal extent (m).
+  /// Input bounds checked by Process() before any point reaches PCL: points per frame, and the
+  /// largest |coordinate| (m) of a point in the frame it is given in (huge finite coordinates
+  /// overflow PCL's voxel grids and kd-trees).
+  int64_t max_points = 1'000'000;
+  double max_coordinate = 1e4;
 
   Status Validate() const;
 };
@@ -118,8 +123,9 @@ class Perception {
   Perception(const object_search::World& world, TargetModel target, PerceptionOptions options);
   ~Perception();
 
-  /// Processes one frame. Input errors (empty cloud, NaN points, wrong frame, image of the wrong
-  /// size) are INVALID_ARGUMENT naming the field; the tracks are unchanged on error.
+  /// Processes one frame. Input errors (empty cloud, NaN points, more than options.max_points
+  /// points, coordinates beyond options.max_coordinate, wrong frame, image of the wrong size) are
+  /// INVALID_ARGUMENT naming the field; the tracks are unchanged on error.
   StatusOr<PerceptionResult> Process(const SensorFrame& frame);
 
   /// Number of object tracks so far.
@@ -150,17 +156,9 @@ class Perception {
 Eigen::Matrix4d CameraToMap(const object_search::RobotPreset& robot,
                             const object_search::RobotConfig& config);
 
-/// Decodes a base64 float32 point buffer ("xyz": 3 floats per point; "xyzrgb": 4, the fourth
-/// packing 0x00RRGGBB as in PCL). The status names `field` on error.
-StatusOr<Cloud::Ptr> DecodeCloud(const std::string& base64, const std::string& fields,
-                                 const std::string& field);
-/// Encodes a cloud for the API ("xyzrgb").
-std::string EncodeCloud(const Cloud& cloud);
-/// Decodes a base64 PNG or JPEG image; the status names `field` on error.
-StatusOr<cv::Mat> DecodeImage(const std::string& base64, const std::string& field);
-
-/// Base64 (RFC 4648) encoding and decoding.
-std::string Base64Encode(const std::string& bytes);
-StatusOr<std::string> Base64Decode(const std::string& text);
+/// Points of the prior point-cloud map Perception's constructor would build for `world` (floor
+/// and furniture surfaces sampled at the options' voxel size), computed without building it, so
+/// that a caller can refuse a world too large to map.
+int64_t PriorMapPoints(const object_search::World& world, const PerceptionOptions& options);
 
 }  // namespace npfkct::perception

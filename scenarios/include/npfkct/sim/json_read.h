@@ -1,5 +1,5 @@
-// Readers of JSON fields that report errors as INVALID_ARGUMENT naming the field's path, shared
-// by scenario files and the server's request parsing.
+// Readers of JSON fields of scenario files that report errors as INVALID_ARGUMENT naming the
+// field's path. (Requests to the server are read by the API layer, server/api.)
 #pragma once
 
 #include <Eigen/Core>

@@ -4,7 +4,6 @@
 
 #include <array>
 #include <cstdint>
-#include <nlohmann/json_fwd.hpp>
 #include <string>
 #include <vector>
 
@@ -81,11 +80,6 @@ struct Scenario {
 /// Parses a scenario from JSON text. Errors are INVALID_ARGUMENT naming the field path, e.g.
 /// "objects[2].size: expected 3 numbers".
 StatusOr<Scenario> ParseScenario(const std::string& json_text);
-
-/// Parses the prior-map part of a scenario (robot, room, mapResolution, furniture, baseRegions,
-/// discretePoses, start, params) from a JSON object; error messages start with `prefix` (e.g.
-/// "world.furniture[0].size: ...").
-StatusOr<Scenario> ParseWorldSpec(const nlohmann::json& j, const std::string& prefix);
 
 /// Reads and parses a scenario file.
 StatusOr<Scenario> LoadScenario(const std::string& path);

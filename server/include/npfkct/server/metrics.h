@@ -25,8 +25,8 @@ class Metrics {
   /// Sessions deleted because they were idle past their TTL.
   void CountExpired() { ++expired_; }
 
-  /// The exposition text.
-  std::string Render() const;
+  /// The exposition text, with the planning slots in use and the plans waiting for one.
+  std::string Render(int planning = 0, int waiting = 0) const;
 
  private:
   struct Histogram {

@@ -1,48 +1,57 @@
-// npfkct-server: sessions over a gRPC-style HTTP/JSON API (see schemas/openapi.yaml).
+// npfkct-server: sessions over a gRPC-style HTTP/JSON API (see schemas/openapi.yaml and the
+// README's API section, which lists every limit and its error).
 #pragma once
 
-#include <atomic>
-#include <cstdint>
-#include <map>
 #include <memory>
-#include <mutex>
-#include <shared_mutex>
 #include <string>
-#include <thread>
-#include <vector>
 
-#include "npfkct/server/metrics.h"
-#include "npfkct/server/session.h"
+#include "npfkct/api/limits.h"
+#include "npfkct/server/models.h"
+#include "npfkct/solver/status.h"
 
 namespace npfkct::server {
 
-/// Settings of the server.
+/// Settings of the server (npfkct-server's flags).
 struct ServerOptions {
   std::string host = "127.0.0.1";
   int port = 8080;
   /// Directory for session snapshots; empty: sessions live in memory only.
   std::string state_dir;
-  /// Bearer token clients must send; empty: no authentication.
+  /// Bearer token clients must send on /v1; empty: no authentication.
   std::string api_key;
   /// Sessions idle for longer than this are deleted (a session may ask for less).
   double session_ttl_seconds = 3600.0;
+  /// Sessions held at once (restored ones included).
   int max_sessions = 256;
-  /// Worker threads serving requests (sessions plan in parallel up to this many).
-  int threads = 8;
-  /// Largest request body.
-  size_t max_body_bytes = 64u << 20;
-  /// Planning budget when a :plan request gives none, and the most a request may ask for.
-  double default_plan_ms = 1000.0;
-  double max_plan_ms = 60000.0;
-  int64_t max_plan_simulations = 100'000'000;
-  /// Largest particle count a session may ask for.
-  int max_particles = 100000;
+  /// Request threads (health and metrics have their own).
+  int threads = 16;
+  /// Plans running at once (0: one per core) and plans waiting for a slot (0: twice the slots).
+  int plan_slots = 0;
+  int plan_queue = 0;
+  /// Largest request body, in any framing, and request bytes in flight across all connections.
+  size_t max_body_bytes = 32u << 20;
+  size_t max_inflight_bytes = 128u << 20;
+  /// Open connections.
+  int max_connections = 512;
+  /// Deadlines: the request head from its first byte, the body after the head, keep-alive idle.
+  double head_timeout_seconds = 10.0;
+  double body_timeout_seconds = 60.0;
+  double idle_timeout_seconds = 5.0;
+  /// Folder of the neural filter models clients may name (planner.model).
+  std::string model_dir;
+  /// Models kept loaded at once.
+  int max_models = 4;
+  /// Largest snapshot file read at start-up.
+  size_t max_snapshot_bytes = 256u << 20;
+  /// The API's limits (budgets and particles may be lowered; the rest are the documented ones).
+  api::Limits limits;
 
-  /// Checks every field; the message names the offending one.
+  /// Checks every field; the violation names the offending flag.
   Status Validate() const;
 };
 
-/// The planning server. Start() binds and serves on background threads; Stop() shuts down.
+/// The planning server. Start() restores, binds and serves on background threads; Stop() shuts
+/// down (cancelling running plans).
 class Server {
  public:
   explicit Server(ServerOptions options);
@@ -56,17 +65,16 @@ class Server {
   void Stop();
   /// The port actually bound (useful with port 0).
   int port() const { return port_; }
-  /// Blocks until Stop() is called (from another thread or a signal handler).
-  void Wait();
-
   /// Sessions restored from the state directory at Start().
   int restored_sessions() const { return restored_; }
 
-  /// Replaces the factory of NPF-kCT candidate samplers (default: FilterSamplerFactory()).
+  /// Replaces the factory of NPF-kCT candidate samplers (default: FilterSamplerFactory over the
+  /// model folder). Call before Start().
   void SetSamplerFactory(SamplerFactory factory) { samplers_ = std::move(factory); }
 
- private:
   struct Impl;
+
+ private:
   ServerOptions options_;
   std::unique_ptr<Impl> impl_;
   SamplerFactory samplers_;

@@ -1,22 +1,23 @@
-// A planning session: one robot's search, with its knowledge (World), its belief and belief tree,
-// and the action it is executing. The server's only type-erased layer over the planners.
+// A planning session: one robot's search, as a typed state machine (READY -> ACTION_PENDING ->
+// READY ... -> DONE) over its knowledge (World), belief tree and perception. It locks itself:
+// Plan and Observe run one at a time (a second one meanwhile is ABORTED, never queued behind a
+// plan), while View, Belief and Record read a consistent state at any time without waiting for
+// a running plan. It never sees JSON: requests and replies are the API layer's types.
 #pragma once
 
+#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <functional>
 #include <memory>
 #include <mutex>
-#include <nlohmann/json.hpp>
-#include <set>
 #include <string>
-#include <utility>
-#include <vector>
 
+#include "npfkct/api/types.h"
 #include "npfkct/object_search/model.h"
 #include "npfkct/object_search/search_planner.h"
-#include "npfkct/server/api_error.h"
-#include "npfkct/solver/candidates.h"
+#include "npfkct/server/models.h"
+#include "npfkct/server/session_store.h"
 #include "npfkct/solver/planner.h"
 
 namespace npfkct::perception {
@@ -25,115 +26,127 @@ class Perception;
 
 namespace npfkct::server {
 
-using nlohmann::json;
-
-/// What the robot is told about the object it searches for.
-struct TargetSpec {
-  std::string description;
-  /// Photos of the target (base64 PNG or JPEG), matched against camera images by perception.
-  std::vector<std::string> photos;
-
-  /// Decodes every photo; INVALID_ARGUMENT naming `target.photos[i]` on a bad one.
-  Status Validate() const;
+/// What a session is created with, besides its world.
+struct SessionConfig {
+  std::string id;
+  std::string display_name;
+  api::PlannerSpec planner;
+  api::TargetSpec target;
+  uint64_t seed = 0;
+  double ttl_seconds = 3600.0;
 };
 
-/// Which planner a session uses and how.
-struct PlannerSpec {
-  std::string name = "npfkct";
-  int particles = 300;
-  /// Option overrides as (snake_case key, value), as given by the client (camelCase converted).
-  std::vector<std::pair<std::string, double>> options;
-  /// The client's option keys as sent, for echoing back.
-  json options_json = json::object();
-  /// Neural filter model file (NPF-kCT).
-  std::string model_path;
+/// Limits a session applies to its own work.
+struct SessionLimits {
+  /// Planning a session may spend over its life (wall-clock seconds).
+  double max_plan_seconds = 3600.0;
+  /// Points of the prior map perception would build; larger worlds cannot take raw data.
+  int64_t max_perception_map_points = 4'000'000;
+  /// Pixels of a target photo (checked again from the header when perception decodes them).
+  int64_t max_photo_pixels = 4'194'304;
 };
 
-/// Supplies NPF-kCT's candidate sampler for a session (the neural filter when one is loaded).
-using SamplerFactory =
-    std::function<StatusOr<std::shared_ptr<CandidateSampler<object_search::State>>>(
-        const PlannerSpec& spec, const object_search::ObjectSearchModel& model)>;
-
-/// A session. Every method must be called with mutex() held.
+/// A session. Thread-safe.
 class Session {
  public:
-  enum class State { kReady, kActionPending, kDone };
-
-  /// A new session over `world`. Fails on a bad planner name or options.
-  static StatusOr<std::unique_ptr<Session>> Create(std::string id, std::string display_name,
-                                                   object_search::World world, PlannerSpec spec,
-                                                   TargetSpec target, uint64_t seed,
-                                                   double ttl_seconds,
-                                                   const SamplerFactory& samplers);
-  /// A session restored from Snapshot() output (the tree is rebuilt by the next plan).
-  static StatusOr<std::unique_ptr<Session>> Restore(const json& snapshot,
-                                                    const SamplerFactory& samplers);
-
+  /// A new session over `world`: INVALID_ARGUMENT naming planner.name, planner.model or
+  /// planner.options.<key> for a planner that cannot be made.
+  static StatusOr<std::unique_ptr<Session>> Create(SessionConfig config, object_search::World world,
+                                                   const SamplerFactory& samplers,
+                                                   SessionLimits limits);
+  /// A session from its record (the tree is rebuilt by the next plan).
+  static StatusOr<std::unique_ptr<Session>> Restore(api::SessionRecord record, int64_t version,
+                                                    const SamplerFactory& samplers,
+                                                    SessionLimits limits);
   ~Session();
 
   const std::string& id() const { return id_; }
-  std::mutex& mutex() const { return mutex_; }
-  State state() const { return state_; }
 
-  /// Everything needed to restore the session.
-  json Snapshot() const;
-  /// The API resource "sessions/{id}".
-  json Resource() const;
-  /// Plans within `budget`; the action becomes pending. FAILED_PRECONDITION while an action is
-  /// pending or after the target was removed.
-  StatusOr<json> Plan(const Budget& budget);
-  /// Applies the observation that followed the pending action (validated in full before anything
-  /// changes). FAILED_PRECONDITION for a missing, stale or repeated actionId. Raw `pointCloud` (and
-  /// `image`) go through the session's perception pipeline, created on first use.
-  StatusOr<json> Observe(const json& body);
-  /// The belief as JSON.
-  json Belief() const;
-  /// The knowledge the belief is sampled from.
-  const object_search::World& world() const { return *world_; }
+  /// Plans within `budget` (its time capped by what is left of the session's planning budget),
+  /// stopping early when Cancel() is called or `client_gone` returns true (polled every few
+  /// milliseconds). The action becomes pending and the session is saved to `store` before the
+  /// reply. FAILED_PRECONDITION while an action is pending or after the target was removed;
+  /// ABORTED while another request works on the session or when it was deleted meanwhile;
+  /// CANCELLED when cancelled; RESOURCE_EXHAUSTED when its planning budget is spent.
+  StatusOr<api::PlanReply> Plan(const Budget& budget, const std::function<bool()>& client_gone,
+                                SessionStore* store);
+  /// Applies the observation that followed the pending action (all or nothing: a rejected
+  /// observation changes nothing) and saves the session. FAILED_PRECONDITION for a missing,
+  /// stale or repeated actionId; raw sensor data go through the session's perception.
+  StatusOr<api::ObserveReply> Observe(api::ObserveRequest request, SessionStore* store);
+  /// The API resource.
+  api::SessionView View() const;
+  /// The knowledge the belief is sampled from, as of now (immutable; later requests replace it).
+  std::shared_ptr<const object_search::World> Belief() const;
 
-  /// Seconds since the last request touched the session.
+  /// Saves the session to `store` unless it was deleted (for creation).
+  Status Save(SessionStore* store);
+  /// Stops a running plan at its next check, marks the session deleted and removes its stored
+  /// copy, under the same lock as every save: a deleted session is never written again.
+  Status Delete(SessionStore* store);
+  /// Expires the session when it is idle past its TTL and no request works on it: deletes it
+  /// (as Delete) and returns true.
+  bool ExpireIfIdle(SessionStore* store);
+  /// Stops a running plan at its next check (server shutdown).
+  void Cancel();
+
+  /// Marks the session used now (its TTL counts from here).
+  void Touch();
+  /// Seconds since a request last used the session (0 while one does).
   double IdleSeconds() const;
   double ttl_seconds() const { return ttl_seconds_; }
-  /// Marks the session used now.
-  void Touch();
-  /// Simulations run by this session's planner so far.
-  int64_t total_simulations() const { return total_simulations_; }
-  /// Wall time of the last Plan() spent in the planner.
-  double last_planning_ms() const { return last_planning_ms_; }
 
  private:
   Session() = default;
   Status Init(const SamplerFactory& samplers);
-  /// The perception pipeline, built from the world's map and the target photos on first use.
-  perception::Perception& Perceiver();
   void Reseed();
   ParticleBelief<object_search::State> FreshBelief();
+  api::SessionRecord RecordLocked() const;
+  api::SessionView ViewLocked() const;
+  api::ActionView ActionViewOf(const HybridAction& a, const object_search::World& w) const;
+  Status SaveUnderOp(SessionStore* store);
 
+  // Fixed at creation.
   std::string id_;
   std::string display_name_;
-  PlannerSpec spec_;
-  TargetSpec target_;
-  std::unique_ptr<perception::Perception> perception_;
+  api::PlannerSpec spec_;
+  api::TargetSpec target_;
   uint64_t seed_ = 0;
   double ttl_seconds_ = 3600.0;
+  SessionLimits limits_;
+  std::chrono::system_clock::time_point create_time_;
+
+  // Owned by the request working on the session (op_mutex_).
+  std::mutex op_mutex_;
   Rng rng_;
-  std::shared_ptr<object_search::World> world_;
   std::unique_ptr<object_search::ObjectSearchModel> model_;
   std::unique_ptr<object_search::SearchPlanner> planner_;
-  State state_ = State::kReady;
+  std::unique_ptr<perception::Perception> perception_;
+
+  // The state readers see (state_mutex_).
+  mutable std::mutex state_mutex_;
+  std::shared_ptr<const object_search::World> world_;
+  api::SessionState state_ = api::SessionState::kReady;
   HybridAction pending_action_;
   std::string pending_action_id_;
   std::string last_action_id_;
   int64_t actions_ = 0;
   int64_t total_simulations_ = 0;
-  double last_planning_ms_ = 0.0;
-  double total_reward_estimate_ = 0.0;
-  std::chrono::system_clock::time_point create_time_, update_time_;
+  double planning_seconds_ = 0.0;
+  int perception_tracks_ = -1;  // -1: no raw data yet
+  std::chrono::system_clock::time_point update_time_;
   std::chrono::steady_clock::time_point last_used_;
-  mutable std::mutex mutex_;
-};
+  bool in_use_ = false;
 
-/// RFC 3339 UTC time with milliseconds.
-std::string Rfc3339(std::chrono::system_clock::time_point t);
+  // Persistence (persist_mutex_): the stored version and whether the session was deleted.
+  std::mutex persist_mutex_;
+  int64_t version_ = 0;
+  bool deleted_ = false;
+
+  // Cancellation of a running plan.
+  std::atomic<bool> cancel_{false};
+  std::mutex running_mutex_;
+  const TerminationCondition* running_ = nullptr;
+};
 
 }  // namespace npfkct::server

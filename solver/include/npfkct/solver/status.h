@@ -5,6 +5,7 @@
 #include <string>
 #include <string_view>
 #include <utility>
+#include <vector>
 
 namespace npfkct {
 
@@ -33,7 +34,21 @@ enum class StatusCode : int {
 /// The gRPC name of a code, e.g. "INVALID_ARGUMENT".
 std::string_view StatusCodeName(StatusCode code);
 
-/// An outcome: OK, or a code with a human-readable message.
+/// One offending field of a request, carried beside a status's message (google.rpc.BadRequest):
+/// `field` is the path of the field in the request ("world.furniture[0].size", "budget.timeMs"),
+/// `description` says what is wrong with it.
+struct FieldViolation {
+  std::string field;
+  std::string description;
+  friend bool operator==(const FieldViolation&, const FieldViolation&) = default;
+};
+
+/// An outcome: OK, or a code with a human-readable message, and optionally the fields it is
+/// about as structured data (never parsed back out of the message):
+///
+///   Status s = InvalidFieldError("budget.timeMs", "must be at most 60000");
+///   s.field_violations()[0].field;  // "budget.timeMs"
+///   s.message();                     // "budget.timeMs: must be at most 60000"
 class [[nodiscard]] Status {
  public:
   /// An OK status.
@@ -49,6 +64,13 @@ class [[nodiscard]] Status {
   const std::string& message() const { return message_; }
   /// "OK" or "CODE_NAME: message".
   std::string ToString() const;
+  /// The fields this status is about (empty when none was attached).
+  const std::vector<FieldViolation>& field_violations() const { return violations_; }
+  /// Attaches a field violation; returns *this so that calls chain.
+  Status& WithFieldViolation(std::string field, std::string description) {
+    violations_.push_back({std::move(field), std::move(description)});
+    return *this;
+  }
 
   friend bool operator==(const Status& a, const Status& b) {
     return a.code_ == b.code_ && a.message_ == b.message_;
@@ -57,6 +79,7 @@ class [[nodiscard]] Status {
  private:
   StatusCode code_ = StatusCode::kOk;
   std::string message_;
+  std::vector<FieldViolation> violations_;
 };
 
 /// An OK status.
@@ -84,6 +107,19 @@ inline Status ResourceExhaustedError(std::string msg) {
 /// A CANCELLED status.
 inline Status CancelledError(std::string msg) {
   return Status(StatusCode::kCancelled, std::move(msg));
+}
+/// An INVALID_ARGUMENT status about one field: message "<field>: <description>" and the field
+/// violation {field, description} as its payload.
+inline Status InvalidFieldError(std::string field, std::string description) {
+  Status s(StatusCode::kInvalidArgument, field + ": " + description);
+  s.WithFieldViolation(std::move(field), std::move(description));
+  return s;
+}
+/// A status of `code` about one field (e.g. RESOURCE_EXHAUSTED naming the limit's field).
+inline Status FieldError(StatusCode code, std::string field, std::string description) {
+  Status s(code, field + ": " + description);
+  s.WithFieldViolation(std::move(field), std::move(description));
+  return s;
 }
 /// An OUT_OF_RANGE status.
 inline Status OutOfRangeError(std::string msg) {

@@ -1,5 +1,5 @@
 // A small C++ client of npfkct-server: every call returns the response body or a Status carrying
-// the server's error (canonical code, message, field).
+// the server's error (canonical code, message, and its field violations as Status payload).
 #pragma once
 
 #include <memory>
@@ -26,8 +26,10 @@ class Client {
   StatusOr<json> GetSession(const std::string& id);
   StatusOr<json> ListSessions();
   Status DeleteSession(const std::string& id);
-  /// POST :plan with {"budget": {"timeMs": time_ms, "simulations": simulations}} (0: omitted).
-  StatusOr<json> Plan(const std::string& id, double time_ms, int64_t simulations = 0);
+  /// POST :plan with {"budget": {"timeMs": time_ms, "simulations": simulations, "cpuMs":
+  /// cpu_ms}} (0: omitted).
+  StatusOr<json> Plan(const std::string& id, double time_ms, int64_t simulations = 0,
+                      double cpu_ms = 0.0);
   /// POST :observe; `body` must carry the actionId.
   StatusOr<json> Observe(const std::string& id, const json& body);
   StatusOr<json> Belief(const std::string& id);

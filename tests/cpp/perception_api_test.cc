@@ -11,6 +11,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <set>
 
+#include "npfkct/api/wire.h"
 #include "npfkct/perception/perception.h"
 #include "npfkct/sim/api_robot.h"
 #include "npfkct/sim/frame_io.h"
@@ -26,7 +27,7 @@ sim::Scenario Loose1() {
 std::string Png(const cv::Mat& image, const std::string& ext = ".png") {
   std::vector<uchar> bytes;
   cv::imencode(ext, image, bytes);
-  return perception::Base64Encode(std::string(bytes.begin(), bytes.end()));
+  return api::Base64Encode(std::string(bytes.begin(), bytes.end()));
 }
 
 class PerceptionApiTest : public ServerTest {
@@ -106,7 +107,10 @@ TEST_F(PerceptionApiTest, BadFramesGetErrorsNamingTheFieldAndChangeNothing) {
   const json belief_before = Get(base + "/belief").body;
 
   // Clouds: a NaN point, a cloud in the map frame sent as the camera's, broken base64.
-  auto cloud = perception::DecodeCloud(good["pointCloud"]["data"], "xyzrgb", "pointCloud").value();
+  const std::string bytes =
+      api::Base64Decode(good["pointCloud"]["data"].get<std::string>(), "data").value();
+  auto cloud = api::DecodeCloud(bytes, "xyzrgb", 1'000'000, 1e4, "pointCloud").value();
+  auto encode = [](const perception::Cloud& c) { return api::Base64Encode(api::EncodeCloud(c)); };
   auto with_nan = *cloud;
   with_nan[10].y = std::numeric_limits<float>::quiet_NaN();
   const sim::Frame frame = robot.simulator().Render(640, 480);
@@ -123,26 +127,33 @@ TEST_F(PerceptionApiTest, BadFramesGetErrorsNamingTheFieldAndChangeNothing) {
        "detections"},
       {"an image alone", [](json* b) { b->erase("pointCloud"); }, "pointCloud"},
       {"an empty cloud", [](json* b) { (*b)["pointCloud"]["data"] = ""; }, "pointCloud.data"},
-      {"a NaN point",
-       [&](json* b) { (*b)["pointCloud"]["data"] = perception::EncodeCloud(with_nan); },
+      {"a NaN point", [&](json* b) { (*b)["pointCloud"]["data"] = encode(with_nan); },
        "pointCloud.data"},
       {"a map-frame cloud sent as the camera's",
-       [&](json* b) { (*b)["pointCloud"]["data"] = perception::EncodeCloud(*in_map); },
-       "pointCloud.frame"},
+       [&](json* b) { (*b)["pointCloud"]["data"] = encode(*in_map); }, "pointCloud.frame"},
       {"an unknown frame", [](json* b) { (*b)["pointCloud"]["frame"] = "base_link"; },
        "pointCloud.frame"},
       {"unknown fields", [](json* b) { (*b)["pointCloud"]["fields"] = "xyzi"; },
        "pointCloud.fields"},
       {"broken base64", [](json* b) { (*b)["pointCloud"]["data"] = "@@@@"; }, "pointCloud.data"},
       {"a cloud that is not whole points",
-       [](json* b) { (*b)["pointCloud"]["data"] = perception::Base64Encode("1234567"); },
+       [](json* b) { (*b)["pointCloud"]["data"] = api::Base64Encode("1234567"); },
        "pointCloud.data"},
       {"an image of the wrong size", [&](json* b) { (*b)["image"]["data"] = Png(small); },
        "image.data"},
       {"an image in BMP", [&](json* b) { (*b)["image"]["data"] = Png(small, ".bmp"); },
        "image.data"},
       {"an unknown encoding", [](json* b) { (*b)["image"]["encoding"] = "gif"; }, "image.encoding"},
-      {"a negative focal length", [](json* b) { (*b)["camera"]["fx"] = -1; }, "camera"},
+      {"a negative focal length", [](json* b) { (*b)["camera"]["fx"] = -1; }, "camera.fx"},
+      {"huge finite coordinates",
+       [&](json* b) {
+         auto far = *cloud;
+         for (int i = 0; i < 3; ++i) far[i].z = 3e38f;
+         (*b)["pointCloud"]["data"] = encode(far);
+       },
+       "pointCloud.data"},
+      {"a camera of 4096 x 4096 pixels",
+       [](json* b) { (*b)["camera"]["width"] = (*b)["camera"]["height"] = 4096; }, "camera"},
       {"a fractional width", [](json* b) { (*b)["camera"]["width"] = 640.5; }, "camera.width"},
       {"a semantic score out of range",
        [](json* b) {
@@ -158,6 +169,8 @@ TEST_F(PerceptionApiTest, BadFramesGetErrorsNamingTheFieldAndChangeNothing) {
     EXPECT_EQ(r.body["error"]["status"], "INVALID_ARGUMENT") << c.what;
     const std::string message = r.body["error"]["message"];
     EXPECT_EQ(message.rfind(c.field, 0), 0u) << c.what << ": " << message;
+    // The field travels as data too.
+    EXPECT_EQ(r.body["error"]["details"][0]["fieldViolations"][0]["field"], c.field) << c.what;
   }
   // Nothing changed: same state, same belief, same tracks; the good frame still applies.
   Reply after = Get(base);

@@ -1,5 +1,7 @@
 // The simulated robot speaking the server API's JSON: it executes API actions and reports its
-// observations as :observe bodies. Shared by npfkct-drive and npfkct-sim-robot.
+// observations as :observe bodies. Shared by npfkct-drive and npfkct-sim-robot (library
+// npfkct_sim_robot: a client of the API, so it takes the API layer's wire formats; the
+// simulator library itself has none).
 #pragma once
 
 #include <cstdint>

@@ -3,9 +3,12 @@
 
 #include <gtest/gtest.h>
 #include <httplib.h>
+#include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
+#include <fstream>
 #include <thread>
 
 #include "server_fixture.h"
@@ -152,23 +155,42 @@ TEST_F(ServerTest, BadInputGetsClearErrorsNamingTheField) {
   EXPECT_EQ(Post(base + ":plan", {{"budget", {{"simulations", 50}}}}).status, 200);
 }
 
-TEST_F(ServerTest, FilterModelIsLoadedAtCreationAndPlansWithNetSam) {
-  Start();
+TEST_F(ServerTest, FilterModelsAreNamedNeverPathsAndLoadedAtCreation) {
+  // A model folder of our own: the shipped model under two names, and a corrupt one.
+  const std::string dir = ::testing::TempDir() + "/npfkct_models_" + std::to_string(getpid());
+  std::filesystem::create_directories(dir);
+  std::filesystem::copy_file(NPFKCT_FILTER_MODEL, dir + "/filter.pt",
+                             std::filesystem::copy_options::overwrite_existing);
+  std::ofstream(dir + "/corrupt.pt") << "not a model";
+  ServerOptions o;
+  o.model_dir = dir;
+  Start(o);
   const json world = WorldOf("loose1");
-  // A missing or corrupt model file fails the creation, naming the field; no session is left.
-  const std::string corrupt = ::testing::TempDir() + "/npfkct_corrupt_model.pt";
-  std::ofstream(corrupt) << "not a model";
-  for (const std::string& path : {std::string("/nonexistent/filter.pt"), corrupt}) {
+  // Unknown names, corrupt files and anything path-like fail the creation naming planner.model;
+  // no session is left and nothing outside the folder is ever opened.
+  for (const std::string& name :
+       {std::string("nonexistent.pt"), std::string("corrupt.pt"), std::string("/etc/passwd"),
+        std::string("../model/filter.pt"), std::string(".hidden.pt"), dir + "/filter.pt"}) {
     Reply r = Post("/v1/sessions",
-                   {{"world", world}, {"planner", {{"name", "npfkct"}, {"modelPath", path}}}});
-    EXPECT_EQ(r.status, 400) << r.raw;
+                   {{"world", world}, {"planner", {{"name", "npfkct"}, {"model", name}}}});
+    EXPECT_EQ(r.status, 400) << name << ": " << r.raw;
     EXPECT_EQ(r.body["error"]["status"], "INVALID_ARGUMENT");
-    EXPECT_EQ(r.body["error"]["message"].get<std::string>().rfind("planner.modelPath", 0), 0u)
+    EXPECT_EQ(r.body["error"]["details"][0]["fieldViolations"][0]["field"], "planner.model")
         << r.raw;
   }
-  Reply other = Post(
-      "/v1/sessions",
-      {{"world", world}, {"planner", {{"name", "pomcp"}, {"modelPath", NPFKCT_FILTER_MODEL}}}});
+  // Whether a file exists outside the folder cannot be probed: the same answer either way.
+  Reply passwd = Post("/v1/sessions", {{"world", world}, {"planner", {{"model", "passwd"}}}});
+  Reply missing = Post("/v1/sessions", {{"world", world}, {"planner", {{"model", "nosuch"}}}});
+  for (const auto& [reply, name] : {std::pair{passwd, "passwd"}, std::pair{missing, "nosuch"}}) {
+    EXPECT_EQ(reply.body["error"]["message"],
+              "planner.model: no model '" + std::string(name) +
+                  "' on this server (models: corrupt.pt, filter.pt)");
+  }
+  // The old field is gone: planner.modelPath is an unknown field.
+  Reply old = Post("/v1/sessions", {{"world", world}, {"planner", {{"modelPath", "/tmp/x.pt"}}}});
+  EXPECT_EQ(old.body["error"]["details"][0]["fieldViolations"][0]["field"], "planner.modelPath");
+  Reply other = Post("/v1/sessions",
+                     {{"world", world}, {"planner", {{"name", "pomcp"}, {"model", "filter.pt"}}}});
   EXPECT_EQ(other.status, 400);
   // Net_sam's options: checked and named; they need a model.
   const std::vector<std::pair<json, std::string>> bad_options = {
@@ -181,21 +203,20 @@ TEST_F(ServerTest, FilterModelIsLoadedAtCreationAndPlansWithNetSam) {
     Reply r =
         Post("/v1/sessions",
              {{"world", world},
-              {"planner",
-               {{"name", "npfkct"}, {"modelPath", NPFKCT_FILTER_MODEL}, {"options", options}}}});
+              {"planner", {{"name", "npfkct"}, {"model", "filter.pt"}, {"options", options}}}});
     EXPECT_EQ(r.status, 400) << r.raw;
-    EXPECT_EQ(r.body["error"]["message"].get<std::string>().rfind(field, 0), 0u) << r.raw;
+    EXPECT_EQ(r.body["error"]["details"][0]["fieldViolations"][0]["field"], field) << r.raw;
   }
   Reply no_model = Post(
       "/v1/sessions", {{"world", world},
                        {"planner", {{"name", "npfkct"}, {"options", {{"filter.explore", 0.5}}}}}});
   EXPECT_EQ(no_model.status, 400) << no_model.raw;
   EXPECT_EQ(Get("/v1/sessions").body["sessions"].size(), 0u);
-  // The shipped model: the plan's candidate statistics show the filter at work.
+  // The model by name: the plan's candidate statistics show the filter at work.
   const std::string id = Create({{"planner",
                                   {{"name", "npfkct"},
                                    {"particles", 100},
-                                   {"modelPath", NPFKCT_FILTER_MODEL},
+                                   {"model", "filter.pt"},
                                    {"options", {{"filter.minKeep", 8}, {"k", 3}}}}}});
   ASSERT_FALSE(id.empty());
   Reply plan = Post("/v1/sessions/" + id + ":plan", {{"budget", {{"simulations", 200}}}});
@@ -203,8 +224,8 @@ TEST_F(ServerTest, FilterModelIsLoadedAtCreationAndPlansWithNetSam) {
   const json& candidates = plan.body["stats"]["candidates"];
   EXPECT_GT(candidates["sampled"].get<int>(), candidates["accepted"].get<int>()) << plan.raw;
   EXPECT_GT(candidates["accepted"].get<int>(), 0);
-  EXPECT_EQ(Get("/v1/sessions/" + id).body["planner"]["modelPath"], NPFKCT_FILTER_MODEL);
-  std::remove(corrupt.c_str());
+  EXPECT_EQ(Get("/v1/sessions/" + id).body["planner"]["model"], "filter.pt");
+  std::filesystem::remove_all(dir);
 }
 
 TEST_F(ServerTest, OversizedBodiesAreRejectedAsJson) {
@@ -267,13 +288,14 @@ TEST_F(ServerTest, SessionsSurviveARestartWithTheSameBelief) {
   ASSERT_EQ(Post(base + ":observe", Observation(plan2.body["actionId"], 0.3)).status, 200);
   EXPECT_EQ(Post(base + ":plan", {{"budget", {{"simulations", 100}}}}).status, 200);
   EXPECT_EQ(Delete(base).status, 200);
-  EXPECT_FALSE(std::filesystem::exists(dir + "/" + id + ".json"));
+  EXPECT_FALSE(std::filesystem::exists(dir + "/" + id + ".snap"));
   std::filesystem::remove_all(dir);
 }
 
 TEST_F(ServerTest, SessionsPlanInParallelAndDeletesDoNotCorruptThem) {
   ServerOptions o;
   o.threads = 6;
+  o.plan_slots = 3;
   Start(o);
   std::vector<std::string> ids;
   for (int i = 0; i < 3; ++i) ids.push_back(Create());
@@ -319,6 +341,167 @@ TEST_F(ServerTest, SessionsPlanInParallelAndDeletesDoNotCorruptThem) {
   planner.join();
   EXPECT_EQ(Get("/v1/sessions/" + victim).status, 404);
   for (const auto& id : ids) EXPECT_EQ(Get("/v1/sessions/" + id).body["state"], "ACTION_PENDING");
+}
+
+double SecondsSince(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
+
+// A plan request on its own connection, in the background: status and when it ended.
+struct BackgroundPlan {
+  std::thread thread;
+  int status = 0;
+  json body;
+  std::chrono::steady_clock::time_point end;
+  BackgroundPlan(int port, const std::string& id, const json& budget) {
+    thread = std::thread([this, port, id, budget] {
+      httplib::Client c("127.0.0.1", port);
+      c.set_read_timeout(90, 0);
+      auto r = c.Post(("/v1/sessions/" + id + ":plan").c_str(), json{{"budget", budget}}.dump(),
+                      "application/json");
+      end = std::chrono::steady_clock::now();
+      if (r) {
+        status = r->status;
+        body = json::parse(r->body, nullptr, false);
+      }
+    });
+  }
+  void Join() { thread.join(); }
+};
+
+TEST_F(ServerTest, DeleteStopsAThirtySecondPlanWithinAHundredMilliseconds) {
+  Start();
+  const std::string id = Create();
+  BackgroundPlan plan(server_->port(), id, {{"timeMs", 30000}});
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  const auto t0 = std::chrono::steady_clock::now();
+  Reply deleted = Delete("/v1/sessions/" + id);
+  const double delete_seconds = SecondsSince(t0);
+  plan.Join();
+  const double plan_end = std::chrono::duration<double>(plan.end - t0).count();
+  EXPECT_EQ(deleted.status, 200);
+  EXPECT_LT(delete_seconds, 0.1);
+  EXPECT_LT(plan_end, 0.1) << "the plan went on after the DELETE";
+  EXPECT_EQ(plan.status, 409);
+  EXPECT_EQ(plan.body["error"]["status"], "ABORTED");
+  EXPECT_EQ(Get("/v1/sessions/" + id).status, 404);
+  // Its planning slot is free again.
+  EXPECT_NE(Get("/metrics").raw.find("npfkct_planning_slots_busy 0"), std::string::npos);
+}
+
+TEST_F(ServerTest, AClientThatHangsUpCancelsItsPlan) {
+  ServerOptions o;
+  o.plan_slots = 1;
+  Start(o);
+  const std::string id = Create();
+  {
+    httplib::Client c("127.0.0.1", server_->port());
+    c.set_read_timeout(0, 300'000);  // gives up after 0.3 s and closes the connection
+    auto r = c.Post(("/v1/sessions/" + id + ":plan").c_str(),
+                    json{{"budget", {{"timeMs", 30000}}}}.dump(), "application/json");
+    EXPECT_FALSE(r);
+  }
+  // The plan stops within milliseconds of the hang-up: the slot is free, nothing is pending.
+  const auto t0 = std::chrono::steady_clock::now();
+  bool free = false;
+  while (!free && SecondsSince(t0) < 2.0) {
+    free = Get("/metrics").raw.find("npfkct_planning_slots_busy 0") != std::string::npos;
+    if (!free) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  EXPECT_TRUE(free);
+  EXPECT_LT(SecondsSince(t0), 0.2);
+  EXPECT_EQ(Get("/v1/sessions/" + id).body["state"], "READY");
+  EXPECT_EQ(Post("/v1/sessions/" + id + ":plan", {{"budget", {{"simulations", 20}}}}).status, 200);
+}
+
+TEST_F(ServerTest, ATtlShorterThanAPlanDoesNotReapTheSessionUnderIt) {
+  Start();
+  const std::string id = Create({{"ttlSeconds", 0.3}});
+  Reply plan = Post("/v1/sessions/" + id + ":plan", {{"budget", {{"timeMs", 1500}}}});
+  EXPECT_EQ(plan.status, 200) << plan.raw;
+  EXPECT_EQ(Get("/v1/sessions/" + id).body["state"], "ACTION_PENDING");
+  // Idle past its TTL after the plan: reaped.
+  std::this_thread::sleep_for(std::chrono::milliseconds(1200));
+  EXPECT_EQ(Get("/v1/sessions/" + id).status, 404);
+}
+
+TEST_F(ServerTest, BusyPlanningSlotsQueueThenRefuseAndNeverDelayHealthOrReads) {
+  ServerOptions o;
+  o.plan_slots = 1;
+  o.plan_queue = 1;
+  Start(o);
+  const std::string a = Create(), b = Create(), c = Create();
+  BackgroundPlan running(server_->port(), a, {{"timeMs", 2000}});
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  BackgroundPlan queued(server_->port(), b, {{"timeMs", 100}});
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  // The slot and the queue are taken: the next plan is refused at once, with Retry-After.
+  httplib::Client client("127.0.0.1", server_->port());
+  const auto t0 = std::chrono::steady_clock::now();
+  auto refused = client.Post(("/v1/sessions/" + c + ":plan").c_str(),
+                             json{{"budget", {{"timeMs", 100}}}}.dump(), "application/json");
+  ASSERT_TRUE(refused);
+  EXPECT_LT(SecondsSince(t0), 0.1);
+  EXPECT_EQ(refused->status, 429);
+  EXPECT_EQ(refused->get_header_value("Retry-After"), "1");
+  EXPECT_EQ(json::parse(refused->body)["error"]["status"], "RESOURCE_EXHAUSTED");
+  // Health, metrics, listing and reading a planning session answer at once meanwhile.
+  const std::string session = "/v1/sessions/" + a;
+  for (const std::string& path : std::vector<std::string>{"/healthz", "/metrics", "/v1/sessions",
+                                                          session, session + "/belief"}) {
+    const auto t1 = std::chrono::steady_clock::now();
+    EXPECT_EQ(Get(path).status, 200) << path;
+    EXPECT_LT(SecondsSince(t1), 0.1) << path;
+  }
+  // A second request on the planning session is refused, not queued behind the plan.
+  Reply busy = Post("/v1/sessions/" + a + ":observe", Observation("a1-000000"));
+  EXPECT_EQ(busy.status, 409);
+  EXPECT_EQ(busy.body["error"]["status"], "ABORTED");
+  running.Join();
+  queued.Join();
+  EXPECT_EQ(running.status, 200);
+  EXPECT_EQ(queued.status, 200);
+}
+
+TEST_F(ServerTest, ThePlanReplyReportsTheBudgetAsUsedAndSessionsHaveAPlanningBudget) {
+  ServerOptions o;
+  o.limits.max_plan_ms = 5000;
+  o.limits.max_session_plan_seconds = 2.0;
+  Start(o);
+  const std::string id = Create();
+  const std::string base = "/v1/sessions/" + id;
+  Reply sims = Post(base + ":plan", {{"budget", {{"simulations", 50}}}});
+  ASSERT_EQ(sims.status, 200) << sims.raw;
+  // A simulation budget alone still ran under a wall-clock cap: here what is left of the
+  // session's 2 s (less than the 5 s maximum per request).
+  EXPECT_EQ(sims.body["budget"]["simulations"], 50);
+  EXPECT_LE(sims.body["budget"]["timeMs"].get<double>(), 2000.0);
+  EXPECT_GT(sims.body["budget"]["timeMs"].get<double>(), 1500.0);
+  EXPECT_EQ(sims.body["stats"]["simulations"], 50);
+  ASSERT_EQ(Post(base + ":observe", Observation(sims.body["actionId"])).status, 200);
+  Reply cpu = Post(base + ":plan", {{"budget", {{"cpuMs", 200}}}});
+  ASSERT_EQ(cpu.status, 200) << cpu.raw;
+  EXPECT_EQ(cpu.body["budget"]["cpuMs"].get<double>(), 200.0);
+  EXPECT_LE(cpu.body["stats"]["cpuMs"].get<double>(), 260.0);
+  ASSERT_EQ(Post(base + ":observe", Observation(cpu.body["actionId"], 0.3)).status, 200);
+  // Over the server's maximum per request: refused, naming the field.
+  Reply over = Post(base + ":plan", {{"budget", {{"timeMs", 6000}}}});
+  EXPECT_EQ(over.status, 400);
+  EXPECT_EQ(over.body["error"]["details"][0]["fieldViolations"][0]["field"], "budget.timeMs");
+  // Plans of 700 ms until the session's 2 s are spent: each capped by what is left, then 429.
+  Reply spent;
+  for (int i = 0; i < 6; ++i) {
+    const double used = Get(base).body["planningSecondsUsed"].get<double>();
+    spent = Post(base + ":plan", {{"budget", {{"timeMs", 700}}}});
+    if (spent.status != 200) break;
+    EXPECT_LE(spent.body["budget"]["timeMs"].get<double>(),
+              std::min(700.0, 1000.0 * (2.0 - used)) + 1e-6);
+    ASSERT_EQ(Post(base + ":observe", Observation(spent.body["actionId"], 0.2 + 0.01 * i)).status,
+              200);
+  }
+  EXPECT_EQ(spent.status, 429) << spent.raw;
+  EXPECT_EQ(spent.body["error"]["details"][0]["fieldViolations"][0]["field"], "budget");
+  EXPECT_GE(Get(base).body["planningSecondsUsed"].get<double>(), 1.99);
 }
 
 }  // namespace

@@ -1,8 +1,6 @@
 #include "npfkct/sim/api_robot.h"
 
-#include <opencv2/imgcodecs.hpp>
-
-#include "npfkct/perception/perception.h"
+#include "npfkct/api/wire.h"
 #include "npfkct/sim/frame_io.h"
 
 namespace npfkct::sim {
@@ -93,15 +91,14 @@ json ApiRobot::ObserveRaw(bool succeeded, int width, int height) {
     // Nothing within the sensor's range: the API wants no cloud rather than an empty one.
     return {{"succeeded", succeeded}, {"robotState", RobotConfigJson(reported)}};
   }
-  std::vector<uchar> png;
-  cv::imencode(".png", FrameBgr(frame), png);
+  const std::string png = api::EncodePng(FrameBgr(frame)).value();
   return {{"succeeded", succeeded},
           {"robotState", RobotConfigJson(reported)},
           {"pointCloud",
-           {{"frame", "camera"}, {"fields", "xyzrgb"}, {"data", perception::EncodeCloud(*cloud)}}},
-          {"image",
-           {{"encoding", "png"},
-            {"data", perception::Base64Encode(std::string(png.begin(), png.end()))}}},
+           {{"frame", "camera"},
+            {"fields", "xyzrgb"},
+            {"data", api::Base64Encode(api::EncodeCloud(*cloud))}}},
+          {"image", {{"encoding", "png"}, {"data", api::Base64Encode(png)}}},
           {"camera",
            {{"width", frame.width},
             {"height", frame.height},
@@ -114,9 +111,7 @@ json ApiRobot::ObserveRaw(bool succeeded, int width, int height) {
 json ApiRobot::TargetPhotosJson() const {
   json out = json::array();
   for (const cv::Mat& photo : ObjectPhotos(sim_.objects()[sim_.target_index()])) {
-    std::vector<uchar> png;
-    cv::imencode(".png", photo, png);
-    out.push_back(perception::Base64Encode(std::string(png.begin(), png.end())));
+    out.push_back(api::Base64Encode(api::EncodePng(photo).value()));
   }
   return out;
 }

@@ -6,12 +6,15 @@
 
 #include <fstream>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
 
 #include "npfkct/server/server.h"
 
 namespace npfkct::server {
+
+using nlohmann::json;
 
 /// The prior-map part of a scenario file in scenarios/data.
 inline json WorldOf(const std::string& scenario) {
@@ -39,6 +42,7 @@ class ServerTest : public ::testing::Test {
  protected:
   void Start(ServerOptions o = {}) {
     o.port = 0;
+    if (o.model_dir.empty()) o.model_dir = std::string(NPFKCT_MODEL_DIR);
     server_ = std::make_unique<Server>(o);
     ASSERT_TRUE(server_->Start().ok());
     client_ = std::make_unique<httplib::Client>("127.0.0.1", server_->port());

@@ -1,0 +1,86 @@
+// The API layer: the only code that touches JSON, Base64, image bytes and world specs. Request
+// bodies become typed requests (types.h), validated against the JSON Schemas of schemas/ (with
+// valijson) and then by the domain checks a schema cannot express, within the limits of
+// limits.h; typed replies and records become bodies. Every error is a Status whose field
+// violations name the offending fields as data.
+//
+//   api::Limits limits;
+//   StatusOr<api::CreateSessionRequest> req = api::ParseCreateSession(body, limits);
+//   if (!req.ok()) return Reply(api::HttpStatusOf(req.status().code()),
+//                               api::RenderError(req.status()));
+//   StatusOr<World> world = api::BuildWorld(req->world, limits);
+#pragma once
+
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "npfkct/api/limits.h"
+#include "npfkct/api/types.h"
+
+namespace npfkct::api {
+
+// ---- requests ----
+
+/// POST /v1/sessions.
+StatusOr<CreateSessionRequest> ParseCreateSession(std::string_view body, const Limits& limits);
+/// POST :plan (an empty body asks for the default budget).
+StatusOr<PlanRequest> ParsePlan(std::string_view body, const Limits& limits);
+/// POST :observe.
+StatusOr<ObserveRequest> ParseObserve(std::string_view body, const Limits& limits);
+/// GET /v1/sessions?pageSize=&pageToken= (absent parameters: nullopt).
+StatusOr<ListRequest> ParseList(const std::optional<std::string>& page_size,
+                                const std::optional<std::string>& page_token);
+/// GET .../belief?format=json|png.
+StatusOr<BeliefFormat> ParseBeliefFormat(const std::optional<std::string>& format);
+/// Whether `id` has the form of a session id (32 lower-case hex digits).
+bool IsSessionId(std::string_view id);
+/// Whether `name` may name a model file (planner.model): letters, digits, '.', '_' and '-', at
+/// most 64 characters, not starting with '.'. It names an entry of the server's model folder;
+/// it is never used as a path.
+bool IsModelName(std::string_view name);
+
+/// The World of a world spec: occupancy map, furniture, base regions, the grid world over the
+/// workspaces (2 cm cells) and the robot at the start. Cells are counted in 64 bits against the
+/// limits before anything is allocated; errors name the field under "world".
+StatusOr<World> BuildWorld(const WorldSpec& spec, const Limits& limits);
+
+// ---- replies ----
+
+/// The HTTP status of a canonical code (google.rpc.Code to HTTP mapping).
+int HttpStatusOf(StatusCode code);
+/// {"error": {"code", "status", "message", "details"}} with a google.rpc.BadRequest detail
+/// holding the status's field violations, and a google.rpc.RetryInfo when `retry_after_seconds`
+/// is positive. `http_status` overrides the code's HTTP status (405, 411, 413, 415, 416, ...).
+std::string RenderError(const Status& status, int http_status = 0, int retry_after_seconds = 0);
+/// The session resource.
+std::string RenderSession(const SessionView& session);
+/// {"sessions": [...], "nextPageToken"}.
+std::string RenderSessionList(const std::vector<SessionView>& sessions,
+                              const std::string& next_page_token);
+std::string RenderPlan(const PlanReply& reply);
+std::string RenderObserve(const ObserveReply& reply);
+/// Grid-world log-odds per workspace, objects with face odds, the robot.
+std::string RenderBelief(const World& world);
+/// A top view of the belief as PNG bytes (map, base regions, grid-world probability, objects,
+/// robot), at most `max_pixels` pixels.
+StatusOr<std::string> RenderBeliefPng(const World& world, int64_t max_pixels = 4'000'000);
+/// {"status": "SERVING"}.
+std::string RenderHealth();
+/// {}.
+std::string RenderEmpty();
+
+// ---- records ----
+
+/// A session record as snapshot bytes (JSON).
+std::string EncodeRecord(const SessionRecord& record);
+/// Reads snapshot bytes; malformed, truncated or out-of-limit records are DATA_LOSS, never a
+/// crash or an allocation beyond the limits.
+StatusOr<SessionRecord> DecodeRecord(std::string_view bytes, const Limits& limits);
+
+/// lowerCamelCase to snake_case per dot-separated segment ("search.maxDepth" ->
+/// "search.max_depth"), for planner option keys.
+std::string SnakeCase(const std::string& camel);
+
+}  // namespace npfkct::api

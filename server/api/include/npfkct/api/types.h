@@ -1,0 +1,187 @@
+// The typed requests, replies and records of the API. The API layer (api.h) turns request bodies
+// into these and these into response bodies; nothing else in the server sees the wire.
+#pragma once
+
+#include <array>
+#include <chrono>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "npfkct/object_search/world.h"
+#include "npfkct/perception/perception.h"
+#include "npfkct/solver/candidates.h"
+#include "npfkct/solver/planner.h"
+
+namespace npfkct::api {
+
+using object_search::Box;
+using object_search::RobotConfig;
+using object_search::Vec2;
+using object_search::World;
+
+// ---------------------------------------------------------------------------------------------
+// Requests
+
+/// The prior map a robot is told at creation: the scenario-file format without its objects.
+struct WorldSpec {
+  /// A piece of furniture; its top is a workspace (a grid-world surface) when `workspace`.
+  struct Furniture {
+    std::string name;
+    Box box;  ///< Stands on the floor: center.z = size.z / 2.
+    bool workspace = false;
+  };
+  std::string robot = "fetch";
+  Vec2 room_min = Vec2(-3, -3);
+  Vec2 room_max = Vec2(3, 3);
+  double map_resolution = 0.05;
+  std::vector<Furniture> furniture;
+  std::vector<object_search::BaseRegion> base_regions;
+  std::vector<RobotConfig> discrete_poses;
+  RobotConfig start;
+  object_search::SearchParams params;
+};
+
+/// Which planner a session uses and how.
+struct PlannerSpec {
+  std::string name = "npfkct";
+  int particles = 300;
+  /// A model file name inside the server's --model-dir (planner.model); empty: none.
+  std::string model;
+  /// Option overrides in the order given: (key as sent, lowerCamelCase; value, booleans 0/1).
+  std::vector<std::pair<std::string, double>> options;
+  /// Which option values were booleans (for echoing them back as booleans).
+  std::vector<bool> option_is_bool;
+};
+
+/// What the robot is told about the object it searches for.
+struct TargetSpec {
+  std::string description;
+  /// Photos as sent (PNG or JPEG bytes, header-checked against the pixel limit).
+  std::vector<std::string> photos;
+};
+
+/// POST /v1/sessions.
+struct CreateSessionRequest {
+  std::string display_name;
+  WorldSpec world;
+  TargetSpec target;
+  PlannerSpec planner;
+  std::optional<uint64_t> seed;
+  std::optional<double> ttl_seconds;
+};
+
+/// POST /v1/sessions/{id}:plan: the budget as asked (absent fields: not asked for).
+struct PlanRequest {
+  std::optional<double> time_ms;
+  std::optional<double> cpu_ms;
+  std::optional<int64_t> simulations;
+};
+
+/// POST /v1/sessions/{id}:observe.
+struct ObserveRequest {
+  std::string action_id;
+  bool succeeded = true;
+  /// Where the robot ended (required after a successful MOVE).
+  std::optional<RobotConfig> robot_state;
+  /// Detections from the caller's own perception.
+  std::vector<object_search::ObjectDetection> detections;
+  /// Raw sensor data for the session's perception instead (its `reported` pose is filled in by
+  /// the session: robot_state, or where the robot is).
+  std::optional<perception::SensorFrame> frame;
+};
+
+/// GET /v1/sessions.
+struct ListRequest {
+  int page_size = 50;
+  std::string page_token;
+};
+
+/// GET /v1/sessions/{id}/belief.
+enum class BeliefFormat { kJson, kPng };
+
+// ---------------------------------------------------------------------------------------------
+// Replies
+
+enum class SessionState { kReady, kActionPending, kDone };
+
+/// An action in API form: a MOVE to a configuration, or a declare/remove on an object.
+struct ActionView {
+  enum class Type { kMove, kDeclareTarget, kDeclareObstacle, kRemove };
+  Type type = Type::kMove;
+  RobotConfig configuration;      ///< MOVE
+  std::string object_id;          ///< declare/remove
+  std::optional<Box> object_box;  ///< declare/remove: where the robot last saw the object
+};
+
+/// The session resource "sessions/{id}".
+struct SessionView {
+  std::string id;
+  std::string display_name;
+  SessionState state = SessionState::kReady;
+  std::chrono::system_clock::time_point create_time, update_time;
+  double ttl_seconds = 0.0;
+  PlannerSpec planner;
+  uint64_t seed = 0;
+  std::string target_description;
+  int photo_count = 0;
+  std::optional<int> perception_tracks;
+  int step = 0;
+  RobotConfig robot;
+  int object_count = 0;
+  std::optional<std::pair<std::string, ActionView>> pending;  ///< (actionId, action)
+  int64_t total_simulations = 0;
+  double planning_seconds_used = 0.0;
+};
+
+/// The :plan reply: the action, its value, the search statistics, and the budget as used.
+struct PlanReply {
+  std::string action_id;
+  ActionView action;
+  double expected_value = 0.0;
+  SearchStats stats;
+  CandidateStats candidates;
+  /// The budget the planner ran under (defaults and caps applied).
+  Budget budget;
+  SessionView session;
+};
+
+/// The :observe reply.
+struct ObserveReply {
+  bool done = false;
+  double reward = 0.0;
+  /// What the session's perception made of raw sensor data.
+  std::optional<perception::PerceptionResult> perception;
+  SessionView session;
+};
+
+// ---------------------------------------------------------------------------------------------
+// Records
+
+/// Everything that restores a session: what a SessionStore keeps.
+struct SessionRecord {
+  std::string id;
+  std::string display_name;
+  PlannerSpec planner;
+  uint64_t seed = 0;
+  double ttl_seconds = 3600.0;
+  SessionState state = SessionState::kReady;
+  int64_t actions = 0;
+  int64_t total_simulations = 0;
+  double planning_seconds_used = 0.0;
+  int64_t create_time_ms = 0;
+  int64_t update_time_ms = 0;
+  std::string last_action_id;
+  std::string pending_action_id;
+  HybridAction pending_action;
+  World world;
+  TargetSpec target;
+  /// Perception's object tracks (present once raw data arrived).
+  std::optional<std::pair<int, std::vector<perception::TrackState>>> perception;
+};
+
+}  // namespace npfkct::api

@@ -1,0 +1,78 @@
+// JSON plumbing of the API layer (private): bounded parsing, field paths, readers of the shapes
+// the schemas have already checked.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <string_view>
+
+#include "npfkct/object_search/geometry.h"
+#include "npfkct/solver/status.h"
+
+namespace npfkct::api::internal {
+
+using nlohmann::json;
+
+/// Parses a request body as a JSON object. Nesting deeper than `max_depth`, more than
+/// `max_values` values and numbers that do not fit a double are refused while parsing, before
+/// they are allocated. Errors are INVALID_ARGUMENT on the field "body". An empty body is `{}`
+/// when `allow_empty`.
+StatusOr<json> ParseBody(std::string_view text, int max_depth, int64_t max_values,
+                         bool allow_empty);
+
+/// "parent.key" (or "key" at the top).
+inline std::string Join(const std::string& parent, const std::string& key) {
+  return parent.empty() ? key : parent + "." + key;
+}
+/// "parent[i]".
+inline std::string At(const std::string& parent, size_t i) {
+  return parent + "[" + std::to_string(i) + "]";
+}
+
+/// j[key] as a double, `fallback` when absent or not a number.
+inline double Number(const json& j, const char* key, double fallback = 0.0) {
+  if (!j.is_object()) return fallback;
+  auto it = j.find(key);
+  return it != j.end() && it->is_number() ? it->get<double>() : fallback;
+}
+/// j[key] as a string, `fallback` when absent or not a string.
+inline std::string String(const json& j, const char* key, const std::string& fallback = "") {
+  if (!j.is_object()) return fallback;
+  auto it = j.find(key);
+  return it != j.end() && it->is_string() ? it->get<std::string>() : fallback;
+}
+/// j[key] as a bool, `fallback` when absent or not a bool.
+inline bool Bool(const json& j, const char* key, bool fallback = false) {
+  if (!j.is_object()) return fallback;
+  auto it = j.find(key);
+  return it != j.end() && it->is_boolean() ? it->get<bool>() : fallback;
+}
+/// j[key] as an integer, `fallback` when absent or not an integer.
+inline int64_t Integer(const json& j, const char* key, int64_t fallback = 0) {
+  if (!j.is_object()) return fallback;
+  auto it = j.find(key);
+  return it != j.end() && it->is_number_integer() ? it->get<int64_t>() : fallback;
+}
+
+/// [x, y] or [x, y, z] arrays of numbers.
+json Vec(const object_search::Vec2& v);
+json Vec(const object_search::Vec3& v);
+/// Reads an array of N numbers into v; false when the shape is wrong.
+bool ReadVec(const json& j, object_search::Vec2* v);
+bool ReadVec(const json& j, object_search::Vec3* v);
+
+/// {"x", "y", "yaw", "lift", "pan", "tilt"}.
+json ConfigJson(const object_search::RobotConfig& c);
+/// Reads the fields present (absent ones keep their value).
+object_search::RobotConfig ReadConfig(const json& j, object_search::RobotConfig c = {});
+/// {"center", "yaw", "size"}.
+json BoxJson(const object_search::Box& b);
+/// Reads a box; false when the shape is wrong.
+bool ReadBox(const json& j, object_search::Box* b);
+
+/// Serialises a JSON value (invalid UTF-8 replaced).
+std::string Dump(const json& j);
+
+}  // namespace npfkct::api::internal

@@ -1,0 +1,209 @@
+// Session records as snapshot bytes.
+#include <cstring>
+
+#include "json_util.h"
+#include "npfkct/api/api.h"
+#include "npfkct/api/wire.h"
+#include "npfkct/object_search/model.h"
+#include "world_codec.h"
+
+namespace npfkct::api {
+namespace {
+
+using internal::json;
+
+constexpr int kRecordVersion = 2;
+
+const char* StateName(SessionState s) {
+  return s == SessionState::kDone            ? "DONE"
+         : s == SessionState::kActionPending ? "ACTION_PENDING"
+                                             : "READY";
+}
+
+std::string FloatsBase64(const std::vector<float>& v) {
+  std::string bytes(v.size() * sizeof(float), '\0');
+  if (!v.empty()) std::memcpy(bytes.data(), v.data(), bytes.size());
+  return Base64Encode(bytes);
+}
+
+Status Lost(const std::string& what) { return Status(StatusCode::kDataLoss, "snapshot: " + what); }
+
+}  // namespace
+
+std::string EncodeRecord(const SessionRecord& r) {
+  json j;
+  j["version"] = kRecordVersion;
+  j["id"] = r.id;
+  j["displayName"] = r.display_name;
+  json options = json::array();
+  for (size_t i = 0; i < r.planner.options.size(); ++i) {
+    options.push_back(
+        {{"key", r.planner.options[i].first},
+         {"value", r.planner.options[i].second},
+         {"bool", i < r.planner.option_is_bool.size() && r.planner.option_is_bool[i]}});
+  }
+  j["planner"] = {{"name", r.planner.name},
+                  {"particles", r.planner.particles},
+                  {"model", r.planner.model},
+                  {"options", options}};
+  j["seed"] = std::to_string(r.seed);
+  j["ttlSeconds"] = r.ttl_seconds;
+  j["state"] = StateName(r.state);
+  j["actions"] = r.actions;
+  j["totalSimulations"] = r.total_simulations;
+  j["planningSecondsUsed"] = r.planning_seconds_used;
+  j["createTimeMs"] = r.create_time_ms;
+  j["updateTimeMs"] = r.update_time_ms;
+  j["lastActionId"] = r.last_action_id;
+  if (r.state == SessionState::kActionPending) {
+    j["pendingActionId"] = r.pending_action_id;
+    j["pendingAction"] = {
+        {"kind", r.pending_action.kind},
+        {"x", std::vector<double>(r.pending_action.x.data(),
+                                  r.pending_action.x.data() + r.pending_action.x.size())}};
+  }
+  j["world"] = internal::WorldJson(r.world);
+  json photos = json::array();
+  for (const std::string& p : r.target.photos) photos.push_back(Base64Encode(p));
+  j["target"] = {{"description", r.target.description}, {"photos", photos}};
+  if (r.perception) {
+    json tracks = json::array();
+    for (const perception::TrackState& t : r.perception->second) {
+      tracks.push_back({{"id", t.id}, {"surface", t.surface}, {"points", FloatsBase64(t.points)}});
+    }
+    j["perception"] = {{"nextId", r.perception->first}, {"tracks", tracks}};
+  }
+  return internal::Dump(j);
+}
+
+StatusOr<SessionRecord> DecodeRecord(std::string_view bytes, const Limits& limits) {
+  // A snapshot holds a world (grid cells, occupancy runs) and perception tracks, so it may hold
+  // more JSON values than a request; still bounded.
+  Limits record_limits = limits;
+  record_limits.max_json_values = limits.max_grid_cells + limits.max_map_cells + 100'000;
+  auto parsed =
+      internal::ParseBody(bytes, limits.max_json_depth, record_limits.max_json_values, false);
+  if (!parsed.ok()) return Lost(parsed.status().message());
+  const json& j = *parsed;
+  if (internal::Integer(j, "version") != kRecordVersion) return Lost("unknown version");
+  SessionRecord r;
+  r.id = internal::String(j, "id");
+  if (!IsSessionId(r.id)) return Lost("bad id");
+  r.display_name = internal::String(j, "displayName").substr(0, limits.max_display_name);
+  const json p = j.value("planner", json::object());
+  r.planner.name = internal::String(p, "name", "npfkct");
+  r.planner.particles = static_cast<int>(internal::Integer(p, "particles", 300));
+  if (r.planner.particles < 1 || r.planner.particles > limits.max_particles) {
+    return Lost("planner particles");
+  }
+  r.planner.model = internal::String(p, "model");
+  if (!r.planner.model.empty() && !IsModelName(r.planner.model)) return Lost("planner model");
+  if (p.contains("options")) {
+    const json& options = p.at("options");
+    if (!options.is_array() || static_cast<int64_t>(options.size()) > limits.max_planner_options) {
+      return Lost("planner options");
+    }
+    for (const json& o : options) {
+      const std::string key = internal::String(o, "key");
+      const double value = internal::Number(o, "value", std::nan(""));
+      if (key.empty() || key.size() > 64 || !std::isfinite(value)) return Lost("planner option");
+      r.planner.options.emplace_back(key, value);
+      r.planner.option_is_bool.push_back(internal::Bool(o, "bool"));
+    }
+  }
+  const std::string seed = internal::String(j, "seed", "0");
+  if (seed.empty() || seed.size() > 20 ||
+      seed.find_first_not_of("0123456789") != std::string::npos) {
+    return Lost("seed");
+  }
+  r.seed = std::strtoull(seed.c_str(), nullptr, 10);
+  r.ttl_seconds = internal::Number(j, "ttlSeconds", 3600.0);
+  if (!(r.ttl_seconds > 0.0)) return Lost("ttlSeconds");
+  const std::string state = internal::String(j, "state", "READY");
+  r.state = state == "DONE"             ? SessionState::kDone
+            : state == "ACTION_PENDING" ? SessionState::kActionPending
+                                        : SessionState::kReady;
+  r.actions = std::max<int64_t>(0, internal::Integer(j, "actions"));
+  r.total_simulations = std::max<int64_t>(0, internal::Integer(j, "totalSimulations"));
+  r.planning_seconds_used = std::max(0.0, internal::Number(j, "planningSecondsUsed"));
+  r.create_time_ms = internal::Integer(j, "createTimeMs");
+  r.update_time_ms = internal::Integer(j, "updateTimeMs");
+  r.last_action_id = internal::String(j, "lastActionId").substr(0, limits.max_id_length);
+  if (r.state == SessionState::kActionPending) {
+    r.pending_action_id = internal::String(j, "pendingActionId");
+    const json pa = j.value("pendingAction", json::object());
+    if (r.pending_action_id.empty() || !pa.contains("x") || !pa.at("x").is_array() ||
+        pa.at("x").size() > static_cast<size_t>(kMaxActionDim)) {
+      return Lost("pending action");
+    }
+    r.pending_action.kind = static_cast<int>(internal::Integer(pa, "kind", -1));
+    r.pending_action.x = ActionVec(static_cast<Eigen::Index>(pa.at("x").size()));
+    for (size_t i = 0; i < pa.at("x").size(); ++i) {
+      if (!pa.at("x")[i].is_number()) return Lost("pending action");
+      r.pending_action.x[static_cast<Eigen::Index>(i)] = pa.at("x")[i].get<double>();
+    }
+  }
+  if (!j.contains("world")) return Lost("missing world");
+  auto world = internal::WorldFromJson(j.at("world"), limits);
+  if (!world.ok()) return world.status();
+  r.world = std::move(world).value();
+  if (r.state == SessionState::kActionPending) {
+    const int kind = r.pending_action.kind;
+    const int max_kind = 1 + 3 * static_cast<int>(r.world.objects.size());
+    if (kind < 0 || kind >= max_kind ||
+        (kind == object_search::kMoveKind && r.pending_action.x.size() != 6)) {
+      return Lost("pending action kind");
+    }
+  }
+  if (j.contains("target")) {
+    const json& t = j.at("target");
+    r.target.description = internal::String(t, "description").substr(0, limits.max_description);
+    if (t.contains("photos")) {
+      const json& photos = t.at("photos");
+      if (!photos.is_array() || static_cast<int64_t>(photos.size()) > limits.max_photos) {
+        return Lost("target photos");
+      }
+      for (const json& photo : photos) {
+        if (!photo.is_string()) return Lost("target photo");
+        auto bytes = Base64Decode(photo.get<std::string>(), "photo");
+        if (!bytes.ok()) return Lost("target photo");
+        auto info = ProbeImage(*bytes, "photo");
+        if (!info.ok() || info->width * info->height > limits.max_photo_pixels) {
+          return Lost("target photo");
+        }
+        r.target.photos.push_back(std::move(bytes).value());
+      }
+    }
+  }
+  if (j.contains("perception")) {
+    const json& pj = j.at("perception");
+    if (!pj.is_object() || !pj.contains("tracks") || !pj.at("tracks").is_array() ||
+        static_cast<int64_t>(pj.at("tracks").size()) > 4 * limits.max_objects) {
+      return Lost("perception");
+    }
+    std::vector<perception::TrackState> tracks;
+    for (const json& tj : pj.at("tracks")) {
+      if (!tj.is_object() || !tj.contains("points") || !tj.at("points").is_string()) {
+        return Lost("perception track");
+      }
+      perception::TrackState t;
+      t.id = internal::String(tj, "id").substr(0, limits.max_id_length);
+      t.surface = static_cast<int>(internal::Integer(tj, "surface", -1));
+      auto bytes = Base64Decode(tj.at("points").get<std::string>(), "points",
+                                static_cast<size_t>(limits.max_points) * 12);
+      if (!bytes.ok() || bytes->size() % (3 * sizeof(float)) != 0) return Lost("track points");
+      t.points.resize(bytes->size() / sizeof(float));
+      if (!t.points.empty()) std::memcpy(t.points.data(), bytes->data(), bytes->size());
+      for (float v : t.points) {
+        if (!std::isfinite(v) || std::abs(v) > limits.max_coordinate) return Lost("track points");
+      }
+      tracks.push_back(std::move(t));
+    }
+    const int64_t next_id = internal::Integer(pj, "nextId");
+    if (next_id < 0 || next_id > 1'000'000'000) return Lost("perception next id");
+    r.perception = std::make_pair(static_cast<int>(next_id), std::move(tracks));
+  }
+  return r;
+}
+
+}  // namespace npfkct::api

@@ -1,0 +1,324 @@
+#include "schema.h"
+
+#include <algorithm>
+#include <cstdlib>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <valijson/adapters/nlohmann_json_adapter.hpp>
+#include <valijson/schema.hpp>
+#include <valijson/schema_parser.hpp>
+#include <valijson/validation_results.hpp>
+#include <valijson/validator.hpp>
+
+namespace npfkct::api::internal {
+namespace {
+
+using Adapter = valijson::adapters::NlohmannJsonAdapter;
+
+bool StartsWith(const std::string& s, std::string_view prefix) {
+  return s.compare(0, prefix.size(), prefix) == 0;
+}
+
+// The text between the last pair of single quotes ("... constraints: 'x'.").
+std::string Quoted(const std::string& s) {
+  const size_t b = s.find_last_of('\'');
+  const size_t a =
+      b == std::string::npos || b == 0 ? std::string::npos : s.find_last_of('\'', b - 1);
+  return a == std::string::npos ? "" : s.substr(a + 1, b - a - 1);
+}
+
+// The number at the end of a valijson message ("Expected number less than 5.000000").
+std::string TrailingNumber(const std::string& s) {
+  size_t end = s.size();
+  while (end > 0 && (s[end - 1] == '.' || s[end - 1] == ' ')) --end;
+  size_t begin = s.find_last_of(' ', end - 1);
+  begin = begin == std::string::npos ? 0 : begin + 1;
+  const std::string text = s.substr(begin, end - begin);
+  char* stop = nullptr;
+  const double v = std::strtod(text.c_str(), &stop);
+  if (stop == text.c_str()) return text;
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.10g", v);
+  return buf;
+}
+
+// The integer after `prefix` ("Array should contain no fewer than 2 elements.").
+std::string CountAfter(const std::string& s, std::string_view prefix) {
+  size_t i = prefix.size();
+  size_t j = i;
+  while (j < s.size() && std::isdigit(static_cast<unsigned char>(s[j]))) ++j;
+  return s.substr(i, j - i);
+}
+
+struct Documents {
+  std::map<std::string, json, std::less<>> files;
+  std::map<std::string, std::unique_ptr<valijson::Schema>, std::less<>> schemas;
+};
+
+std::string FileOf(const std::string& uri) {
+  const size_t slash = uri.find_last_of('/');
+  std::string name = slash == std::string::npos ? uri : uri.substr(slash + 1);
+  const size_t hash = name.find('#');
+  return hash == std::string::npos ? name : name.substr(0, hash);
+}
+
+const Documents& Docs() {
+  static const Documents* docs = [] {
+    auto* d = new Documents();
+    for (const auto& [name, text] : EmbeddedSchemaFiles()) {
+      d->files[std::string(name)] = json::parse(text);
+    }
+    for (const auto& [name, doc] : d->files) {
+      auto schema = std::make_unique<valijson::Schema>();
+      valijson::SchemaParser parser(valijson::SchemaParser::kDraft7);
+      Adapter adapter(doc);
+      parser.populateSchema(
+          adapter, *schema,
+          [d](const std::string& uri) -> const json* {
+            auto it = d->files.find(FileOf(uri));
+            return it == d->files.end() ? nullptr : &it->second;
+          },
+          [](const json*) {});
+      d->schemas[name] = std::move(schema);
+    }
+    return d;
+  }();
+  return *docs;
+}
+
+// ---- finding the schema of an instance path, to describe violations ----
+
+struct Node {
+  const json* schema = nullptr;
+  const json* doc = nullptr;  // the file it lives in (for local $refs)
+};
+
+Node Resolve(Node n) {
+  for (int guard = 0; guard < 16 && n.schema && n.schema->is_object(); ++guard) {
+    auto ref = n.schema->find("$ref");
+    if (ref == n.schema->end() || !ref->is_string()) break;
+    const std::string r = ref->get<std::string>();
+    const size_t hash = r.find('#');
+    const std::string file = r.substr(0, hash);
+    if (!file.empty()) {
+      const json* d = SchemaDocument(FileOf(file));
+      if (!d) return {};
+      n.doc = d;
+    }
+    const std::string pointer = hash == std::string::npos ? "" : r.substr(hash + 1);
+    const json::json_pointer p(pointer);
+    if (!n.doc->contains(p)) return {};
+    n.schema = &n.doc->at(p);
+  }
+  return n;
+}
+
+Node Child(Node n, const std::string& key, bool index) {
+  n = Resolve(n);
+  if (!n.schema || !n.schema->is_object()) return {};
+  const json& s = *n.schema;
+  if (index) {
+    auto items = s.find("items");
+    return items != s.end() && items->is_object() ? Node{&*items, n.doc} : Node{};
+  }
+  auto props = s.find("properties");
+  if (props != s.end() && props->contains(key)) return {&props->at(key), n.doc};
+  auto all = s.find("allOf");
+  if (all != s.end() && all->is_array()) {
+    for (const json& part : *all) {
+      Node c = Child({&part, n.doc}, key, false);
+      if (c.schema) return c;
+    }
+  }
+  auto extra = s.find("additionalProperties");
+  if (extra != s.end() && extra->is_object()) return {&*extra, n.doc};
+  return {};
+}
+
+std::string TypeWords(const json& type) {
+  auto one = [](const std::string& t) -> std::string {
+    if (t == "number") return "a number";
+    if (t == "integer") return "an integer";
+    if (t == "string") return "a string";
+    if (t == "boolean") return "true or false";
+    if (t == "object") return "an object";
+    if (t == "array") return "an array";
+    return t;
+  };
+  if (type.is_string()) return one(type.get<std::string>());
+  std::string out;
+  for (size_t i = 0; type.is_array() && i < type.size(); ++i) {
+    if (!type[i].is_string()) continue;
+    out += (out.empty() ? "" : " or ") + one(type[i].get<std::string>());
+  }
+  return out;
+}
+
+struct Violation {
+  std::string field;
+  std::string description;
+  int depth = 0;
+};
+
+}  // namespace
+
+const json* SchemaDocument(std::string_view name) {
+  const auto& files = Docs().files;
+  auto it = files.find(name);
+  return it == files.end() ? nullptr : &it->second;
+}
+
+Status ValidateAgainstSchema(std::string_view message, const json& doc, size_t max_violations) {
+  const Documents& d = Docs();
+  auto it = d.schemas.find(std::string(message) + ".schema.json");
+  if (it == d.schemas.end()) return InternalError("no schema for " + std::string(message));
+  const std::string root_file = std::string(message) + ".schema.json";
+  Adapter adapter(doc);
+  {
+    valijson::Validator fast;  // stops at the first failure
+    if (fast.validate(*it->second, adapter, nullptr)) return OkStatus();
+  }
+  valijson::Validator validator;
+  valijson::ValidationResults results;
+  validator.validate(*it->second, adapter, &results);
+
+  std::vector<Violation> out;
+  std::vector<Violation> alternatives;  // oneOf/anyOf that failed as a whole
+  valijson::ValidationResults::Error e;
+  while (results.popError(e)) {
+    // The instance path: "<root>", then "[key]" or "[index]" per level.
+    std::string path;
+    const json* at = &doc;
+    Node schema{SchemaDocument(root_file), SchemaDocument(root_file)};
+    int depth = 0;
+    for (size_t i = 1; i < e.context.size(); ++i) {
+      std::string token = e.context[i];
+      if (token.size() >= 2 && token.front() == '[' && token.back() == ']') {
+        token = token.substr(1, token.size() - 2);
+      }
+      const bool index = at && at->is_array();
+      if (index) {
+        const size_t k = std::strtoul(token.c_str(), nullptr, 10);
+        path = At(path, k);
+        at = k < at->size() ? &(*at)[k] : nullptr;
+      } else {
+        path = Join(path, token);
+        at = at && at->is_object() && at->contains(token) ? &at->at(token) : nullptr;
+      }
+      schema = Child(schema, token, index);
+      ++depth;
+    }
+    const Node here = Resolve(schema);
+    const std::string& m = e.description;
+    auto add = [&](std::string field, std::string description, int extra_depth = 0) {
+      out.push_back({std::move(field), std::move(description), depth + extra_depth});
+    };
+    if (StartsWith(m, "Failed to validate against schema associated with property") ||
+        StartsWith(m, "Failed to validate item #") ||
+        StartsWith(m, "Failed to validate against child schema") ||
+        StartsWith(m, "Failed to validate against a conditional schema") ||
+        StartsWith(m, "Failed to validate against additional properties schema") ||
+        StartsWith(m, "Failed to validate against schema associated with pattern")) {
+      continue;  // a consequence of a more specific error
+    }
+    if (StartsWith(m, "Failed to validate against any") ||
+        StartsWith(m, "Failed to validate against exactly one")) {
+      const json* s = here.schema;
+      alternatives.push_back({path,
+                              s && s->contains("description") && s->at("description").is_string()
+                                  ? s->at("description").get<std::string>()
+                                  : "does not match any accepted form",
+                              depth});
+    } else if (StartsWith(m, "Object contains a property that could not be validated")) {
+      add(Join(path, Quoted(m)), "unknown field", 1);
+    } else if (StartsWith(m, "Missing required property")) {
+      add(Join(path, Quoted(m)), "missing", 1);
+    } else if (StartsWith(m, "Value type not permitted")) {
+      const std::string words =
+          here.schema && here.schema->contains("type") ? TypeWords(here.schema->at("type")) : "";
+      add(path, words.empty() ? "wrong type" : "expected " + words);
+    } else if (StartsWith(m, "Failed to match against any enum values")) {
+      std::string values;
+      if (here.schema && here.schema->contains("enum")) {
+        for (const json& v : here.schema->at("enum"))
+          values += (values.empty() ? "" : ", ") + Dump(v);
+      }
+      add(path, values.empty() ? "not an accepted value" : "expected one of " + values);
+    } else if (StartsWith(m, "Failed to match expected value set by 'const'")) {
+      add(path, here.schema && here.schema->contains("const")
+                    ? "expected " + Dump(here.schema->at("const"))
+                    : "not the expected value");
+    } else if (StartsWith(m, "Expected number greater than or equal to")) {
+      add(path, "must be >= " + TrailingNumber(m));
+    } else if (StartsWith(m, "Expected number greater than")) {
+      add(path, "must be > " + TrailingNumber(m));
+    } else if (StartsWith(m, "Expected number less than or equal to")) {
+      add(path, "must be <= " + TrailingNumber(m));
+    } else if (StartsWith(m, "Expected number less than")) {
+      add(path, "must be < " + TrailingNumber(m));
+    } else if (StartsWith(m, "Array should contain no fewer than ")) {
+      add(path,
+          "expected at least " + CountAfter(m, "Array should contain no fewer than ") + " items");
+    } else if (StartsWith(m, "Array should contain no more than ")) {
+      add(path,
+          "expected at most " + CountAfter(m, "Array should contain no more than ") + " items");
+    } else if (StartsWith(m, "String should be no more than ")) {
+      add(path,
+          "expected at most " + CountAfter(m, "String should be no more than ") + " characters");
+    } else if (StartsWith(m, "String should be no fewer than ")) {
+      add(path,
+          "expected at least " + CountAfter(m, "String should be no fewer than ") + " characters");
+    } else if (StartsWith(m, "Object should have no more than ")) {
+      add(path,
+          "expected at most " + CountAfter(m, "Object should have no more than ") + " entries");
+    } else if (StartsWith(m, "Target should not validate against schema specified in 'not'")) {
+      const json* s = here.schema;
+      const json* n = s && s->contains("not") ? &s->at("not") : nullptr;
+      std::string field = path;
+      if (n && n->contains("required") && n->at("required").is_array() &&
+          !n->at("required").empty() && n->at("required")[0].is_string()) {
+        field = Join(path, n->at("required")[0].get<std::string>());
+      }
+      add(field.empty() ? "body" : field,
+          n && n->contains("description") && n->at("description").is_string()
+              ? n->at("description").get<std::string>()
+              : "not allowed here",
+          1);
+    } else {
+      add(path.empty() ? "body" : path, m);
+    }
+  }
+  // Inside an alternative that failed as a whole, the per-alternative errors say little.
+  for (const Violation& alt : alternatives) {
+    const std::string& a = alt.field;
+    out.erase(std::remove_if(out.begin(), out.end(),
+                             [&](const Violation& v) {
+                               const std::string& f = v.field;
+                               return a.empty() || f == a ||
+                                      (f.size() > a.size() && f.compare(0, a.size(), a) == 0 &&
+                                       (f[a.size()] == '.' || f[a.size()] == '['));
+                             }),
+              out.end());
+  }
+  for (Violation alt : alternatives) {
+    if (alt.field.empty()) alt.field = "body";
+    out.push_back(std::move(alt));
+  }
+  std::stable_sort(out.begin(), out.end(),
+                   [](const Violation& a, const Violation& b) { return a.depth > b.depth; });
+  std::vector<Violation> unique;
+  for (const Violation& v : out) {
+    const bool seen = std::any_of(unique.begin(), unique.end(), [&](const Violation& u) {
+      return u.field == v.field && u.description == v.description;
+    });
+    if (!seen) unique.push_back(v);
+    if (unique.size() >= max_violations) break;
+  }
+  if (unique.empty()) unique.push_back({"body", "does not match the request schema", 0});
+  Status s(StatusCode::kInvalidArgument, unique[0].field + ": " + unique[0].description);
+  for (const Violation& v : unique) s.WithFieldViolation(v.field, v.description);
+  return s;
+}
+
+}  // namespace npfkct::api::internal

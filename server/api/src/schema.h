@@ -1,0 +1,23 @@
+// Request validation against the JSON Schemas of schemas/ (embedded at build time) with valijson.
+#pragma once
+
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "json_util.h"
+
+namespace npfkct::api::internal {
+
+/// The schema files compiled into the server: (file name, text).
+const std::vector<std::pair<std::string_view, std::string_view>>& EmbeddedSchemaFiles();
+
+/// The parsed schema file `name` ("common.schema.json"), or null.
+const json* SchemaDocument(std::string_view name);
+
+/// Validates `doc` against schemas/`message`.schema.json. On failure: INVALID_ARGUMENT whose field
+/// violations name the offending fields by their paths in the request ("world.furniture[0].size",
+/// "planner.unknownKey"), at most `max_violations` of them, the most specific first.
+Status ValidateAgainstSchema(std::string_view message, const json& doc, size_t max_violations = 8);
+
+}  // namespace npfkct::api::internal

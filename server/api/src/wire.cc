@@ -1,0 +1,246 @@
+#include "npfkct/api/wire.h"
+
+#include <cmath>
+#include <cstring>
+#include <opencv2/imgcodecs.hpp>
+#include <vector>
+
+namespace npfkct::api {
+namespace {
+
+int Base64Value(char c) {
+  if (c >= 'A' && c <= 'Z') return c - 'A';
+  if (c >= 'a' && c <= 'z') return c - 'a' + 26;
+  if (c >= '0' && c <= '9') return c - '0' + 52;
+  if (c == '+' || c == '-') return 62;
+  if (c == '/' || c == '_') return 63;
+  return -1;
+}
+
+uint32_t BigEndian32(const unsigned char* p) {
+  return (uint32_t{p[0]} << 24) | (uint32_t{p[1]} << 16) | (uint32_t{p[2]} << 8) | p[3];
+}
+
+}  // namespace
+
+std::string Base64Encode(std::string_view bytes) {
+  static const char* kAlphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  out.reserve((bytes.size() + 2) / 3 * 4);
+  size_t i = 0;
+  for (; i + 2 < bytes.size(); i += 3) {
+    const uint32_t v = (static_cast<uint8_t>(bytes[i]) << 16) |
+                       (static_cast<uint8_t>(bytes[i + 1]) << 8) |
+                       static_cast<uint8_t>(bytes[i + 2]);
+    out += kAlphabet[v >> 18];
+    out += kAlphabet[(v >> 12) & 63];
+    out += kAlphabet[(v >> 6) & 63];
+    out += kAlphabet[v & 63];
+  }
+  if (i < bytes.size()) {
+    uint32_t v = static_cast<uint8_t>(bytes[i]) << 16;
+    if (i + 1 < bytes.size()) v |= static_cast<uint8_t>(bytes[i + 1]) << 8;
+    out += kAlphabet[v >> 18];
+    out += kAlphabet[(v >> 12) & 63];
+    out += i + 1 < bytes.size() ? kAlphabet[(v >> 6) & 63] : '=';
+    out += '=';
+  }
+  return out;
+}
+
+StatusOr<std::string> Base64Decode(std::string_view text, const std::string& field,
+                                   size_t max_bytes) {
+  if (text.size() / 4 > max_bytes / 3 + 1) {
+    return InvalidFieldError(field, "more than " + std::to_string(max_bytes) + " bytes");
+  }
+  std::string out;
+  out.reserve(text.size() * 3 / 4);
+  uint32_t buffer = 0;
+  int bits = 0;
+  size_t padding = 0;
+  for (char c : text) {
+    if (c == '\n' || c == '\r' || c == ' ') continue;
+    if (c == '=') {
+      ++padding;
+      continue;
+    }
+    if (padding > 0) return InvalidFieldError(field, "not base64: data after padding");
+    const int v = Base64Value(c);
+    if (v < 0) return InvalidFieldError(field, "not base64: unexpected character");
+    buffer = (buffer << 6) | static_cast<uint32_t>(v);
+    bits += 6;
+    if (bits >= 8) {
+      bits -= 8;
+      out += static_cast<char>((buffer >> bits) & 0xff);
+    }
+  }
+  if (padding > 2) return InvalidFieldError(field, "not base64: too much padding");
+  if (out.size() > max_bytes) {
+    return InvalidFieldError(field, "more than " + std::to_string(max_bytes) + " bytes");
+  }
+  return out;
+}
+
+StatusOr<ImageInfo> ProbeImage(std::string_view bytes, const std::string& field) {
+  const auto* p = reinterpret_cast<const unsigned char*>(bytes.data());
+  const size_t n = bytes.size();
+  ImageInfo info;
+  if (n >= 8 && std::memcmp(p, "\x89PNG\r\n\x1a\n", 8) == 0) {
+    // The first chunk must be IHDR: length 13, then width and height (big-endian).
+    if (n < 24 || std::memcmp(p + 12, "IHDR", 4) != 0) {
+      return InvalidFieldError(field, "a PNG without its IHDR header");
+    }
+    info.format = ImageInfo::Format::kPng;
+    info.width = BigEndian32(p + 16);
+    info.height = BigEndian32(p + 20);
+  } else if (n >= 3 && p[0] == 0xff && p[1] == 0xd8 && p[2] == 0xff) {
+    // Walk the markers to the first start-of-frame (SOF0..SOF15 but DHT, JPG and DAC).
+    info.format = ImageInfo::Format::kJpeg;
+    size_t i = 2;
+    bool found = false;
+    while (i + 4 <= n) {
+      if (p[i] != 0xff) return InvalidFieldError(field, "a JPEG with a broken marker");
+      const unsigned char marker = p[i + 1];
+      if (marker == 0xff) {  // fill byte
+        ++i;
+        continue;
+      }
+      if (marker == 0xd8 || marker == 0x01 || (marker >= 0xd0 && marker <= 0xd7)) {
+        i += 2;
+        continue;
+      }
+      if (marker == 0xd9 || marker == 0xda) break;  // end of image, start of scan
+      const size_t length = (size_t{p[i + 2]} << 8) | p[i + 3];
+      if (length < 2) return InvalidFieldError(field, "a JPEG with a broken segment");
+      if (marker >= 0xc0 && marker <= 0xcf && marker != 0xc4 && marker != 0xc8 && marker != 0xcc) {
+        if (i + 9 > n) break;
+        info.height = (int64_t{p[i + 5]} << 8) | p[i + 6];
+        info.width = (int64_t{p[i + 7]} << 8) | p[i + 8];
+        found = true;
+        break;
+      }
+      i += 2 + length;
+    }
+    if (!found) return InvalidFieldError(field, "a JPEG without a frame header before its data");
+  } else {
+    return InvalidFieldError(field, "not a PNG or JPEG image");
+  }
+  if (info.width <= 0 || info.height <= 0) {
+    return InvalidFieldError(field, "the image header gives no size");
+  }
+  return info;
+}
+
+StatusOr<cv::Mat> DecodeImage(std::string_view bytes, int64_t max_pixels,
+                              const std::string& field) {
+  auto info = ProbeImage(bytes, field);
+  if (!info.ok()) return info.status();
+  if (info->width > max_pixels || info->height > max_pixels ||
+      info->width * info->height > max_pixels) {
+    return InvalidFieldError(field, "the image is " + std::to_string(info->width) + " x " +
+                                        std::to_string(info->height) + " pixels, more than " +
+                                        std::to_string(max_pixels));
+  }
+  if (bytes.size() > static_cast<size_t>(INT32_MAX)) {
+    return InvalidFieldError(field, "too many bytes");
+  }
+  cv::Mat image;
+  try {
+    const cv::Mat raw(1, static_cast<int>(bytes.size()), CV_8U, const_cast<char*>(bytes.data()));
+    image = cv::imdecode(raw, cv::IMREAD_COLOR);
+  } catch (const cv::Exception&) {
+    image.release();
+  }
+  if (image.empty()) return InvalidFieldError(field, "not a decodable PNG or JPEG image");
+  if (image.cols != info->width || image.rows != info->height) {
+    // A header that lied (e.g. a second frame of another size): refuse rather than guess.
+    return InvalidFieldError(field, "the decoded image does not have the size of its header");
+  }
+  return image;
+}
+
+StatusOr<std::string> EncodePng(const cv::Mat& image) {
+  std::vector<uchar> png;
+  try {
+    if (!cv::imencode(".png", image, png)) return InternalError("PNG encoding failed");
+  } catch (const cv::Exception& e) {
+    return InternalError(std::string("PNG encoding failed: ") + e.what());
+  }
+  return std::string(png.begin(), png.end());
+}
+
+StatusOr<perception::Cloud::Ptr> DecodeCloud(std::string_view bytes, const std::string& fields,
+                                             int64_t max_points, double max_coordinate,
+                                             const std::string& field) {
+  if (fields != "xyz" && fields != "xyzrgb") {
+    return InvalidFieldError(field + ".fields", "expected \"xyz\" or \"xyzrgb\"");
+  }
+  const size_t stride = fields == "xyz" ? 12 : 16;
+  const std::string data = field + ".data";
+  if (bytes.empty()) return InvalidFieldError(data, "the cloud is empty");
+  if (bytes.size() % stride != 0) {
+    return InvalidFieldError(data, std::to_string(bytes.size()) +
+                                       " bytes is not a whole number of " + std::to_string(stride) +
+                                       "-byte points");
+  }
+  const size_t n = bytes.size() / stride;
+  if (static_cast<int64_t>(n) > max_points) {
+    return InvalidFieldError(
+        data, std::to_string(n) + " points, more than " + std::to_string(max_points));
+  }
+  // Every coordinate is checked before PCL sees the cloud: huge finite values overflow PCL's
+  // voxel grids and kd-trees.
+  for (size_t i = 0; i < n; ++i) {
+    float v[3];
+    std::memcpy(v, bytes.data() + i * stride, sizeof v);
+    for (float c : v) {
+      if (!std::isfinite(c)) {
+        return InvalidFieldError(
+            data, "point " + std::to_string(i) + " is not finite (drop NaN points before sending)");
+      }
+      if (std::abs(c) > max_coordinate) {
+        return InvalidFieldError(data, "point " + std::to_string(i) + " has a coordinate beyond " +
+                                           std::to_string(static_cast<int64_t>(max_coordinate)) +
+                                           " m");
+      }
+    }
+  }
+  auto cloud = pcl::make_shared<perception::Cloud>();
+  cloud->resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    float v[4] = {0, 0, 0, 0};
+    std::memcpy(v, bytes.data() + i * stride, stride);
+    auto& p = (*cloud)[i];
+    p.x = v[0];
+    p.y = v[1];
+    p.z = v[2];
+    if (stride == 16) {
+      uint32_t rgb;
+      std::memcpy(&rgb, &v[3], 4);
+      p.r = (rgb >> 16) & 0xff;
+      p.g = (rgb >> 8) & 0xff;
+      p.b = rgb & 0xff;
+    } else {
+      p.r = p.g = p.b = 128;
+    }
+  }
+  cloud->width = static_cast<uint32_t>(n);
+  cloud->height = 1;
+  cloud->is_dense = true;
+  return cloud;
+}
+
+std::string EncodeCloud(const perception::Cloud& cloud) {
+  std::string bytes(cloud.size() * 16, '\0');
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    const auto& p = cloud[i];
+    const uint32_t rgb = (static_cast<uint32_t>(p.r) << 16) | (static_cast<uint32_t>(p.g) << 8) |
+                         static_cast<uint32_t>(p.b);
+    float v[4] = {p.x, p.y, p.z, 0.0f};
+    std::memcpy(&v[3], &rgb, 4);
+    std::memcpy(bytes.data() + i * 16, v, 16);
+  }
+  return bytes;
+}
+
+}  // namespace npfkct::api

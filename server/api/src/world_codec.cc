@@ -1,0 +1,552 @@
+#include "world_codec.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <set>
+
+#include "npfkct/api/api.h"
+
+namespace npfkct::api::internal {
+namespace {
+
+using object_search::Box;
+using object_search::Vec2;
+using object_search::Vec3;
+
+constexpr double kGridResolution = 0.02;  // the grid world's cells (paper: 2 cm)
+
+// ceil(x) as a count, saturating far below int64 overflow.
+int64_t CeilCount(double x) {
+  if (!(x > 0.0)) return 1;
+  if (x > 1e15) return int64_t{1} << 50;
+  return std::max<int64_t>(1, static_cast<int64_t>(std::ceil(x)));
+}
+
+int64_t SaturatingProduct(int64_t a, int64_t b) {
+  if (a > 0 && b > std::numeric_limits<int64_t>::max() / 4 / a) {
+    return std::numeric_limits<int64_t>::max() / 4;
+  }
+  return a * b;
+}
+
+std::vector<object_search::Workspace> WorkspacesOf(const WorldSpec& spec) {
+  std::vector<object_search::Workspace> out;
+  for (const WorldSpec::Furniture& f : spec.furniture) {
+    if (!f.workspace) continue;
+    object_search::Workspace w;
+    w.name = f.name;
+    w.center = f.box.center.head<2>();
+    w.yaw = f.box.yaw;
+    w.length = f.box.size.x();
+    w.width = f.box.size.y();
+    w.height = f.box.size.z();
+    out.push_back(w);
+  }
+  return out;
+}
+
+Status Lost(const std::string& what) { return Status(StatusCode::kDataLoss, "snapshot: " + what); }
+
+// Marks the footprint of an upright box occupied: the cells OccupancyMap::AddBox marks (the same
+// test on the same arithmetic), visiting only the cells under the box's bounding circle instead
+// of the whole map, so that many pieces of furniture on a fine map stay cheap.
+void MarkFootprint(const object_search::OccupancyMap& map, const Box& box,
+                   std::vector<uint8_t>* cells) {
+  const double res = map.resolution();
+  const Vec2 lo = map.min();
+  const double radius = 0.5 * std::hypot(box.size.x(), box.size.y()) + 2.0 * res;
+  const auto range = [&](double center, double origin, int n) {
+    const double a = std::floor((center - radius - origin) / res) - 1.0;
+    const double b = std::ceil((center + radius - origin) / res) + 1.0;
+    return std::pair<int, int>(static_cast<int>(std::clamp(a, 0.0, n - 1.0)),
+                               static_cast<int>(std::clamp(b, 0.0, n - 1.0)));
+  };
+  const auto [x0, x1] = range(box.center.x(), lo.x(), map.nx());
+  const auto [y0, y1] = range(box.center.y(), lo.y(), map.ny());
+  const double c = std::cos(box.yaw), s = std::sin(box.yaw);
+  for (int iy = y0; iy <= y1; ++iy) {
+    for (int ix = x0; ix <= x1; ++ix) {
+      const Vec3 p(lo.x() + (ix + 0.5) * res, lo.y() + (iy + 0.5) * res, box.center.z());
+      const Vec3 d = p - box.center;
+      const double lx = c * d.x() + s * d.y(), ly = -s * d.x() + c * d.y();
+      if (std::abs(lx) <= 0.5 * box.size.x() && std::abs(ly) <= 0.5 * box.size.y()) {
+        (*cells)[static_cast<size_t>(iy) * map.nx() + ix] = 1;
+      }
+    }
+  }
+}
+
+}  // namespace
+
+int64_t GridCells(const std::vector<object_search::Workspace>& workspaces, double resolution) {
+  int64_t total = 0;
+  for (const object_search::Workspace& w : workspaces) {
+    // GridWorld's count: max(1, ceil(extent / resolution - 1e-9)) per axis.
+    const int64_t nx = CeilCount(w.length / resolution - 1e-9);
+    const int64_t ny = CeilCount(w.width / resolution - 1e-9);
+    total = std::min<int64_t>(total + SaturatingProduct(nx, ny),
+                              std::numeric_limits<int64_t>::max() / 4);
+  }
+  return total;
+}
+
+int64_t MapCells(const Vec2& lo, const Vec2& hi, double resolution) {
+  return SaturatingProduct(CeilCount((hi.x() - lo.x()) / resolution),
+                           CeilCount((hi.y() - lo.y()) / resolution));
+}
+
+StatusOr<WorldSpec> ReadWorldSpec(const json& j, const std::string& path, const Limits& limits) {
+  WorldSpec spec;
+  spec.robot = String(j, "robot", "fetch");
+  if (!object_search::RobotPreset::ByName(spec.robot).ok()) {
+    return InvalidFieldError(Join(path, "robot"), "expected \"fetch\" or \"stretch\"");
+  }
+  if (j.contains("room")) {
+    const json& room = j.at("room");
+    ReadVec(room.at("min"), &spec.room_min);
+    ReadVec(room.at("max"), &spec.room_max);
+    if (!(spec.room_min.x() < spec.room_max.x() && spec.room_min.y() < spec.room_max.y())) {
+      return InvalidFieldError(Join(path, "room.max"), "must be above room.min in x and y");
+    }
+  }
+  spec.map_resolution = Number(j, "mapResolution", spec.map_resolution);
+  const int64_t map_cells = MapCells(spec.room_min, spec.room_max, spec.map_resolution);
+  if (map_cells > limits.max_map_cells) {
+    return InvalidFieldError(Join(path, "mapResolution"),
+                             "the occupancy map of the room would have " +
+                                 std::to_string(map_cells) + " cells, more than " +
+                                 std::to_string(limits.max_map_cells) +
+                                 " (use a coarser resolution or a smaller room)");
+  }
+  const json& furniture = j.at("furniture");
+  if (static_cast<int64_t>(furniture.size()) > limits.max_furniture) {
+    return InvalidFieldError(Join(path, "furniture"),
+                             "at most " + std::to_string(limits.max_furniture) + " pieces");
+  }
+  std::set<std::string> names;
+  int64_t grid_cells = 0;
+  for (size_t i = 0; i < furniture.size(); ++i) {
+    const json& f = furniture[i];
+    const std::string at = At(Join(path, "furniture"), i);
+    WorldSpec::Furniture piece;
+    piece.name = String(f, "name");
+    if (!names.insert(piece.name).second) {
+      return InvalidFieldError(at + ".name", "duplicate name '" + piece.name + "'");
+    }
+    Vec2 center = Vec2::Zero();
+    ReadVec(f.at("center"), &center);
+    ReadVec(f.at("size"), &piece.box.size);
+    piece.box.yaw = Number(f, "yaw", 0.0);
+    piece.box.center = Vec3(center.x(), center.y(), 0.5 * piece.box.size.z());
+    piece.workspace = Bool(f, "workspace", false);
+    if (piece.workspace) {
+      grid_cells += GridCells({{piece.name, center, piece.box.yaw, piece.box.size.x(),
+                                piece.box.size.y(), piece.box.size.z()}},
+                              kGridResolution);
+      if (grid_cells > limits.max_grid_cells) {
+        return InvalidFieldError(at + ".size", "the workspaces would have more than " +
+                                                   std::to_string(limits.max_grid_cells) +
+                                                   " grid-world cells of 2 cm together");
+      }
+    }
+    spec.furniture.push_back(std::move(piece));
+  }
+  if (grid_cells == 0) {
+    return InvalidFieldError(Join(path, "furniture"), "at least one piece must be a workspace");
+  }
+  const json& regions = j.at("baseRegions");
+  if (static_cast<int64_t>(regions.size()) > limits.max_base_regions) {
+    return InvalidFieldError(Join(path, "baseRegions"),
+                             "at most " + std::to_string(limits.max_base_regions) + " regions");
+  }
+  for (size_t i = 0; i < regions.size(); ++i) {
+    object_search::BaseRegion r;
+    ReadVec(regions[i].at("min"), &r.min);
+    ReadVec(regions[i].at("max"), &r.max);
+    if (!(r.min.x() < r.max.x() && r.min.y() < r.max.y())) {
+      return InvalidFieldError(At(Join(path, "baseRegions"), i) + ".max",
+                               "must be above min in x and y");
+    }
+    spec.base_regions.push_back(r);
+  }
+  if (j.contains("discretePoses")) {
+    const json& poses = j.at("discretePoses");
+    if (static_cast<int64_t>(poses.size()) > limits.max_discrete_poses) {
+      return InvalidFieldError(Join(path, "discretePoses"),
+                               "at most " + std::to_string(limits.max_discrete_poses) + " poses");
+    }
+    for (const json& p : poses) spec.discrete_poses.push_back(ReadConfig(p));
+  }
+  if (j.contains("start")) spec.start = ReadConfig(j.at("start"));
+  if (j.contains("params")) {
+    const json& p = j.at("params");
+    auto& q = spec.params;
+    const std::pair<const char*, double*> reals[] = {{"rMax", &q.r_max},
+                                                     {"rCt", &q.r_ct},
+                                                     {"rCo", &q.r_co},
+                                                     {"rMin", &q.r_min},
+                                                     {"rIll", &q.r_ill},
+                                                     {"discount", &q.discount},
+                                                     {"cO", &q.c_o},
+                                                     {"etaStd", &q.eta_std},
+                                                     {"nuP", &q.nu_p},
+                                                     {"nuN", &q.nu_n},
+                                                     {"declareThreshold", &q.declare_threshold},
+                                                     {"guessOdds", &q.guess_odds},
+                                                     {"guessSize", &q.guess_size},
+                                                     {"gridFreeDelta", &q.grid_free_delta}};
+    for (auto [key, field] : reals) *field = Number(p, key, *field);
+    q.n_odds = static_cast<int>(Integer(p, "nOdds", q.n_odds));
+    q.max_steps = static_cast<int>(Integer(p, "maxSteps", q.max_steps));
+    if (Status s = q.Validate(); !s.ok())
+      return InvalidFieldError(Join(path, "params"), s.message());
+  }
+  return spec;
+}
+
+json WorldJson(const World& w) {
+  json j;
+  const auto& r = w.robot;
+  j["robot"] = {{"name", r.name},
+                {"cameraOffset", Vec(r.camera_offset)},
+                {"liftMovesCamera", r.lift_moves_camera},
+                {"liftMin", r.lift_min},
+                {"liftMax", r.lift_max},
+                {"panMin", r.pan_min},
+                {"panMax", r.pan_max},
+                {"tiltMin", r.tilt_min},
+                {"tiltMax", r.tilt_max},
+                {"footprintRadius", r.footprint_radius},
+                {"reach", r.reach}};
+  j["camera"] = {{"horizontalFov", w.camera.horizontal_fov},
+                 {"aspect", w.camera.aspect},
+                 {"near", w.camera.near},
+                 {"far", w.camera.far}};
+  const auto& p = w.params;
+  j["params"] = {{"rMax", p.r_max},
+                 {"rCt", p.r_ct},
+                 {"rCo", p.r_co},
+                 {"rMin", p.r_min},
+                 {"rIll", p.r_ill},
+                 {"discount", p.discount},
+                 {"cO", p.c_o},
+                 {"etaStd", p.eta_std},
+                 {"nuP", p.nu_p},
+                 {"nuN", p.nu_n},
+                 {"nOdds", p.n_odds},
+                 {"declareThreshold", p.declare_threshold},
+                 {"guessOdds", p.guess_odds},
+                 {"guessSize", p.guess_size},
+                 {"guessMoveability", p.guess_moveability},
+                 {"gridFreeDelta", p.grid_free_delta},
+                 {"gridMin", p.grid_min},
+                 {"gridMax", p.grid_max},
+                 {"detectionMaxStep", p.detection_max_step},
+                 {"faceOddsLimit", p.face_odds_limit},
+                 {"maxSteps", p.max_steps}};
+  j["furniture"] = json::array();
+  for (const Box& b : w.furniture) j["furniture"].push_back(BoxJson(b));
+  // Occupancy as run lengths of alternating free / occupied cells, starting with free.
+  json runs = json::array();
+  bool current = false;
+  int64_t count = 0;
+  for (uint8_t c : w.occupancy.cells()) {
+    if ((c != 0) != current) {
+      runs.push_back(count);
+      current = c != 0;
+      count = 0;
+    }
+    ++count;
+  }
+  runs.push_back(count);
+  j["occupancy"] = {{"min", Vec(w.occupancy.min())},
+                    {"max", Vec(w.occupancy.max())},
+                    {"resolution", w.occupancy.resolution()},
+                    {"runs", runs}};
+  j["baseRegions"] = json::array();
+  for (const auto& br : w.base_regions) {
+    j["baseRegions"].push_back({{"min", Vec(br.min)}, {"max", Vec(br.max)}});
+  }
+  j["discretePoses"] = json::array();
+  for (const auto& c : w.discrete_poses) j["discretePoses"].push_back(ConfigJson(c));
+  j["grid"]["resolution"] = w.grid.resolution();
+  j["grid"]["workspaces"] = json::array();
+  for (const auto& ws : w.grid.workspaces()) {
+    j["grid"]["workspaces"].push_back({{"name", ws.name},
+                                       {"center", Vec(ws.center)},
+                                       {"yaw", ws.yaw},
+                                       {"length", ws.length},
+                                       {"width", ws.width},
+                                       {"height", ws.height}});
+  }
+  j["grid"]["logOdds"] = w.grid.all_log_odds();
+  j["objects"] = json::array();
+  for (const auto& o : w.objects) {
+    j["objects"].push_back({{"id", o.key},
+                            {"box", BoxJson(o.box)},
+                            {"moveability", o.moveability},
+                            {"odds", o.odds},
+                            {"status", o.status}});
+  }
+  j["robotConfig"] = ConfigJson(w.robot_config);
+  j["steps"] = w.steps;
+  return j;
+}
+
+StatusOr<World> WorldFromJson(const json& j, const Limits& limits) {
+  World w;
+  if (!j.is_object()) return Lost("world is not an object");
+  for (const char* key : {"robot", "camera", "params", "furniture", "occupancy", "baseRegions",
+                          "grid", "objects", "robotConfig"}) {
+    if (!j.contains(key)) return Lost(std::string("world: missing ") + key);
+  }
+  const json& r = j.at("robot");
+  if (!r.is_object() || !r.contains("cameraOffset") ||
+      !ReadVec(r.at("cameraOffset"), &w.robot.camera_offset)) {
+    return Lost("robot");
+  }
+  w.robot.name = String(r, "name", "custom").substr(0, 64);
+  w.robot.lift_moves_camera = Bool(r, "liftMovesCamera", true);
+  w.robot.lift_min = Number(r, "liftMin");
+  w.robot.lift_max = Number(r, "liftMax");
+  w.robot.pan_min = Number(r, "panMin");
+  w.robot.pan_max = Number(r, "panMax");
+  w.robot.tilt_min = Number(r, "tiltMin");
+  w.robot.tilt_max = Number(r, "tiltMax");
+  w.robot.footprint_radius = Number(r, "footprintRadius", 0.3);
+  w.robot.reach = Number(r, "reach", 1.0);
+  const json& c = j.at("camera");
+  w.camera.horizontal_fov = Number(c, "horizontalFov", w.camera.horizontal_fov);
+  w.camera.aspect = Number(c, "aspect", w.camera.aspect);
+  w.camera.near = Number(c, "near", w.camera.near);
+  w.camera.far = Number(c, "far", w.camera.far);
+  const json& p = j.at("params");
+  auto& q = w.params;
+  q.r_max = Number(p, "rMax", q.r_max);
+  q.r_ct = Number(p, "rCt", q.r_ct);
+  q.r_co = Number(p, "rCo", q.r_co);
+  q.r_min = Number(p, "rMin", q.r_min);
+  q.r_ill = Number(p, "rIll", q.r_ill);
+  q.discount = Number(p, "discount", q.discount);
+  q.c_o = Number(p, "cO", q.c_o);
+  q.eta_std = Number(p, "etaStd", q.eta_std);
+  q.nu_p = Number(p, "nuP", q.nu_p);
+  q.nu_n = Number(p, "nuN", q.nu_n);
+  q.n_odds = static_cast<int>(Integer(p, "nOdds", q.n_odds));
+  q.declare_threshold = Number(p, "declareThreshold", q.declare_threshold);
+  q.guess_odds = Number(p, "guessOdds", q.guess_odds);
+  q.guess_size = Number(p, "guessSize", q.guess_size);
+  q.guess_moveability = Number(p, "guessMoveability", q.guess_moveability);
+  q.grid_free_delta = Number(p, "gridFreeDelta", q.grid_free_delta);
+  q.grid_min = Number(p, "gridMin", q.grid_min);
+  q.grid_max = Number(p, "gridMax", q.grid_max);
+  q.detection_max_step = Number(p, "detectionMaxStep", q.detection_max_step);
+  q.face_odds_limit = Number(p, "faceOddsLimit", q.face_odds_limit);
+  q.max_steps =
+      static_cast<int>(std::clamp<int64_t>(Integer(p, "maxSteps", q.max_steps), 1, 1'000'000));
+  const json& furniture = j.at("furniture");
+  if (!furniture.is_array() || static_cast<int64_t>(furniture.size()) > limits.max_furniture) {
+    return Lost("furniture");
+  }
+  for (const json& b : furniture) {
+    Box fb;
+    if (!ReadBox(b, &fb) || fb.center.cwiseAbs().maxCoeff() > limits.max_coordinate) {
+      return Lost("furniture box");
+    }
+    w.furniture.push_back(fb);
+  }
+  const json& occ = j.at("occupancy");
+  Vec2 lo, hi;
+  const double res = Number(occ, "resolution", 0.0);
+  if (!occ.is_object() || !occ.contains("min") || !occ.contains("max") ||
+      !ReadVec(occ.at("min"), &lo) || !ReadVec(occ.at("max"), &hi) || !(res >= 0.005) ||
+      !((hi - lo).minCoeff() > 0) || lo.cwiseAbs().maxCoeff() > limits.max_coordinate ||
+      hi.cwiseAbs().maxCoeff() > limits.max_coordinate ||
+      MapCells(lo, hi, res) > limits.max_map_cells) {
+    return Lost("occupancy extent");
+  }
+  w.occupancy = object_search::OccupancyMap(lo, hi, res);
+  const size_t cell_count = w.occupancy.cells().size();
+  if (!occ.contains("runs") || !occ.at("runs").is_array()) return Lost("occupancy runs");
+  std::vector<uint8_t> cells;
+  cells.reserve(cell_count);
+  uint8_t value = 0;
+  for (const json& run : occ.at("runs")) {
+    if (!run.is_number_integer() || run.get<int64_t>() < 0 ||
+        static_cast<uint64_t>(run.get<int64_t>()) > cell_count - cells.size()) {
+      return Lost("occupancy run");
+    }
+    cells.insert(cells.end(), run.get<size_t>(), value);
+    value = !value;
+  }
+  if (Status s = w.occupancy.SetCells(cells); !s.ok()) return Lost("occupancy cells");
+  const json& regions = j.at("baseRegions");
+  if (!regions.is_array() || static_cast<int64_t>(regions.size()) > limits.max_base_regions) {
+    return Lost("baseRegions");
+  }
+  for (const json& br : regions) {
+    object_search::BaseRegion region;
+    if (!br.is_object() || !br.contains("min") || !br.contains("max") ||
+        !ReadVec(br.at("min"), &region.min) || !ReadVec(br.at("max"), &region.max)) {
+      return Lost("base region");
+    }
+    w.base_regions.push_back(region);
+  }
+  if (j.contains("discretePoses")) {
+    const json& poses = j.at("discretePoses");
+    if (!poses.is_array() || static_cast<int64_t>(poses.size()) > limits.max_discrete_poses) {
+      return Lost("discretePoses");
+    }
+    for (const json& pose : poses) w.discrete_poses.push_back(ReadConfig(pose));
+  }
+  const json& g = j.at("grid");
+  if (!g.is_object() || !g.contains("workspaces") || !g.at("workspaces").is_array() ||
+      !g.contains("logOdds") || !g.at("logOdds").is_array() ||
+      static_cast<int64_t>(g.at("workspaces").size()) > limits.max_furniture) {
+    return Lost("grid");
+  }
+  std::vector<object_search::Workspace> workspaces;
+  for (const json& ws : g.at("workspaces")) {
+    object_search::Workspace s;
+    s.name = String(ws, "name").substr(0, 128);
+    if (!ws.is_object() || !ws.contains("center") || !ReadVec(ws.at("center"), &s.center)) {
+      return Lost("grid workspace");
+    }
+    s.yaw = Number(ws, "yaw");
+    s.length = Number(ws, "length", 1.0);
+    s.width = Number(ws, "width", 1.0);
+    s.height = Number(ws, "height", 0.75);
+    if (!(s.length > 0 && s.width > 0 && s.length <= 100 && s.width <= 100)) {
+      return Lost("grid workspace size");
+    }
+    workspaces.push_back(s);
+  }
+  const double grid_resolution = Number(g, "resolution", kGridResolution);
+  if (!(grid_resolution >= 0.005 && grid_resolution <= 1.0) ||
+      GridCells(workspaces, grid_resolution) > limits.max_grid_cells ||
+      static_cast<int64_t>(g.at("logOdds").size()) != GridCells(workspaces, grid_resolution)) {
+    return Lost("grid size");
+  }
+  w.grid = object_search::GridWorld(workspaces, grid_resolution);
+  if (!w.grid.Validate().ok()) return Lost("grid");
+  std::vector<float> odds;
+  odds.reserve(g.at("logOdds").size());
+  for (const json& v : g.at("logOdds")) {
+    if (!v.is_number()) return Lost("grid log-odds");
+    odds.push_back(v.get<float>());
+  }
+  if (!w.grid.SetAllLogOdds(odds).ok()) return Lost("grid log-odds");
+  const json& objects = j.at("objects");
+  if (!objects.is_array() || objects.empty() ||
+      static_cast<int64_t>(objects.size()) > limits.max_objects + 1) {
+    return Lost("objects");
+  }
+  for (const json& o : objects) {
+    object_search::ObjectKnowledge k;
+    if (!o.is_object() || !o.contains("odds") || !o.at("odds").is_array() ||
+        o.at("odds").size() != 8 || !o.contains("box") || !ReadBox(o.at("box"), &k.box)) {
+      return Lost("object");
+    }
+    k.key = String(o, "id").substr(0, 256);
+    k.moveability = Number(o, "moveability", 1.0);
+    for (int i = 0; i < 8; ++i) {
+      if (!o.at("odds")[i].is_number()) return Lost("object odds");
+      k.odds[i] = o.at("odds")[i].get<float>();
+    }
+    const int64_t status = Integer(o, "status", object_search::kUpdating);
+    if (status < object_search::kRemoved || status > object_search::kDeclaredTarget) {
+      return Lost("object status");
+    }
+    k.status = static_cast<int8_t>(status);
+    w.objects.push_back(k);
+  }
+  w.robot_config = ReadConfig(j.at("robotConfig"));
+  w.steps = static_cast<int>(std::clamp<int64_t>(Integer(j, "steps"), 0, 1'000'000));
+  if (Status s = w.Validate(); !s.ok()) return Lost("world: " + s.message());
+  return w;
+}
+
+json BeliefJson(const World& w) {
+  json j;
+  j["robot"] = ConfigJson(w.robot_config);
+  j["step"] = w.steps;
+  j["grid"]["resolution"] = w.grid.resolution();
+  j["grid"]["workspaces"] = json::array();
+  const auto mass = w.grid.WorkspaceMass();
+  const auto& all = w.grid.all_log_odds();
+  for (size_t i = 0; i < w.grid.workspaces().size(); ++i) {
+    const auto& ws = w.grid.workspaces()[i];
+    const int wi = static_cast<int>(i);
+    const size_t n = static_cast<size_t>(w.grid.cells_x(wi)) * w.grid.cells_y(wi);
+    const size_t first = static_cast<size_t>(w.grid.Index(wi, 0, 0));
+    std::vector<float> odds(all.begin() + first, all.begin() + first + n);
+    j["grid"]["workspaces"].push_back({{"name", ws.name},
+                                       {"center", Vec(ws.center)},
+                                       {"yaw", ws.yaw},
+                                       {"length", ws.length},
+                                       {"width", ws.width},
+                                       {"height", ws.height},
+                                       {"cellsX", w.grid.cells_x(wi)},
+                                       {"cellsY", w.grid.cells_y(wi)},
+                                       {"targetMass", mass[i]},
+                                       {"logOdds", odds}});
+  }
+  j["objects"] = json::array();
+  static const char* kStatus[] = {"REMOVED", "UPDATING", "DECLARED_OBSTACLE", "DECLARED_TARGET"};
+  for (size_t i = 1; i < w.objects.size(); ++i) {
+    const auto& o = w.objects[i];
+    double mean = 0.0;
+    for (float v : o.odds) mean += v;
+    mean /= 8.0;
+    j["objects"].push_back({{"id", o.key},
+                            {"box", BoxJson(o.box)},
+                            {"faceLogOdds", o.odds},
+                            {"status", kStatus[std::clamp(o.status + 2, 0, 3)]},
+                            {"moveability", o.moveability},
+                            {"targetProbability", 1.0 / (1.0 + std::exp(-mean))}});
+  }
+  return j;
+}
+
+}  // namespace npfkct::api::internal
+
+namespace npfkct::api {
+
+StatusOr<World> BuildWorld(const WorldSpec& spec, const Limits& limits) {
+  using internal::GridCells;
+  using internal::MapCells;
+  // The same counts as in ReadWorldSpec, again: a WorldSpec may be built in code.
+  if (MapCells(spec.room_min, spec.room_max, spec.map_resolution) > limits.max_map_cells ||
+      !(spec.map_resolution >= 0.005)) {
+    return InvalidFieldError("world.mapResolution", "the occupancy map would be too large");
+  }
+  const auto workspaces = internal::WorkspacesOf(spec);
+  if (GridCells(workspaces, internal::kGridResolution) > limits.max_grid_cells) {
+    return InvalidFieldError("world.furniture", "the workspaces' grid world would be too large");
+  }
+  if (static_cast<int64_t>(spec.furniture.size()) > limits.max_furniture) {
+    return InvalidFieldError("world.furniture", "too many pieces");
+  }
+  auto robot = object_search::RobotPreset::ByName(spec.robot);
+  if (!robot.ok()) return InvalidFieldError("world.robot", robot.status().message());
+  object_search::OccupancyMap map(spec.room_min, spec.room_max, spec.map_resolution);
+  std::vector<uint8_t> cells = map.cells();
+  std::vector<Box> furniture;
+  for (const WorldSpec::Furniture& f : spec.furniture) {
+    internal::MarkFootprint(map, f.box, &cells);
+    furniture.push_back(f.box);
+  }
+  if (Status s = map.SetCells(cells); !s.ok()) return s;
+  World world =
+      World::Make(*robot, spec.params, std::move(furniture), std::move(map), spec.base_regions,
+                  object_search::GridWorld(workspaces, internal::kGridResolution), spec.start);
+  world.discrete_poses = spec.discrete_poses;
+  if (Status s = world.Validate(); !s.ok()) return InvalidFieldError("world", s.message());
+  if (!world.occupancy.DiscFree(spec.start.x, spec.start.y, world.robot.footprint_radius)) {
+    return InvalidFieldError("world.start", "the robot's footprint collides with the map");
+  }
+  return world;
+}
+
+}  // namespace npfkct::api

@@ -1,0 +1,420 @@
+// The API layer: schema validation with field violations as data, the domain checks and limits,
+// typed requests, replies and records.
+#include "npfkct/api/api.h"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <sstream>
+
+#include "npfkct/api/wire.h"
+#include "npfkct/object_search/search_planner.h"
+#include "schema.h"
+
+namespace npfkct::api {
+namespace {
+
+using nlohmann::json;
+
+json ReadJson(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream buffer;
+  buffer << in.rdbuf();
+  return json::parse(buffer.str());
+}
+
+// The prior-map part of a scenario file: what a robot tells the server.
+json WorldOf(const std::string& scenario) {
+  const json s = ReadJson(std::string(NPFKCT_SCENARIO_DIR) + "/" + scenario + ".json");
+  json world;
+  for (const char* key :
+       {"robot", "room", "mapResolution", "furniture", "baseRegions", "discretePoses", "start"}) {
+    if (s.contains(key)) world[key] = s[key];
+  }
+  return world;
+}
+
+// "prefix" + number, built by appending: GCC 12 warns falsely (-Wrestrict) on "literal" +
+// std::string when inlined.
+std::string Name(const char* prefix, int i) {
+  std::string out(prefix);
+  out.append(std::to_string(i));
+  return out;
+}
+
+json CreateBody(json world = WorldOf("loose1")) {
+  return {{"world", world}, {"seed", 3}, {"planner", {{"name", "kct"}, {"particles", 100}}}};
+}
+
+// The first field violation of a failed parse.
+template <class T>
+std::string FieldOf(const StatusOr<T>& r) {
+  if (r.ok() || r.status().field_violations().empty())
+    return "<none: " + r.status().ToString() + ">";
+  return r.status().field_violations()[0].field;
+}
+
+const Limits kLimits;
+
+TEST(ParseCreateSession, AcceptsAScenarioWorldAndBuildsIt) {
+  auto req = ParseCreateSession(CreateBody().dump(), kLimits);
+  ASSERT_TRUE(req.ok()) << req.status().ToString();
+  EXPECT_EQ(req->planner.name, "kct");
+  EXPECT_EQ(req->planner.particles, 100);
+  EXPECT_EQ(*req->seed, 3u);
+  auto world = BuildWorld(req->world, kLimits);
+  ASSERT_TRUE(world.ok()) << world.status().ToString();
+  EXPECT_GT(world->grid.num_cells(), 0);
+  EXPECT_EQ(world->objects.size(), 1u);  // the guessed target only
+}
+
+TEST(ParseCreateSession, SchemaViolationsNameTheFieldAsData) {
+  struct Case {
+    json body;
+    std::string field;
+  };
+  json world = WorldOf("loose1");
+  std::vector<Case> cases;
+  {
+    json w = world;
+    w["furniture"][0]["size"] = json::array({1, 2});
+    cases.push_back({{{"world", w}}, "world.furniture[0].size"});
+  }
+  cases.push_back({{{"world", world}, {"colour", "red"}}, "colour"});
+  cases.push_back({json::object(), "world"});
+  cases.push_back({{{"world", world}, {"seed", -3}}, "seed"});
+  cases.push_back({{{"world", world}, {"seed", "12x"}}, "seed"});
+  cases.push_back({{{"world", world}, {"seed", "99999999999999999999"}}, "seed"});
+  cases.push_back({{{"world", world}, {"planner", {{"particles", 0}}}}, "planner.particles"});
+  cases.push_back({{{"world", world}, {"planner", {{"particles", 1e9}}}}, "planner.particles"});
+  cases.push_back({{{"world", world}, {"planner", {{"name", "magic"}}}}, "planner.name"});
+  cases.push_back({{{"world", world}, {"planner", {{"name", "oracle"}}}}, "planner.name"});
+  cases.push_back(
+      {{{"world", world}, {"planner", {{"modelPath", "/etc/passwd"}}}}, "planner.modelPath"});
+  cases.push_back({{{"world", world}, {"planner", {{"model", "../filter.pt"}}}}, "planner.model"});
+  cases.push_back({{{"world", world}, {"planner", {{"model", "/etc/passwd"}}}}, "planner.model"});
+  cases.push_back({{{"world", world}, {"planner", {{"options", {{"numCandidates", 1e9}}}}}},
+                   "planner.options.numCandidates"});
+  cases.push_back({{{"world", world}, {"planner", {{"options", {{"maxDepth", 1e6}}}}}},
+                   "planner.options.maxDepth"});
+  cases.push_back(
+      {{{"world", world}, {"planner", {{"options", {{"x", "str"}}}}}}, "planner.options.x"});
+  {
+    json w = world;
+    w["furniture"][0]["center"][0] = 1e37;  // finite, huge
+    cases.push_back({{{"world", w}}, "world.furniture[0].center[0]"});
+  }
+  {
+    json w = world;
+    w["baseRegions"][0]["min"] = json::array({-1e308, -1e308});
+    cases.push_back({{{"world", w}}, "world.baseRegions[0].min[0]"});
+  }
+  {
+    json w = world;  // a 200 m room at 5 cm: 16e6 cells
+    w["room"] = {{"min", {-100, -100}}, {"max", {100, 100}}};
+    cases.push_back({{{"world", w}}, "world.mapResolution"});
+  }
+  {
+    json w = world;  // 100 workspaces of 20 x 20 m: 1e8 grid cells of 2 cm
+    w["furniture"] = json::array();
+    for (int i = 0; i < 100; ++i) {
+      w["furniture"].push_back(
+          {{"name", Name("t", i)}, {"center", {0, 0}}, {"size", {20, 20, 1}}, {"workspace", true}});
+    }
+    cases.push_back({{{"world", w}}, "world.furniture[0].size"});
+  }
+  {
+    json w = world;  // ~4,300 pieces: refused by count, before any cell is counted
+    for (int i = 0; i < 4300; ++i) {
+      w["furniture"].push_back(
+          {{"name", Name("p", i)}, {"center", {0, 0}}, {"size", {19, 19, 1}}, {"workspace", true}});
+    }
+    cases.push_back({{{"world", w}}, "world.furniture"});
+  }
+  {
+    json w = world;
+    w["furniture"].push_back(w["furniture"][0]);
+    cases.push_back({{{"world", w}}, "world.furniture[1].name"});
+  }
+  {
+    json w = world;
+    w["room"] = {{"min", {1, 1}}, {"max", {-1, 3}}};
+    cases.push_back({{{"world", w}}, "world.room.max"});
+  }
+  cases.push_back({{{"world", world}, {"target", {{"photos", {"!!!"}}}}}, "target.photos[0]"});
+  cases.push_back({{{"world", world}, {"ttlSeconds", 0}}, "ttlSeconds"});
+  for (const Case& c : cases) {
+    auto r = ParseCreateSession(c.body.dump(), kLimits);
+    ASSERT_FALSE(r.ok()) << c.body.dump().substr(0, 200);
+    EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument);
+    EXPECT_EQ(FieldOf(r), c.field) << r.status().ToString();
+    // The message leads with the same field, for people; the data is the violation.
+    EXPECT_EQ(r.status().message().rfind(c.field, 0), 0u) << r.status().message();
+  }
+}
+
+TEST(ParseCreateSession, DescribesViolationsInWords) {
+  json body = CreateBody();
+  body["world"]["robot"] = "r2d2";
+  auto r = ParseCreateSession(body.dump(), kLimits);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().field_violations()[0].description, R"(expected one of "fetch", "stretch")");
+  body = CreateBody();
+  body["planner"]["particles"] = "many";
+  r = ParseCreateSession(body.dump(), kLimits);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().field_violations()[0].description, "expected an integer");
+  body = CreateBody();
+  body["displayName"] = std::string(300, 'x');
+  r = ParseCreateSession(body.dump(), kLimits);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().field_violations()[0].field, "displayName");
+  EXPECT_EQ(r.status().field_violations()[0].description, "expected at most 200 characters");
+}
+
+TEST(ParseBody, RefusesHostileJsonWhileParsing) {
+  auto deep = ParsePlan(std::string(100, '[') + std::string(100, ']'), kLimits);
+  EXPECT_EQ(FieldOf(deep), "body");
+  auto deep_object =
+      ParsePlan("{\"a\":" + std::string(1000, '[') + std::string(1000, ']') + "}", kLimits);
+  EXPECT_EQ(FieldOf(deep_object), "body");
+  std::string many = "{\"budget\": {\"timeMs\": 1}, \"x\": [";
+  for (int i = 0; i < 200'000; ++i) many += "0,";
+  many += "0]}";
+  auto wide = ParsePlan(many, kLimits);
+  EXPECT_EQ(FieldOf(wide), "body");
+  EXPECT_NE(wide.status().message().find("JSON values"), std::string::npos);
+  auto overflow = ParsePlan(R"({"budget": {"timeMs": 1e400}})", kLimits);
+  EXPECT_EQ(FieldOf(overflow), "body");
+  EXPECT_EQ(FieldOf(ParsePlan("{\"budget\": ", kLimits)), "body");
+  EXPECT_EQ(FieldOf(ParsePlan("[1, 2]", kLimits)), "body");
+  EXPECT_EQ(FieldOf(ParsePlan("\xff\xfe", kLimits)), "body");
+  EXPECT_TRUE(ParsePlan("", kLimits).ok());  // no body: the default budget
+}
+
+TEST(ParsePlan, BudgetsWithinTheServersMaximum) {
+  auto ok = ParsePlan(R"({"budget": {"timeMs": 50, "cpuMs": 20, "simulations": 100}})", kLimits);
+  ASSERT_TRUE(ok.ok()) << ok.status().ToString();
+  EXPECT_EQ(*ok->cpu_ms, 20);
+  EXPECT_EQ(FieldOf(ParsePlan(R"({"budget": {"timeMs": -5}})", kLimits)), "budget.timeMs");
+  EXPECT_EQ(FieldOf(ParsePlan(R"({"budget": {"timeMs": 1e9}})", kLimits)), "budget.timeMs");
+  EXPECT_EQ(FieldOf(ParsePlan(R"({"budget": {"timeMs": 70000}})", kLimits)), "budget.timeMs");
+  EXPECT_EQ(FieldOf(ParsePlan(R"({"budget": {"cpuMs": 70000}})", kLimits)), "budget.cpuMs");
+  EXPECT_EQ(FieldOf(ParsePlan(R"({"budget": {"simulations": 1.5}})", kLimits)),
+            "budget.simulations");
+  EXPECT_EQ(FieldOf(ParsePlan(R"({"budget": {"timeMs": 0}})", kLimits)), "budget");
+  EXPECT_EQ(FieldOf(ParsePlan(R"({"budget": {"wallMs": 5}})", kLimits)), "budget.wallMs");
+  Limits strict;
+  strict.max_plan_ms = 100;
+  EXPECT_EQ(FieldOf(ParsePlan(R"({"budget": {"timeMs": 500}})", strict)), "budget.timeMs");
+}
+
+TEST(ParseObserve, DetectionsOrRawDataWithinLimits) {
+  const json detection = {{"id", "box-1"},
+                          {"box", {{"center", {1.4, 0.1, 0.82}}, {"size", {0.12, 0.12, 0.14}}}},
+                          {"faces", {{{"corner", 0}, {"score", 0.2}}}}};
+  json body = {
+      {"actionId", "a1-000000"},
+      {"robotState", {{"x", 0}, {"y", 0}, {"yaw", 0}, {"lift", 0}, {"pan", 0}, {"tilt", 0}}},
+      {"detections", {detection}}};
+  auto ok = ParseObserve(body.dump(), kLimits);
+  ASSERT_TRUE(ok.ok()) << ok.status().ToString();
+  ASSERT_EQ(ok->detections.size(), 1u);
+  EXPECT_EQ(ok->detections[0].faces[0].corner, 0);
+
+  json both = body;
+  both["pointCloud"] = {{"data", "AAAA"}};
+  auto r = ParseObserve(both.dump(), kLimits);
+  EXPECT_EQ(FieldOf(r), "detections");
+  EXPECT_NE(r.status().message().find("not both"), std::string::npos);
+
+  json image_only = {{"actionId", "a1"}, {"image", {{"data", "AAAA"}}}};
+  EXPECT_EQ(FieldOf(ParseObserve(image_only.dump(), kLimits)), "pointCloud");
+
+  json bad_corner = body;
+  bad_corner["detections"][0]["faces"][0]["corner"] = 11;
+  EXPECT_EQ(FieldOf(ParseObserve(bad_corner.dump(), kLimits)), "detections[0].faces[0].corner");
+
+  json duplicate = body;
+  duplicate["detections"].push_back(detection);
+  EXPECT_EQ(FieldOf(ParseObserve(duplicate.dump(), kLimits)), "detections[1].id");
+
+  json far = body;
+  far["robotState"]["x"] = 1e300;
+  EXPECT_EQ(FieldOf(ParseObserve(far.dump(), kLimits)), "robotState.x");
+
+  // Three camera-frame points at depth 3e38: refused before perception.
+  perception::Cloud cloud;
+  for (int i = 0; i < 3; ++i) {
+    pcl::PointXYZRGB p;
+    p.x = 0.0f;
+    p.y = 0.0f;
+    p.z = 3e38f;
+    cloud.push_back(p);
+  }
+  json raw = {{"actionId", "a1"},
+              {"pointCloud", {{"fields", "xyzrgb"}, {"data", Base64Encode(EncodeCloud(cloud))}}}};
+  EXPECT_EQ(FieldOf(ParseObserve(raw.dump(), kLimits)), "pointCloud.data");
+
+  json big_camera = raw;
+  big_camera["camera"] = {{"width", 4096}, {"height", 4096}};
+  cloud[0].z = cloud[1].z = cloud[2].z = 1.0f;
+  big_camera["pointCloud"]["data"] = Base64Encode(EncodeCloud(cloud));
+  EXPECT_EQ(FieldOf(ParseObserve(big_camera.dump(), kLimits)), "camera");
+}
+
+TEST(Schemas, AgreeWithTheLimitsAndThePlannerRegistry) {
+  const json* common = internal::SchemaDocument("common.schema.json");
+  ASSERT_NE(common, nullptr);
+  const json& defs = common->at("$defs");
+  const Limits& hard = HardLimits();
+  EXPECT_EQ(defs["Coordinate"]["maximum"].get<double>(), hard.max_coordinate);
+  EXPECT_EQ(defs["World"]["properties"]["furniture"]["maxItems"], hard.max_furniture);
+  EXPECT_EQ(defs["World"]["properties"]["baseRegions"]["maxItems"], hard.max_base_regions);
+  EXPECT_EQ(defs["World"]["properties"]["discretePoses"]["maxItems"], hard.max_discrete_poses);
+  EXPECT_EQ(defs["PlannerSpec"]["properties"]["particles"]["maximum"], hard.max_particles);
+  EXPECT_EQ(defs["PlannerSpec"]["properties"]["options"]["maxProperties"],
+            hard.max_planner_options);
+  EXPECT_EQ(defs["Budget"]["properties"]["timeMs"]["maximum"].get<double>(), hard.max_plan_ms);
+  EXPECT_EQ(defs["Budget"]["properties"]["simulations"]["maximum"], hard.max_plan_simulations);
+  const json* observe = internal::SchemaDocument("observe_request.schema.json");
+  EXPECT_EQ(observe->at("properties")["detections"]["maxItems"], hard.max_objects);
+  EXPECT_EQ(observe->at("properties")["camera"]["properties"]["width"]["maximum"],
+            hard.max_image_side);
+  const json* create = internal::SchemaDocument("create_session_request.schema.json");
+  EXPECT_EQ(create->at("properties")["target"]["properties"]["photos"]["maxItems"],
+            hard.max_photos);
+  // Every planner the server may run, and only those.
+  std::vector<std::string> servable;
+  for (const auto& p : object_search::SearchPlanners()) {
+    if (!p.needs_truth) servable.push_back(p.name);
+  }
+  EXPECT_EQ(defs["PlannerSpec"]["properties"]["name"]["enum"].get<std::vector<std::string>>(),
+            servable);
+  // Every bounded option of the schema is bounded under its bare leaf name too.
+  for (const auto& [key, bound] :
+       defs["PlannerSpec"]["properties"]["options"]["properties"].items()) {
+    const double over = bound["maximum"].get<double>() + 1;
+    const size_t dot = key.find_last_of('.');
+    const std::string leaf = dot == std::string::npos ? key : key.substr(dot + 1);
+    for (const std::string& k : {key, leaf}) {
+      json body = CreateBody();
+      body["planner"]["options"] = {{k, over}};
+      auto r = ParseCreateSession(body.dump(), kLimits);
+      EXPECT_EQ(FieldOf(r), "planner.options." + k) << r.status().ToString();
+    }
+  }
+}
+
+TEST(BuildWorld, MarksTheSameOccupancyAsAddBox) {
+  std::mt19937 gen(5);
+  std::uniform_real_distribution<double> u(-4.0, 4.0), s(0.1, 3.0), yaw(-3.2, 3.2);
+  WorldSpec spec;
+  spec.room_min = {-5, -4};
+  spec.room_max = {12, 5};  // the furniture stays within x < 7; the robot starts at x = 10
+  spec.map_resolution = 0.05;
+  spec.start.x = 10.0;
+  object_search::OccupancyMap reference(spec.room_min, spec.room_max, spec.map_resolution);
+  for (int i = 0; i < 40; ++i) {
+    WorldSpec::Furniture f;
+    f.name = Name("f", i);
+    f.box.size = {s(gen), s(gen), 0.8};
+    f.box.center = {u(gen), u(gen), 0.4};
+    f.box.yaw = yaw(gen);
+    f.workspace = i == 0;
+    spec.furniture.push_back(f);
+    reference.AddBox(f.box);
+  }
+  spec.base_regions.push_back({{-1, -1}, {1, 1}});
+  auto world = BuildWorld(spec, kLimits);
+  ASSERT_TRUE(world.ok()) << world.status().ToString();
+  EXPECT_EQ(world->occupancy.cells(), reference.cells());
+  // A start on the furniture is refused, naming it.
+  spec.start.x = spec.furniture[0].box.center.x();
+  spec.start.y = spec.furniture[0].box.center.y();
+  EXPECT_EQ(FieldOf(BuildWorld(spec, kLimits)), "world.start");
+}
+
+TEST(Records, RoundTripAndRefuseCorruptOrOversizedSnapshots) {
+  auto req = ParseCreateSession(CreateBody().dump(), kLimits);
+  ASSERT_TRUE(req.ok());
+  SessionRecord r;
+  r.id = std::string(32, 'a');
+  r.planner = req->planner;
+  r.planner.options = {{"k", 4}, {"search.reuseTree", 1}};
+  r.planner.option_is_bool = {false, true};
+  r.seed = 18446744073709551615ull;
+  r.state = SessionState::kActionPending;
+  r.pending_action_id = "a1-abcdef";
+  r.pending_action.kind = 0;
+  r.pending_action.x = ActionVec::Zero(6);
+  r.world = BuildWorld(req->world, kLimits).value();
+  r.world.grid.set_log_odds(7, -1.5f);
+  r.perception = std::make_pair(3, std::vector<perception::TrackState>{{"obj-1", 0, {1, 2, 3}}});
+  const std::string bytes = EncodeRecord(r);
+  auto back = DecodeRecord(bytes, kLimits);
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  EXPECT_EQ(back->seed, r.seed);
+  EXPECT_EQ(back->planner.options, r.planner.options);
+  EXPECT_EQ(back->world.grid.all_log_odds(), r.world.grid.all_log_odds());
+  EXPECT_EQ(back->world.occupancy.cells(), r.world.occupancy.cells());
+  EXPECT_EQ(back->perception->second[0].points, (std::vector<float>{1, 2, 3}));
+  EXPECT_EQ(EncodeRecord(*back), bytes);
+
+  EXPECT_EQ(DecodeRecord(bytes.substr(0, bytes.size() / 2), kLimits).status().code(),
+            StatusCode::kDataLoss);
+  // A snapshot claiming a 1e6 x 1e6 m map or an enormous grid is refused before allocation.
+  json j = json::parse(bytes);
+  j["world"]["occupancy"]["max"] = {1e4, 1e4};
+  j["world"]["occupancy"]["min"] = {-1e4, -1e4};
+  EXPECT_EQ(DecodeRecord(j.dump(), kLimits).status().code(), StatusCode::kDataLoss);
+  j = json::parse(bytes);
+  j["world"]["grid"]["resolution"] = 0.005;
+  EXPECT_EQ(DecodeRecord(j.dump(), kLimits).status().code(), StatusCode::kDataLoss);
+  j = json::parse(bytes);
+  j["world"]["grid"]["workspaces"][0]["length"] = 100;
+  j["world"]["grid"]["workspaces"][0]["width"] = 100;
+  EXPECT_EQ(DecodeRecord(j.dump(), kLimits).status().code(), StatusCode::kDataLoss);
+  j = json::parse(bytes);
+  j["pendingAction"]["kind"] = 9999;
+  EXPECT_EQ(DecodeRecord(j.dump(), kLimits).status().code(), StatusCode::kDataLoss);
+  j = json::parse(bytes);
+  j["id"] = "../../etc/passwd";
+  EXPECT_EQ(DecodeRecord(j.dump(), kLimits).status().code(), StatusCode::kDataLoss);
+}
+
+TEST(Replies, ErrorsCarryFieldViolationsAndRetryInfo) {
+  Status s = InvalidFieldError("budget.timeMs", "must be <= 60000");
+  s.WithFieldViolation("budget.cpuMs", "must be <= 60000");
+  const json e = json::parse(RenderError(s));
+  EXPECT_EQ(e["error"]["code"], 400);
+  EXPECT_EQ(e["error"]["status"], "INVALID_ARGUMENT");
+  EXPECT_EQ(e["error"]["details"][0]["fieldViolations"].size(), 2u);
+  EXPECT_EQ(e["error"]["details"][0]["fieldViolations"][1]["field"], "budget.cpuMs");
+  const json busy = json::parse(RenderError(ResourceExhaustedError("planning queue full"), 0, 2));
+  EXPECT_EQ(busy["error"]["code"], 429);
+  EXPECT_EQ(busy["error"]["details"][0]["retryDelay"], "2s");
+  const json moved = json::parse(RenderError(InvalidArgumentError("x"), 415));
+  EXPECT_EQ(moved["error"]["code"], 415);
+}
+
+TEST(Replies, BeliefPngStaysWithinItsPixelBudget) {
+  WorldSpec spec;
+  spec.room_min = {-500, -500};
+  spec.room_max = {500, 500};
+  spec.map_resolution = 1.0;
+  spec.furniture.push_back({"t", object_search::Box{{0, 0, 0.4}, 0, {1, 1, 0.8}}, true});
+  spec.base_regions.push_back({{-2, -2}, {2, 2}});
+  spec.start.x = 3;
+  auto world = BuildWorld(spec, kLimits);
+  ASSERT_TRUE(world.ok()) << world.status().ToString();
+  auto png = RenderBeliefPng(*world, 1'000'000);
+  ASSERT_TRUE(png.ok());
+  auto info = ProbeImage(*png, "png").value();
+  EXPECT_LE(info.width * info.height, 1'000'000);
+}
+
+}  // namespace
+}  // namespace npfkct::api

@@ -1,0 +1,112 @@
+// Wire formats: Base64, image headers read before decoding, point buffers with their limits.
+#include "npfkct/api/wire.h"
+
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <opencv2/imgcodecs.hpp>
+
+namespace npfkct::api {
+namespace {
+
+std::string Png(int w, int h) {
+  std::vector<uchar> out;
+  cv::imencode(".png", cv::Mat(h, w, CV_8UC3, cv::Scalar(10, 20, 30)), out);
+  return std::string(out.begin(), out.end());
+}
+
+std::string Jpeg(int w, int h) {
+  std::vector<uchar> out;
+  cv::imencode(".jpg", cv::Mat(h, w, CV_8UC3, cv::Scalar(10, 20, 30)), out);
+  return std::string(out.begin(), out.end());
+}
+
+TEST(Base64, RoundTripsAndNamesTheFieldOnBadInput) {
+  for (const std::string& s : std::vector<std::string>{"", "a", "ab", "abc", "hello world",
+                                                       std::string("\0\xff\x10", 3)}) {
+    EXPECT_EQ(Base64Decode(Base64Encode(s), "f").value(), s);
+  }
+  auto bad = Base64Decode("!!!", "image.data");
+  ASSERT_FALSE(bad.ok());
+  EXPECT_EQ(bad.status().field_violations().at(0).field, "image.data");
+  EXPECT_FALSE(Base64Decode("QQ==QQ", "f").ok());                    // data after padding
+  EXPECT_FALSE(Base64Decode(std::string(400, 'A'), "f", 100).ok());  // over the size limit
+}
+
+TEST(ProbeImage, ReadsTheSizeFromTheHeaderAlone) {
+  auto png = ProbeImage(Png(40, 30), "p");
+  ASSERT_TRUE(png.ok());
+  EXPECT_EQ(png->width, 40);
+  EXPECT_EQ(png->height, 30);
+  auto jpeg = ProbeImage(Jpeg(64, 48), "p");
+  ASSERT_TRUE(jpeg.ok()) << jpeg.status().ToString();
+  EXPECT_EQ(jpeg->format, ImageInfo::Format::kJpeg);
+  EXPECT_EQ(jpeg->width, 64);
+  EXPECT_EQ(jpeg->height, 48);
+  EXPECT_FALSE(ProbeImage("GIF89a nonsense", "p").ok());
+  EXPECT_FALSE(ProbeImage(Png(40, 30).substr(0, 20), "p").ok());
+  EXPECT_FALSE(ProbeImage(Jpeg(64, 48).substr(0, 6), "p").ok());
+}
+
+TEST(DecodeImage, RefusesAPixelBombBeforeDecoding) {
+  // A valid PNG whose header claims 60000 x 60000 pixels (10.8 GB decoded): refused from the
+  // header, so nothing is allocated.
+  std::string bomb = Png(16, 16);
+  const unsigned char size[8] = {0, 0, 0xea, 0x60, 0, 0, 0xea, 0x60};
+  std::memcpy(bomb.data() + 16, size, 8);
+  auto r = DecodeImage(bomb, 4'194'304, "target.photos[0]");
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(r.status().field_violations().at(0).field, "target.photos[0]");
+  EXPECT_NE(r.status().message().find("60000 x 60000"), std::string::npos);
+  // Within the limit it decodes.
+  auto ok = DecodeImage(Png(20, 10), 4'194'304, "image.data");
+  ASSERT_TRUE(ok.ok());
+  EXPECT_EQ(ok->cols, 20);
+  EXPECT_EQ(ok->rows, 10);
+  EXPECT_EQ(ok->type(), CV_8UC3);
+  // A JPEG over the pixel limit.
+  EXPECT_FALSE(DecodeImage(Jpeg(300, 300), 80'000, "image.data").ok());
+  // Garbage after a PNG signature and IHDR does not decode, and is an error, not a crash.
+  std::string broken = Png(16, 16).substr(0, 40) + std::string(100, 'x');
+  EXPECT_FALSE(DecodeImage(broken, 4'194'304, "image.data").ok());
+}
+
+TEST(DecodeCloud, BoundsPointsAndCoordinatesBeforePclSeesThem) {
+  perception::Cloud c;
+  for (int i = 0; i < 5; ++i) {
+    pcl::PointXYZRGB p;
+    p.x = 0.1f * i;
+    p.y = -0.2f;
+    p.z = 1.0f + i;
+    p.r = 200;
+    p.g = 10;
+    p.b = 30;
+    c.push_back(p);
+  }
+  auto back = DecodeCloud(EncodeCloud(c), "xyzrgb", 100, 1e4, "pointCloud");
+  ASSERT_TRUE(back.ok());
+  ASSERT_EQ((*back)->size(), 5u);
+  EXPECT_FLOAT_EQ((**back)[3].z, 4.0f);
+  EXPECT_EQ((**back)[3].r, 200);
+  // Too many points.
+  auto many = DecodeCloud(EncodeCloud(c), "xyzrgb", 4, 1e4, "pointCloud");
+  ASSERT_FALSE(many.ok());
+  EXPECT_EQ(many.status().field_violations().at(0).field, "pointCloud.data");
+  // Finite but huge coordinates (3e38: PCL's voxel grid overflows on them).
+  perception::Cloud huge = c;
+  huge[2].z = 3e38f;
+  auto far = DecodeCloud(EncodeCloud(huge), "xyzrgb", 100, 1e4, "pointCloud");
+  ASSERT_FALSE(far.ok());
+  EXPECT_NE(far.status().message().find("point 2"), std::string::npos);
+  huge[2].z = std::nanf("");
+  EXPECT_FALSE(DecodeCloud(EncodeCloud(huge), "xyzrgb", 100, 1e4, "pointCloud").ok());
+  EXPECT_FALSE(DecodeCloud(std::string(13, 'x'), "xyz", 100, 1e4, "pointCloud").ok());
+  EXPECT_FALSE(DecodeCloud("", "xyz", 100, 1e4, "pointCloud").ok());
+  auto fields = DecodeCloud(std::string(12, '\0'), "xyzw", 100, 1e4, "pointCloud");
+  ASSERT_FALSE(fields.ok());
+  EXPECT_EQ(fields.status().field_violations().at(0).field, "pointCloud.fields");
+}
+
+}  // namespace
+}  // namespace npfkct::api

@@ -1,0 +1,67 @@
+#include "options.h"
+
+#include <algorithm>
+#include <string>
+#include <thread>
+
+#include "npfkct/api/api.h"
+
+namespace npfkct::server {
+
+ServerOptions Resolved(ServerOptions o) {
+  const int cores = std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  if (o.plan_slots == 0) o.plan_slots = cores;
+  if (o.plan_queue == 0) o.plan_queue = 2 * o.plan_slots;
+  // Plans waiting for a slot hold a request thread: keep threads for everything else too.
+  o.threads = std::max(o.threads, o.plan_slots + o.plan_queue + 4);
+  return o;
+}
+
+HttpFrontOptions FrontOptions(const ServerOptions& o) {
+  HttpFrontOptions front;
+  front.workers = o.threads;
+  front.max_connections = o.max_connections;
+  front.head_timeout_s = o.head_timeout_seconds;
+  front.body_timeout_s = o.body_timeout_seconds;
+  front.idle_timeout_s = o.idle_timeout_seconds;
+  front.max_body_bytes = o.max_body_bytes;
+  front.max_inflight_bytes = o.max_inflight_bytes;
+  return front;
+}
+
+Status ServerOptions::Validate() const {
+  if (port < 0 || port > 65535) return InvalidFieldError("port", "must be in [0, 65535]");
+  if (!(session_ttl_seconds > 0.0)) return InvalidFieldError("session-ttl", "must be > 0");
+  if (max_sessions < 1) return InvalidFieldError("max-sessions", "must be >= 1");
+  if (threads < 1 || threads > 1024) return InvalidFieldError("threads", "must be in [1, 1024]");
+  if (plan_slots < 0 || plan_slots > 1024 || plan_queue < 0 || plan_queue > 100000) {
+    return InvalidFieldError("plan-slots", "plan slots in [0, 1024], queue in [0, 100000]");
+  }
+  if (max_body_bytes < 1024) return InvalidFieldError("max-body-mb", "must be >= 1 KiB");
+  if (max_inflight_bytes < max_body_bytes) {
+    return InvalidFieldError("max-inflight-mb", "must be >= the body limit");
+  }
+  if (max_connections < 4 || max_connections > 4096) {
+    return InvalidFieldError("max-connections", "must be in [4, 4096]");
+  }
+  for (double t : {head_timeout_seconds, body_timeout_seconds, idle_timeout_seconds}) {
+    if (!(t > 0.0 && t <= 3600.0)) return InvalidFieldError("timeouts", "must be in (0, 3600] s");
+  }
+  if (max_models < 1) return InvalidFieldError("max-models", "must be >= 1");
+  if (Status s = limits.Validate(); !s.ok()) return s;
+  return OkStatus();
+}
+
+HttpFront::ErrorRenderer FrontErrors() {
+  return [](int code, const std::string& message) {
+    const StatusCode status = code == 408   ? StatusCode::kDeadlineExceeded
+                              : code == 416 ? StatusCode::kOutOfRange
+                              : code == 413 ? StatusCode::kResourceExhausted
+                              : code == 429 ? StatusCode::kResourceExhausted
+                              : code == 431 ? StatusCode::kResourceExhausted
+                                            : StatusCode::kInvalidArgument;
+    return api::RenderError(Status(status, message), code, code == 429 ? 1 : 0);
+  };
+}
+
+}  // namespace npfkct::server

@@ -1,0 +1,226 @@
+#include "npfkct/server/session_store.h"
+
+#include <dirent.h>
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <zlib.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <random>
+
+#include "npfkct/api/api.h"
+
+namespace npfkct::server {
+namespace {
+
+constexpr char kMagic[] = "npfkct-snapshot 2";
+
+class MemoryStore : public SessionStore {
+ public:
+  StatusOr<int64_t> Save(const api::SessionRecord&, int64_t expected_version) override {
+    return expected_version + 1;
+  }
+  Status Delete(const std::string&) override { return OkStatus(); }
+  StatusOr<std::vector<std::string>> List(size_t) override { return std::vector<std::string>{}; }
+  StatusOr<Loaded> Load(const std::string& id) override {
+    return NotFoundError("sessions/" + id + " is not stored");
+  }
+};
+
+bool FsyncPath(const std::string& path, bool directory) {
+  const int fd = ::open(path.c_str(), (directory ? O_RDONLY | O_DIRECTORY : O_RDONLY) | O_CLOEXEC);
+  if (fd < 0) return false;
+  const bool ok = ::fsync(fd) == 0;
+  ::close(fd);
+  return ok;
+}
+
+bool WriteAll(int fd, const std::string& data) {
+  size_t done = 0;
+  while (done < data.size()) {
+    const ssize_t n = ::write(fd, data.data() + done, data.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return false;
+    done += static_cast<size_t>(n);
+  }
+  return true;
+}
+
+uint32_t Crc32(const std::string& data) {
+  uLong crc = crc32(0L, Z_NULL, 0);
+  size_t done = 0;
+  while (done < data.size()) {
+    const uInt n = static_cast<uInt>(std::min<size_t>(data.size() - done, 1u << 30));
+    crc = crc32(crc, reinterpret_cast<const Bytef*>(data.data() + done), n);
+    done += n;
+  }
+  return static_cast<uint32_t>(crc);
+}
+
+// "<32 hex>.snap" and "<32 hex>.snap.tmp.<hex>".
+bool IsSnapshotName(const std::string& name, std::string* id) {
+  if (name.size() != 37 || name.compare(32, 5, ".snap") != 0) return false;
+  *id = name.substr(0, 32);
+  return api::IsSessionId(*id);
+}
+bool IsTempName(const std::string& name) {
+  std::string id;
+  return name.size() > 42 && IsSnapshotName(name.substr(0, 37), &id) &&
+         name.compare(37, 5, ".tmp.") == 0;
+}
+
+std::string RandomHex() {
+  static thread_local std::mt19937_64 gen(std::random_device{}());
+  char buf[17];
+  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(gen()));
+  return buf;
+}
+
+}  // namespace
+
+std::unique_ptr<SessionStore> MakeMemoryStore() { return std::make_unique<MemoryStore>(); }
+
+StatusOr<std::unique_ptr<DirectoryStore>> DirectoryStore::Open(const std::string& dir,
+                                                               const api::Limits& limits,
+                                                               size_t max_snapshot_bytes) {
+  if (dir.empty()) return InvalidArgumentError("state_dir: empty");
+  if (::mkdir(dir.c_str(), 0700) != 0 && errno != EEXIST) {
+    return InvalidArgumentError("state_dir: cannot create '" + dir + "': " + std::strerror(errno));
+  }
+  struct stat st {};
+  if (::stat(dir.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) {
+    return InvalidArgumentError("state_dir: '" + dir + "' is not a directory");
+  }
+  // Temporary files of a save that never finished (a crash between write and rename), or planted
+  // there: unlink removes the entry itself, never what a symbolic link points to.
+  if (DIR* d = ::opendir(dir.c_str())) {
+    while (dirent* e = ::readdir(d)) {
+      const std::string name = e->d_name;
+      if (IsTempName(name)) ::unlinkat(::dirfd(d), name.c_str(), 0);
+    }
+    ::closedir(d);
+  }
+  return std::unique_ptr<DirectoryStore>(new DirectoryStore(dir, limits, max_snapshot_bytes));
+}
+
+StatusOr<int64_t> DirectoryStore::Save(const api::SessionRecord& record, int64_t expected_version) {
+  if (!api::IsSessionId(record.id)) return InvalidArgumentError("store: bad session id");
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    auto it = versions_.find(record.id);
+    const int64_t stored = it == versions_.end() ? 0 : it->second;
+    if (stored != expected_version) {
+      return Status(StatusCode::kAborted, "sessions/" + record.id +
+                                              " was saved meanwhile (version " +
+                                              std::to_string(stored) + ", expected " +
+                                              std::to_string(expected_version) + ")");
+    }
+  }
+  const int64_t version = expected_version + 1;
+  const std::string payload = api::EncodeRecord(record);
+  char header[128];
+  std::snprintf(header, sizeof header, "%s %lld %zu %08x\n", kMagic,
+                static_cast<long long>(version), payload.size(), Crc32(payload));
+  const std::string path = PathOf(record.id);
+  const std::string tmp = path + ".tmp." + RandomHex();
+  // O_EXCL | O_NOFOLLOW: never write through a planted file or symbolic link.
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0600);
+  if (fd < 0) return Status(StatusCode::kUnavailable, "cannot write the session snapshot");
+  const bool written = WriteAll(fd, header) && WriteAll(fd, payload) && ::fsync(fd) == 0;
+  ::close(fd);
+  if (!written || ::rename(tmp.c_str(), path.c_str()) != 0 || !FsyncPath(dir_, true)) {
+    ::unlink(tmp.c_str());
+    return Status(StatusCode::kUnavailable, "cannot store the session snapshot");
+  }
+  std::lock_guard<std::mutex> lock(mutex_);
+  versions_[record.id] = version;
+  return version;
+}
+
+Status DirectoryStore::Delete(const std::string& id) {
+  if (!api::IsSessionId(id)) return OkStatus();
+  const int r = ::unlink(PathOf(id).c_str());
+  if (r != 0 && errno != ENOENT) {
+    return Status(StatusCode::kUnavailable, "cannot remove the session snapshot");
+  }
+  FsyncPath(dir_, true);
+  std::lock_guard<std::mutex> lock(mutex_);
+  versions_.erase(id);
+  return OkStatus();
+}
+
+StatusOr<std::vector<std::string>> DirectoryStore::List(size_t limit) {
+  std::vector<std::string> ids;
+  DIR* d = ::opendir(dir_.c_str());
+  if (d == nullptr) return Status(StatusCode::kUnavailable, "cannot read the state directory");
+  while (dirent* e = ::readdir(d)) {
+    std::string id;
+    if (!IsSnapshotName(e->d_name, &id)) continue;
+    // Only regular files, never followed through a symbolic link.
+    struct stat st {};
+    if (::fstatat(::dirfd(d), e->d_name, &st, AT_SYMLINK_NOFOLLOW) != 0 || !S_ISREG(st.st_mode)) {
+      continue;
+    }
+    ids.push_back(id);
+  }
+  ::closedir(d);
+  std::sort(ids.begin(), ids.end());
+  if (ids.size() > limit) ids.resize(limit);
+  return ids;
+}
+
+StatusOr<SessionStore::Loaded> DirectoryStore::Load(const std::string& id) {
+  if (!api::IsSessionId(id)) return NotFoundError("not a session id");
+  // O_NONBLOCK: opening a FIFO planted under a snapshot's name must not hang.
+  const int fd = ::open(PathOf(id).c_str(), O_RDONLY | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) {
+    return errno == ENOENT ? NotFoundError("sessions/" + id + " is not stored")
+                           : Status(StatusCode::kDataLoss, "snapshot: cannot open");
+  }
+  struct stat st {};
+  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+    ::close(fd);
+    return Status(StatusCode::kDataLoss, "snapshot: not a regular file");
+  }
+  if (static_cast<uint64_t>(st.st_size) > max_bytes_) {
+    ::close(fd);
+    return Status(StatusCode::kDataLoss,
+                  "snapshot: " + std::to_string(st.st_size) + " bytes, more than the cap");
+  }
+  std::string data(static_cast<size_t>(st.st_size), '\0');
+  size_t done = 0;
+  while (done < data.size()) {
+    const ssize_t n = ::read(fd, data.data() + done, data.size() - done);
+    if (n < 0 && (errno == EINTR || errno == EAGAIN)) continue;
+    if (n <= 0) break;
+    done += static_cast<size_t>(n);
+  }
+  ::close(fd);
+  data.resize(done);
+  const size_t newline = data.find('\n');
+  long long version = 0;
+  size_t length = 0;
+  unsigned crc = 0;
+  char magic[32] = "";
+  if (newline == std::string::npos || newline > 100 ||
+      std::sscanf(data.substr(0, newline).c_str(), "%31s 2 %lld %zu %8x", magic, &version, &length,
+                  &crc) != 4 ||
+      data.compare(0, sizeof kMagic - 1, kMagic) != 0 || version < 1) {
+    return Status(StatusCode::kDataLoss, "snapshot: not an npfkct snapshot (format 2)");
+  }
+  std::string payload = data.substr(newline + 1);
+  if (payload.size() != length || Crc32(payload) != crc) {
+    return Status(StatusCode::kDataLoss, "snapshot: truncated or corrupted (checksum)");
+  }
+  auto record = api::DecodeRecord(payload, limits_);
+  if (!record.ok()) return record.status();
+  if (record->id != id) return Status(StatusCode::kDataLoss, "snapshot: its id is not its name");
+  std::lock_guard<std::mutex> lock(mutex_);
+  versions_[id] = version;
+  return Loaded{std::move(record).value(), version};
+}
+
+}  // namespace npfkct::server

@@ -1,0 +1,252 @@
+// The HTTP front over raw sockets: bodies in every framing against the limit, refused encodings,
+// deadlines for slow clients, health that slow clients cannot starve, pipelining, hang-ups.
+#include "http_front.h"
+
+#include <arpa/inet.h>
+#include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <thread>
+#include <vector>
+
+namespace npfkct::server {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double Since(Clock::time_point t) {
+  return std::chrono::duration<double>(Clock::now() - t).count();
+}
+
+class HttpFrontTest : public ::testing::Test {
+ protected:
+  void Start(HttpFrontOptions o) {
+    front_ = std::make_unique<HttpFront>(
+        o, [](int code, const std::string& m) { return std::to_string(code) + " " + m; },
+        [this](int code) { front_codes_.push_back(code); });
+    front_->Get("/healthz", [](const httplib::Request&, httplib::Response& res) {
+      res.set_content("ok", "text/plain");
+    });
+    front_->Post("/echo", [](const httplib::Request&, httplib::Response& res,
+                             const httplib::ContentReader& reader) {
+      std::string body;
+      reader([&](const char* d, size_t n) {
+        body.append(d, n);
+        return true;
+      });
+      res.set_content(std::to_string(body.size()) + ":" + body.substr(0, 16), "text/plain");
+    });
+    front_->Get("/wait", [this](const httplib::Request&, httplib::Response& res) {
+      // A long handler that notices its client hanging up.
+      const auto t0 = Clock::now();
+      while (!HttpFront::ClientGone() && Since(t0) < 5.0) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(2));
+      }
+      gone_after_ = Since(t0);
+      res.set_content("done", "text/plain");
+    });
+    port_ = front_->bind_to_any_port("127.0.0.1");
+    front_->Start();
+    listener_ = std::thread([this] { front_->listen_after_bind(); });
+  }
+  void TearDown() override {
+    if (!front_) return;
+    front_->stop();
+    listener_.join();
+    front_->Shutdown();
+  }
+  int Connect() {
+    const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_port = htons(static_cast<uint16_t>(port_));
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    EXPECT_EQ(::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a), 0);
+    timeval tv{5, 0};
+    ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+    return fd;
+  }
+  static void Send(int fd, const std::string& s) {
+    ASSERT_EQ(::send(fd, s.data(), s.size(), MSG_NOSIGNAL), static_cast<ssize_t>(s.size()));
+  }
+  // Reads until the peer closes or `until` appears.
+  static std::string Read(int fd, const std::string& until = "") {
+    std::string out;
+    char buf[4096];
+    for (;;) {
+      const ssize_t n = ::recv(fd, buf, sizeof buf, 0);
+      if (n <= 0) break;
+      out.append(buf, static_cast<size_t>(n));
+      if (!until.empty() && out.find(until) != std::string::npos) break;
+    }
+    return out;
+  }
+  // One request on a fresh connection; the whole answer.
+  std::string Exchange(const std::string& request) {
+    const int fd = Connect();
+    Send(fd, request);
+    std::string reply = Read(fd);
+    ::close(fd);
+    return reply;
+  }
+
+  std::unique_ptr<HttpFront> front_;
+  std::thread listener_;
+  int port_ = 0;
+  std::vector<int> front_codes_;
+  std::atomic<double> gone_after_{-1.0};
+};
+
+TEST_F(HttpFrontTest, BodiesInEveryFramingAreCountedAgainstTheLimit) {
+  HttpFrontOptions o;
+  o.max_body_bytes = 1000;
+  Start(o);
+  EXPECT_NE(Exchange("POST /echo HTTP/1.1\r\nContent-Length: 5\r\nConnection: close\r\n\r\nhello")
+                .find("5:hello"),
+            std::string::npos);
+  // Chunked within the limit is delivered whole.
+  EXPECT_NE(Exchange("POST /echo HTTP/1.1\r\nTransfer-Encoding: chunked\r\nConnection: close\r\n"
+                     "\r\n5\r\nhello\r\n6\r\n world\r\n0\r\n\r\n")
+                .find("11:hello world"),
+            std::string::npos);
+  // A declared length past the limit: 413 before a byte of the body is read.
+  EXPECT_EQ(Exchange("POST /echo HTTP/1.1\r\nContent-Length: 2147483648\r\n\r\n")
+                .rfind("HTTP/1.1 413", 0),
+            0u);
+  // Chunked past the limit: 413 as soon as the count passes it (the rest is never read).
+  const int fd = Connect();
+  Send(fd, "POST /echo HTTP/1.1\r\nTransfer-Encoding: chunked\r\n\r\n");
+  for (int i = 0; i < 3; ++i) Send(fd, "200\r\n" + std::string(512, 'x') + "\r\n");
+  EXPECT_EQ(Read(fd).rfind("HTTP/1.1 413", 0), 0u);
+  ::close(fd);
+  // Floods of tiny chunks (framing many times the payload) are refused.
+  std::string tiny = "POST /echo HTTP/1.1\r\nTransfer-Encoding: chunked\r\n\r\n";
+  for (int i = 0; i < 2000; ++i) tiny += "1;padpadpadpadpadpad\r\nx\r\n";
+  EXPECT_EQ(Exchange(tiny).rfind("HTTP/1.1 4", 0), 0u);
+  // Compressed bodies, ambiguous framing and other codings are refused.
+  EXPECT_EQ(
+      Exchange("POST /echo HTTP/1.1\r\nContent-Encoding: gzip\r\nContent-Length: 3\r\n\r\nabc")
+          .rfind("HTTP/1.1 415", 0),
+      0u);
+  EXPECT_EQ(
+      Exchange("POST /echo HTTP/1.1\r\nContent-Length: 3\r\nTransfer-Encoding: chunked\r\n\r\n")
+          .rfind("HTTP/1.1 400", 0),
+      0u);
+  EXPECT_EQ(Exchange("POST /echo HTTP/1.1\r\nTransfer-Encoding: gzip, chunked\r\n\r\n")
+                .rfind("HTTP/1.1 400", 0),
+            0u);
+  EXPECT_EQ(Exchange("POST /echo HTTP/1.1\r\nContent-Length: 3\r\nContent-Length: 4\r\n\r\nabcd")
+                .rfind("HTTP/1.1 400", 0),
+            0u);
+  // No length and no chunking: no body (not "read until the connection closes").
+  const auto t0 = Clock::now();
+  const int open = Connect();
+  Send(open, "POST /echo HTTP/1.1\r\n\r\n");
+  EXPECT_NE(Read(open, "0:").find("0:"), std::string::npos);
+  EXPECT_LT(Since(t0), 1.0);
+  ::close(open);
+}
+
+TEST_F(HttpFrontTest, SlowClientsHoldNoThreadAndHealthAnswersThroughout) {
+  HttpFrontOptions o;
+  o.workers = 2;
+  o.head_timeout_s = 1.5;
+  Start(o);
+  // 64 slow clients (more than every thread of the front), one byte of a head every 100 ms.
+  std::vector<int> slow;
+  for (int i = 0; i < 64; ++i) {
+    slow.push_back(Connect());
+    Send(slow.back(), "G");
+  }
+  double worst = 0.0;
+  const auto t0 = Clock::now();
+  while (Since(t0) < 1.0) {
+    for (int fd : slow) ::send(fd, "E", 1, MSG_NOSIGNAL);
+    const auto t1 = Clock::now();
+    const std::string reply = Exchange("GET /healthz HTTP/1.1\r\nConnection: close\r\n\r\n");
+    worst = std::max(worst, Since(t1));
+    EXPECT_NE(reply.find("ok"), std::string::npos);
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  EXPECT_LT(worst, 0.1);
+  // The head deadline passes: each slow client gets 408 and is closed.
+  for (int fd : slow) {
+    EXPECT_EQ(Read(fd).rfind("HTTP/1.1 408", 0), 0u);
+    ::close(fd);
+  }
+}
+
+TEST_F(HttpFrontTest, HeadsTooLargeKeepAliveAndPipelining) {
+  HttpFrontOptions o;
+  o.max_head_bytes = 2048;
+  Start(o);
+  EXPECT_EQ(Exchange("GET /healthz HTTP/1.1\r\nX: " + std::string(4000, 'a') + "\r\n\r\n")
+                .rfind("HTTP/1.1 431", 0),
+            0u);
+  // Two requests in one write on one connection: both answered, in order.
+  const int fd = Connect();
+  Send(fd,
+       "POST /echo HTTP/1.1\r\nContent-Length: 3\r\n\r\nabc"
+       "POST /echo HTTP/1.1\r\nContent-Length: 2\r\nConnection: close\r\n\r\nde");
+  const std::string both = Read(fd);
+  EXPECT_NE(both.find("3:abc"), std::string::npos);
+  EXPECT_NE(both.find("2:de"), std::string::npos);
+  EXPECT_LT(both.find("3:abc"), both.find("2:de"));
+  ::close(fd);
+  // Expect: 100-continue is answered before the body is sent.
+  const int e = Connect();
+  Send(e,
+       "POST /echo HTTP/1.1\r\nContent-Length: 4\r\nExpect: 100-continue\r\nConnection: close"
+       "\r\n\r\n");
+  EXPECT_EQ(Read(e, "\r\n\r\n").rfind("HTTP/1.1 100", 0), 0u);
+  Send(e, "wxyz");
+  EXPECT_NE(Read(e).find("4:wxyz"), std::string::npos);
+  ::close(e);
+}
+
+TEST_F(HttpFrontTest, AHandlerSeesItsClientHangUp) {
+  Start(HttpFrontOptions());
+  const int fd = Connect();
+  Send(fd, "GET /wait HTTP/1.1\r\n\r\n");
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  const auto t0 = Clock::now();
+  ::close(fd);
+  while (gone_after_ < 0 && Since(t0) < 5.0) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  EXPECT_GT(gone_after_, 0.15);
+  EXPECT_LT(Since(t0), 0.05);
+}
+
+TEST_F(HttpFrontTest, BytesInFlightAndConnectionsAreBounded) {
+  HttpFrontOptions o;
+  o.max_body_bytes = 100'000;
+  o.max_inflight_bytes = 150'000;
+  o.max_connections = 8;
+  Start(o);
+  // Two incomplete bodies of 90 kB each cannot both be buffered.
+  const int a = Connect(), b = Connect();
+  Send(a, "POST /echo HTTP/1.1\r\nContent-Length: 100000\r\n\r\n" + std::string(90'000, 'a'));
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  Send(b, "POST /echo HTTP/1.1\r\nContent-Length: 100000\r\n\r\n" + std::string(90'000, 'b'));
+  EXPECT_EQ(Read(b).rfind("HTTP/1.1 429", 0), 0u);
+  ::close(b);
+  Send(a, std::string(10'000, 'a'));
+  EXPECT_NE(Read(a, "100000:").find("100000:aaaa"), std::string::npos);
+  ::close(a);
+  // Past the connection limit: 429 and closed at once.
+  std::vector<int> many;
+  for (int i = 0; i < 8; ++i) many.push_back(Connect());
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  const int extra = Connect();
+  EXPECT_EQ(Read(extra).rfind("HTTP/1.1 429", 0), 0u);
+  ::close(extra);
+  for (int fd : many) ::close(fd);
+}
+
+}  // namespace
+}  // namespace npfkct::server

@@ -1,0 +1,629 @@
+"""The hostile suite: the attacks of issue 13, each class against the real server.
+
+Every test holds the server to the same contract: no crash, no 5xx, no hang, clear errors naming
+the field, and every session that existed before an attack intact after it. scripts/test.sh runs
+this file against the AddressSanitizer/UBSan build (NPFKCT_SERVER_BIN); the memory-bomb test runs
+the Release build under an address-space cap (ASan reserves terabytes of address space, so it
+cannot run capped): NPFKCT_RELEASE_SERVER_BIN, default build/server/npfkct-server."""
+
+import base64
+import concurrent.futures
+import json
+import os
+import random
+import resource
+import select
+import socket
+import struct
+import threading
+import time
+import zlib
+
+import pytest
+import requests
+
+from conftest import BUILD, SERVER_BIN, ServerProcess, SimRobot, world_of
+
+RELEASE_BIN = os.environ.get("NPFKCT_RELEASE_SERVER_BIN",
+                             os.path.join(BUILD, "server", "npfkct-server"))
+SANITIZED = SERVER_BIN != RELEASE_BIN
+# Latency bounds: the sanitized build is several times slower.
+HEALTH_BOUND = 0.1
+
+
+# ---- helpers ----
+
+class Recorder:
+    """Every response a test got: none may be a 5xx."""
+
+    def __init__(self):
+        self.codes = []
+        self.lock = threading.Lock()
+
+    def add(self, code, what=""):
+        with self.lock:
+            self.codes.append((code, what))
+
+    def check(self):
+        fivexx = [(c, w) for c, w in self.codes if c >= 500]
+        assert not fivexx, fivexx[:5]
+
+
+def http(method, url, recorder=None, **kw):
+    kw.setdefault("timeout", 60)
+    r = requests.request(method, url, **kw)
+    if recorder is not None:
+        recorder.add(r.status_code, f"{method} {url}")
+    if r.status_code >= 400:
+        body = r.json()  # every error is the JSON error body
+        assert set(body["error"]) == {"code", "status", "message", "details"}, r.text
+        assert body["error"]["code"] == r.status_code
+    return r
+
+
+def field_of(r):
+    for detail in r.json()["error"]["details"]:
+        for v in detail.get("fieldViolations", []):
+            return v["field"]
+    return None
+
+
+def raw_exchange(port, data, timeout=10.0, shutdown=False):
+    """Sends raw bytes, returns what the server answers before it closes (or the timeout)."""
+    with socket.create_connection(("127.0.0.1", port), timeout=timeout) as s:
+        s.sendall(data)
+        if shutdown:
+            s.shutdown(socket.SHUT_WR)
+        out = b""
+        try:
+            while True:
+                chunk = s.recv(65536)
+                if not chunk:
+                    break
+                out += chunk
+                if b"\r\n\r\n" in out:
+                    head, _, rest = out.partition(b"\r\n\r\n")
+                    length = [int(l.split(b":")[1]) for l in head.split(b"\r\n")
+                              if l.lower().startswith(b"content-length:")]
+                    if length and len(rest) >= length[0]:
+                        break
+        except socket.timeout:
+            pass
+        return out
+
+
+def status_of(reply):
+    return int(reply.split(b" ", 2)[1]) if reply.startswith(b"HTTP/1.1 ") else None
+
+
+def create(url, recorder, scenario="loose1", **extra):
+    body = {"world": world_of(scenario), "seed": 1, "planner": {"name": "kct", "particles": 50}}
+    body.update(extra)
+    r = http("POST", url + "/v1/sessions", recorder, json=body)
+    assert r.status_code == 200, r.text
+    return r.json()["id"]
+
+
+def snapshot_of(url, sid):
+    """What must survive an attack unchanged: the resource and the belief."""
+    s = requests.get(f"{url}/v1/sessions/{sid}", timeout=30).json()
+    s.pop("updateTime", None)
+    return s, requests.get(f"{url}/v1/sessions/{sid}/belief", timeout=30).json()
+
+
+def observation(action_id):
+    return {"actionId": action_id,
+            "robotState": {"x": 0.3, "y": 0, "yaw": 0, "lift": 0.2, "pan": 0, "tilt": 0.4},
+            "detections": [{"id": "box", "box": {"center": [1.4, 0, 0.8], "size": [0.1, 0.1, 0.1]},
+                            "faces": [{"corner": 1, "score": 0.3}]}]}
+
+
+def png_header_bomb(width, height):
+    """A PNG whose header claims width x height pixels, with a tiny zlib stream of zeros."""
+    def chunk(kind, payload):
+        return (struct.pack(">I", len(payload)) + kind + payload +
+                struct.pack(">I", zlib.crc32(kind + payload)))
+    rows = zlib.compress(b"\x00" * 4096, 9)
+    return (b"\x89PNG\r\n\x1a\n" +
+            chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)) +
+            chunk(b"IDAT", rows) + chunk(b"IEND", b""))
+
+
+def cloud_bytes(points):
+    return b"".join(struct.pack("<fff", *p) for p in points)
+
+
+def raw_observation(action_id, points, frame="camera"):
+    return {"actionId": action_id,
+            "robotState": {"x": 0.3, "y": 0, "yaw": 0, "lift": 0.2, "pan": 0, "tilt": 0.4},
+            "pointCloud": {"frame": frame, "fields": "xyz",
+                           "data": base64.b64encode(cloud_bytes(points)).decode()}}
+
+
+@pytest.fixture
+def hostile_server(tmp_path):
+    server = ServerProcess("--state-dir", str(tmp_path / "state"), "--max-body-mb", "4",
+                           "--head-timeout", "2", "--body-timeout", "3", "--plan-slots", "2",
+                           "--plan-queue", "4")
+    yield server
+    assert_clean_exit(server)
+
+
+def assert_clean_exit(server):
+    code = server.stop()
+    assert code == 0, f"exit status {code}:\n" + "".join(server.output[-40:])
+
+
+def assert_alive_and_intact(server, before, recorder):
+    assert server.alive(), "the server crashed:\n" + "".join(server.output[-30:])
+    t = time.monotonic()
+    assert http("GET", server.url + "/healthz", recorder).status_code == 200
+    assert time.monotonic() - t < 5.0
+    for sid, (session, belief) in before.items():
+        assert snapshot_of(server.url, sid) == (session, belief), sid
+    recorder.check()
+
+
+# ---- 1. huge finite coordinates ----
+
+def test_huge_finite_coordinates_are_refused_before_they_reach_pcl(hostile_server):
+    url, rec = hostile_server.url, Recorder()
+    keeper = create(url, rec)
+    before = {keeper: snapshot_of(url, keeper)}
+    sid = create(url, rec)
+    plan = http("POST", f"{url}/v1/sessions/{sid}:plan", rec,
+                json={"budget": {"simulations": 20}}).json()
+    good = [(0.01 * i, 0.0, 1.0 + 0.001 * i) for i in range(200)]
+    for points, frame in [([(0.0, 0.0, 3e38)] * 3 + good, "camera"),
+                          ([(1e37, 1e37, 1e37)] * 3 + good, "map"),
+                          ([(-3.4e38, 0.0, 1.0)] + good, "map"),
+                          ([(1e4 + 1, 0.0, 1.0)] + good, "camera")]:
+        r = http("POST", f"{url}/v1/sessions/{sid}:observe", rec,
+                 json=raw_observation(plan["actionId"], points, frame))
+        assert r.status_code == 400, r.text
+        assert field_of(r) == "pointCloud.data"
+    for world_edit in [lambda w: w["furniture"][0].__setitem__("center", [1e37, 0]),
+                       lambda w: w["baseRegions"][0].__setitem__("min", [-1e308, -1e308]),
+                       lambda w: w.__setitem__("start", {"x": 1e300}),
+                       lambda w: w.__setitem__("room", {"min": [-1e5, -1e5], "max": [1e5, 1e5]})]:
+        world = world_of("loose1")
+        world_edit(world)
+        r = http("POST", url + "/v1/sessions", rec, json={"world": world})
+        assert r.status_code == 400 and field_of(r).startswith("world."), r.text
+    r = http("POST", f"{url}/v1/sessions/{sid}:observe", rec,
+             json=dict(observation(plan["actionId"]),
+                       robotState={"x": 1e308, "y": 0, "yaw": 0, "lift": 0, "pan": 0, "tilt": 0}))
+    assert r.status_code == 400 and field_of(r) == "robotState.x"
+    # The session whose observations were refused still has its action pending and goes on.
+    assert http("POST", f"{url}/v1/sessions/{sid}:observe", rec,
+                json=observation(plan["actionId"])).status_code == 200
+    # At the limit, inside it: a real rendered frame with points at 9,999 m reaches PCL (whose
+    # voxel grid cannot index such an extent and keeps the points) and is processed.
+    robot = SimRobot("loose1", seed=4, raw=True)
+    raw = create(url, rec)
+    processed = 0
+    for _ in range(4):
+        plan = http("POST", f"{url}/v1/sessions/{raw}:plan", rec,
+                    json={"budget": {"simulations": 30}}).json()
+        body = dict(robot.execute(plan["action"])["observation"], actionId=plan["actionId"])
+        if "pointCloud" in body:
+            extreme = b"".join(struct.pack("<fffI", x, y, z, 0) for x, y, z in
+                               [(9999.0, 9999.0, 9999.0), (-9999.0, 9999.0, 0.5),
+                                (0.001, -9999.0, 9999.0)])
+            data = extreme + base64.b64decode(body["pointCloud"]["data"])
+            body["pointCloud"] = dict(body["pointCloud"], frame="map",
+                                      data=base64.b64encode(data).decode())
+        r = http("POST", f"{url}/v1/sessions/{raw}:observe", rec, json=body)
+        processed += r.status_code == 200 and "perception" in r.json()
+        if r.status_code != 200:
+            del body["pointCloud"], body["image"], body["camera"]
+            assert http("POST", f"{url}/v1/sessions/{raw}:observe", rec,
+                        json=body).status_code == 200
+    robot.close()
+    assert processed > 0
+    assert_alive_and_intact(hostile_server, before, rec)
+
+
+# ---- 2. grid and map overflows ----
+
+def test_worlds_whose_cells_overflow_are_refused_before_allocation(tmp_path):
+    state = str(tmp_path / "state")
+    server = ServerProcess("--state-dir", state)
+    url, rec = server.url, Recorder()
+    keeper = create(url, rec)
+    before = {keeper: snapshot_of(url, keeper)}
+    base = world_of("loose1")
+    cases = []
+    w = dict(base, furniture=[{"name": f"w{i}", "center": [0, 0], "size": [19.9, 19.9, 1],
+                               "workspace": True} for i in range(4300)])
+    cases.append((w, "world.furniture"))  # ~4,300 large workspace pieces
+    w = dict(base, furniture=[{"name": f"w{i}", "center": [0, 0], "size": [20, 20, 1],
+                               "workspace": True} for i in range(100)])
+    cases.append((w, "world.furniture[0].size"))  # 100 workspaces: 1e8 cells of 2 cm
+    cases.append((dict(base, room={"min": [-100, -100], "max": [100, 100]}),
+                  "world.mapResolution"))  # a 200 m room at 5 cm: 16e6 cells
+    cases.append((dict(base, room={"min": [-1e4, -1e4], "max": [1e4, 1e4]}, mapResolution=0.01),
+                  "world.mapResolution"))  # 4e12 cells: a 32-bit count would wrap
+    for world, field in cases:
+        r = http("POST", url + "/v1/sessions", rec, json={"world": world}, timeout=120)
+        assert r.status_code == 400, r.text[:300]
+        assert field_of(r) == field, r.text[:300]
+    # Nothing of them was stored: the server restarts clean, the keeper restored.
+    server.kill()
+    server = ServerProcess("--state-dir", state)
+    rec.add(http("GET", server.url + "/healthz").status_code)
+    assert [s["id"] for s in http("GET", server.url + "/v1/sessions").json()["sessions"]] == [keeper]
+    assert http("GET", f"{server.url}/v1/sessions/{keeper}/belief").json() == before[keeper][1]
+    assert_alive_and_intact(server, {}, rec)
+    assert_clean_exit(server)
+
+
+# ---- 3. bodies: chunked, no length, compressed, ranges ----
+
+def test_bodies_past_the_limit_in_any_framing_and_ranges(hostile_server):
+    url, port, rec = hostile_server.url, hostile_server.port, Recorder()
+    keeper = create(url, rec)
+    before = {keeper: snapshot_of(url, keeper)}
+    # Chunked: 2 GiB announced in 1 MiB chunks; refused (413) once 4 MiB have been counted.
+    with socket.create_connection(("127.0.0.1", port), timeout=10) as s:
+        s.sendall(b"POST /v1/sessions HTTP/1.1\r\nHost: x\r\nTransfer-Encoding: chunked\r\n\r\n")
+        chunk = b"100000\r\n" + b" " * 0x100000 + b"\r\n"
+        sent, reply = 0, b""
+        try:
+            for _ in range(2048):
+                s.sendall(chunk)
+                sent += 1
+                if select.select([s], [], [], 0)[0]:  # the answer came while still sending
+                    reply = s.recv(65536)
+                    break
+        except OSError:
+            pass  # the server closed the connection after its 413
+        if not reply:
+            reply = s.recv(65536)
+    assert status_of(reply) == 413, reply[:200]
+    assert sent < 64, f"{sent} MiB were accepted before the refusal"
+    rec.add(413)
+    # Content-Length past the limit: refused before a byte of the body is read.
+    reply = raw_exchange(port, b"POST /v1/sessions HTTP/1.1\r\nContent-Length: 2147483648\r\n\r\n")
+    assert status_of(reply) == 413
+    # gzip: 1 MB inflating to 1 GB is never inflated.
+    bomb = zlib.compressobj(6, zlib.DEFLATED, 31)
+    spaces = b" " * (1 << 20)
+    gz = bomb.compress(b"{") + b"".join(bomb.compress(spaces) for _ in range(1024)) + bomb.flush()
+    assert len(gz) < 2 << 20
+    reply = raw_exchange(port, b"POST /v1/sessions HTTP/1.1\r\nContent-Encoding: gzip\r\n"
+                         b"Content-Length: %d\r\n\r\n" % len(gz) + gz)
+    assert status_of(reply) == 415, reply[:200]
+    # No length, no chunking: no body (answered at once, not read until the client closes).
+    t = time.monotonic()
+    reply = raw_exchange(port, b"POST /v1/sessions HTTP/1.1\r\nHost: x\r\n\r\n{\"world\": 1}")
+    assert status_of(reply) == 400 and time.monotonic() - t < 5.0
+    assert b"expected a JSON object" in reply
+    # Both lengths (request smuggling) and other transfer codings.
+    for head in [b"Content-Length: 5\r\nTransfer-Encoding: chunked\r\n",
+                 b"Transfer-Encoding: gzip, chunked\r\n", b"Content-Length: -1\r\n",
+                 b"Content-Length: 5\r\nContent-Length: 6\r\n"]:
+        assert status_of(raw_exchange(port, b"POST /v1/sessions HTTP/1.1\r\n" + head + b"\r\n")) \
+            == 400, head
+    # Multi-range requests on the belief: refused, not answered with N copies of it.
+    ranges = ",".join(f"0-{i}" for i in range(1000))
+    r = http("GET", f"{url}/v1/sessions/{keeper}/belief", rec, headers={"Range": "bytes=" + ranges})
+    assert r.status_code == 416 and len(r.content) < 4096
+    r = http("GET", f"{url}/v1/sessions/{keeper}/belief?format=png", rec,
+             headers={"Range": "bytes=0-1,2-3"})
+    assert r.status_code == 416
+    for code, _ in rec.codes:
+        assert code < 500
+    assert_alive_and_intact(hostile_server, before, rec)
+
+
+# ---- 4. slowloris and starvation ----
+
+def test_slow_and_idle_clients_and_busy_planners_never_delay_health(hostile_server):
+    url, port, rec = hostile_server.url, hostile_server.port, Recorder()
+    sessions = [create(url, rec) for _ in range(6)]
+    keeper = create(url, rec)
+    before = {keeper: snapshot_of(url, keeper)}
+    stop = threading.Event()
+    sockets = []
+    # 150 slowloris clients (a head byte at a time), 50 idle keep-alive connections, 10 slow
+    # bodies, and every planning slot and queue place busy with long plans.
+    for _ in range(150):
+        s = socket.create_connection(("127.0.0.1", port))
+        s.sendall(b"GET /v1/sessions HTTP/1.1\r\n")
+        sockets.append(s)
+    for _ in range(50):
+        sockets.append(socket.create_connection(("127.0.0.1", port)))
+    for _ in range(10):
+        s = socket.create_connection(("127.0.0.1", port))
+        s.sendall(b"POST /v1/sessions HTTP/1.1\r\nContent-Length: 1000000\r\n\r\n{")
+        sockets.append(s)
+
+    def trickle():
+        while not stop.is_set():
+            for s in sockets[:150] + sockets[200:]:
+                try:
+                    s.sendall(b"X")
+                except OSError:
+                    pass
+            time.sleep(0.2)
+
+    def plan(sid):
+        r = http("POST", f"{url}/v1/sessions/{sid}:plan", rec, json={"budget": {"timeMs": 2500}},
+                 timeout=120)
+        return r.status_code
+
+    threading.Thread(target=trickle, daemon=True).start()
+    with concurrent.futures.ThreadPoolExecutor(max_workers=8) as pool:
+        plans = [pool.submit(plan, sid) for sid in sessions]
+        worst = 0.0
+        deadline = time.monotonic() + 4.0
+        while time.monotonic() < deadline:
+            for path in ("/healthz", "/metrics"):
+                t = time.monotonic()
+                assert http("GET", url + path, rec, timeout=5).status_code == 200
+                worst = max(worst, time.monotonic() - t)
+            time.sleep(0.05)
+        codes = [p.result() for p in plans]
+    stop.set()
+    for s in sockets:
+        s.close()
+    assert worst < HEALTH_BOUND, f"/healthz took {worst * 1000:.0f} ms"
+    # Two slots, four queue places: six plans run or wait, none is a 5xx; beyond: 429.
+    assert all(c in (200, 429) for c in codes), codes
+    assert codes.count(200) >= 2
+    assert_alive_and_intact(hostile_server, before, rec)
+
+
+# ---- 5. memory bombs under an address-space cap ----
+
+def _cap_address_space():
+    limit = 2 << 30
+    resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+
+
+def test_memory_bombs_under_a_2_gib_address_space_cap(tmp_path):
+    server = ServerProcess("--max-body-mb", "32", "--max-inflight-mb", "96", "--plan-slots", "2",
+                           binary=RELEASE_BIN, preexec_fn=_cap_address_space)
+    url, rec = server.url, Recorder()
+    keeper = create(url, rec)
+    before = {keeper: snapshot_of(url, keeper)}
+    base = world_of("loose1")
+    bombs = [
+        ({"world": base, "planner": {"name": "kct", "options": {"numCandidates": 1e9}}},
+         "planner.options.numCandidates"),
+        ({"world": base, "planner": {"name": "kct", "particles": 1000000000}}, "planner.particles"),
+        ({"world": base, "planner": {"name": "kct", "options": {"search.numParticles": 1e8}}},
+         "planner.options.search.numParticles"),
+        ({"world": base, "planner": {"name": "npfkct", "model": "filter.pt",
+                                     "options": {"filter.candidates": 1e8}}},
+         "planner.options.filter.candidates"),
+        ({"world": dict(base, furniture=[{"name": f"w{i}", "center": [0, 0], "size": [20, 20, 1],
+                                          "workspace": True} for i in range(100)])},
+         "world.furniture[0].size"),
+        ({"world": base, "target": {"photos": [base64.b64encode(
+            png_header_bomb(19600, 19600)).decode()]}}, "target.photos[0]"),  # 1.15 GB decoded
+    ]
+    for body, field in bombs:
+        r = http("POST", url + "/v1/sessions", rec, json=body)
+        assert r.status_code == 400 and field_of(r) == field, r.text[:300]
+    # A 200 m room at 20 cm is a legal world, but perception cannot map it: a raw observation
+    # is refused before the map is built (5.8 GB once).
+    big_room = dict(base, room={"min": [-100, -100], "max": [100, 100]}, mapResolution=0.2)
+    sid = http("POST", url + "/v1/sessions", rec, json={"world": big_room, "seed": 2}).json()["id"]
+    plan = http("POST", f"{url}/v1/sessions/{sid}:plan", rec,
+                json={"budget": {"simulations": 20}}).json()
+    r = http("POST", f"{url}/v1/sessions/{sid}:observe", rec,
+             json=raw_observation(plan["actionId"], [(0.0, 0.0, 1.0 + 0.001 * i) for i in range(50)]))
+    assert r.status_code == 400 and field_of(r) == "pointCloud", r.text
+    # A camera image bomb behind a valid cloud: refused from the header.
+    obs = raw_observation(plan["actionId"], [(0.0, 0.0, 1.0)] * 10)
+    obs["image"] = {"encoding": "png", "data": base64.b64encode(png_header_bomb(30000, 30000)).decode()}
+    obs["camera"] = {"width": 640, "height": 480}
+    r = http("POST", f"{url}/v1/sessions/{sid}:observe", rec, json=obs)
+    assert r.status_code == 400 and field_of(r) == "image.data", r.text
+    # Work at the limits is served within the cap: a million points, and parallel bodies of
+    # 30 MB each (those past the in-flight budget are refused with 429, none fails to allocate).
+    cloud = [(random.uniform(-0.5, 0.5), random.uniform(-0.4, 0.4), random.uniform(0.8, 3.0))
+             for _ in range(1000)] * 1000
+    r = http("POST", f"{url}/v1/sessions/{sid}:observe", rec,
+             json=raw_observation(plan["actionId"], cloud))
+    assert r.status_code == 400  # this world still cannot take raw data, but it was parsed
+    flood = json.dumps({"world": base, "displayName": "x", "pad": " " * (30 << 20)})
+
+    def post_big(_):
+        try:
+            return requests.post(url + "/v1/sessions", data=flood, timeout=120).status_code
+        except requests.exceptions.ConnectionError:
+            return 429  # refused while still sending
+    with concurrent.futures.ThreadPoolExecutor(max_workers=8) as pool:
+        codes = list(pool.map(post_big, range(8)))
+    for c in codes:
+        rec.add(c, "flood")
+    assert set(codes) <= {400, 429}, codes
+    sessions = [create(url, rec) for _ in range(20)]
+    for s in sessions:
+        http("POST", f"{url}/v1/sessions/{s}:plan", rec, json={"budget": {"timeMs": 50}})
+    log = "".join(server.output)
+    assert "bad_alloc" not in log and "out of memory" not in log.lower(), log[-2000:]
+    assert all(c != 429 or w == "flood" for c, w in rec.codes)
+    assert_alive_and_intact(server, before, rec)
+    assert_clean_exit(server)
+
+
+# ---- 6. DELETE racing plans and observes, then a restart ----
+
+def test_deletes_racing_plans_and_observes_never_come_back_after_a_restart(tmp_path):
+    state = str(tmp_path / "state")
+    server = ServerProcess("--state-dir", state, "--plan-slots", "4", "--plan-queue", "64",
+                           "--max-sessions", "40")
+    url, rec = server.url, Recorder()
+    keepers = [create(url, rec) for _ in range(3)]
+    before = {k: snapshot_of(url, k) for k in keepers}
+    deleted = []
+
+    def race(i):
+        rnd = random.Random(i)
+        sid = create(url, rec)
+        if i % 2 == 0:
+            plan = http("POST", f"{url}/v1/sessions/{sid}:plan", rec,
+                        json={"budget": {"simulations": 30}}).json()
+            racer = lambda: http("POST", f"{url}/v1/sessions/{sid}:observe", rec,  # noqa: E731
+                                 json=observation(plan["actionId"]))
+        else:
+            racer = lambda: http("POST", f"{url}/v1/sessions/{sid}:plan", rec,  # noqa: E731
+                                 json={"budget": {"timeMs": rnd.choice([5, 20, 60])}})
+        with concurrent.futures.ThreadPoolExecutor(max_workers=2) as pool:
+            f = pool.submit(racer)
+            time.sleep(rnd.uniform(0.0, 0.03))
+            d = http("DELETE", f"{url}/v1/sessions/{sid}", rec)
+            assert d.status_code == 200, d.text
+            r = f.result()
+        assert r.status_code in (200, 404, 409), r.text
+        return sid
+
+    with concurrent.futures.ThreadPoolExecutor(max_workers=6) as pool:
+        deleted = list(pool.map(race, range(100)))
+    # kill -9: no orderly shutdown may tidy anything up.
+    server.kill()
+    server = ServerProcess("--state-dir", state, "--max-sessions", "40")
+    rec.add(http("GET", server.url + "/healthz").status_code)
+    alive = {s["id"] for s in http("GET", server.url + "/v1/sessions",
+                                   params={"pageSize": 1000}).json()["sessions"]}
+    assert alive == set(keepers), f"{len(alive & set(deleted))} deleted sessions came back"
+    assert not [f for f in os.listdir(state) if not f.endswith(".snap")]
+    assert_alive_and_intact(server, before, rec)
+    assert_clean_exit(server)
+
+
+# ---- 7. TTL shorter than a plan ----
+
+def test_a_ttl_shorter_than_a_plan(hostile_server):
+    url, rec = hostile_server.url, Recorder()
+    sid = create(url, rec, ttlSeconds=0.3)
+    r = http("POST", f"{url}/v1/sessions/{sid}:plan", rec, json={"budget": {"timeMs": 1500}})
+    assert r.status_code == 200, r.text
+    assert http("GET", f"{url}/v1/sessions/{sid}", rec).json()["state"] == "ACTION_PENDING"
+    time.sleep(1.5)
+    assert http("GET", f"{url}/v1/sessions/{sid}", rec).status_code == 404
+    rec.check()
+
+
+# ---- 8. probing the filesystem through planner.model ----
+
+def test_model_names_never_reach_the_filesystem(hostile_server):
+    url, rec = hostile_server.url, Recorder()
+    base = world_of("loose1")
+    answers = set()
+    for name in ["/etc/passwd", "../../../../etc/passwd", "filter.pt/../../x", "%2e%2e/x.pt",
+                 "x" * 5000, "filter.pt\u0000.txt", "/dev/zero", "/proc/self/environ",
+                 "..", ".", "", " filter.pt", "nonexistent.pt", "/tmp"]:
+        r = http("POST", url + "/v1/sessions", rec,
+                 json={"world": base, "planner": {"name": "npfkct", "model": name}})
+        assert r.status_code == 400 and field_of(r) == "planner.model", (name, r.text)
+        answers.add(r.json()["error"]["message"].replace(name, "NAME"))
+    # The old path field: unknown; absolute paths in any other field are plain strings.
+    r = http("POST", url + "/v1/sessions", rec,
+             json={"world": base, "planner": {"modelPath": "/etc/passwd"}})
+    assert r.status_code == 400 and field_of(r) == "planner.modelPath"
+    # An existing file outside the folder and a missing one get the same answer.
+    passwd = http("POST", url + "/v1/sessions", rec,
+                  json={"world": base, "planner": {"model": "passwd"}}).json()["error"]["message"]
+    missing = http("POST", url + "/v1/sessions", rec,
+                   json={"world": base, "planner": {"model": "nosuchfile"}}).json()
+    assert passwd.replace("passwd", "N") == missing["error"]["message"].replace("nosuchfile", "N")
+    assert http("POST", url + "/v1/sessions", rec,
+                json={"world": base, "planner": {"name": "npfkct", "model": "filter.pt"}}
+                ).status_code == 200
+    rec.check()
+
+
+# ---- 9. a hostile state directory ----
+
+def test_hostile_state_directory_entries(tmp_path):
+    state = tmp_path / "state"
+    server = ServerProcess("--state-dir", str(state))
+    url, rec = server.url, Recorder()
+    keepers = [create(url, rec) for _ in range(3)]
+    before = {k: snapshot_of(url, k) for k in keepers}
+    assert_clean_exit(server)
+    snaps = sorted(p.name for p in state.iterdir())
+    victim = tmp_path / "victim.txt"
+    victim.write_text("keep me")
+    os.mkfifo(state / ("1" * 32 + ".snap"))
+    os.symlink("/etc/passwd", state / ("2" * 32 + ".snap"))
+    os.mkdir(state / ("3" * 32 + ".snap"))
+    with open(state / ("4" * 32 + ".snap"), "wb") as f:
+        f.truncate(10 << 30)  # a sparse 10 GB file
+    (state / ("5" * 32 + ".snap")).write_bytes(os.urandom(4096))
+    os.symlink(victim, state / ("6" * 32 + ".snap.tmp.00000000deadbeef"))
+    (state / "notes.txt").write_text("not a snapshot")
+    # A snapshot whose name is not its id, and a checksummed snapshot holding garbage.
+    (state / ("7" * 32 + ".snap")).write_bytes((state / snaps[0]).read_bytes())
+    payload = b'{"version": 2, "id": "' + b"8" * 32 + b'", "world": {"grid": 5}}'
+    (state / ("8" * 32 + ".snap")).write_bytes(
+        b"npfkct-snapshot 2 1 %d %08x\n" % (len(payload), zlib.crc32(payload)) + payload)
+    t = time.monotonic()
+    server = ServerProcess("--state-dir", str(state), "--max-sessions", "2")
+    assert time.monotonic() - t < 10.0
+    restored = {s["id"] for s in http("GET", server.url + "/v1/sessions", rec).json()["sessions"]}
+    assert len(restored) == 2 and restored <= set(keepers)  # --max-sessions holds at restore
+    assert victim.read_text() == "keep me"
+    assert not os.path.lexists(state / ("6" * 32 + ".snap.tmp.00000000deadbeef"))
+    for sid in restored:
+        assert snapshot_of(server.url, sid) == before[sid]
+    # The server is full (2 of 2): creation is refused with 429, not a crash or an overflow.
+    r = http("POST", server.url + "/v1/sessions", rec, json={"world": world_of("loose1")})
+    assert r.status_code == 429 and r.headers.get("Retry-After")
+    assert_clean_exit(server)
+    server = ServerProcess("--state-dir", str(state))
+    assert {s["id"] for s in http("GET", server.url + "/v1/sessions", rec).json()["sessions"]} \
+        == set(keepers)
+    assert_alive_and_intact(server, before, rec)
+    assert_clean_exit(server)
+
+
+# ---- 10. everything at once: random hostile traffic, then the survivors ----
+
+def test_mixed_hostile_traffic_leaves_other_sessions_intact(hostile_server):
+    url, port, rec = hostile_server.url, hostile_server.port, Recorder()
+    keepers = [create(url, rec) for _ in range(3)]
+    before = {k: snapshot_of(url, k) for k in keepers}
+    victims = [create(url, rec) for _ in range(3)]
+    rnd = random.Random(7)
+    bodies = [b"{", b"[]", b"null", b'{"budget": {"timeMs": 1e400}}', b"[" * 100000,
+              b'{"budget": {"simulations": 1.5}}', b"\xff\xfe\x00", b'{"a":' * 70 + b"1" + b"}" * 70,
+              json.dumps({"actionId": "a", "detections": [{"id": str(i), "box": {
+                  "center": [0, 0, 0], "size": [1, 1, 1]}} for i in range(64)]}).encode()]
+
+    def one(i):
+        r = random.Random(i)
+        sid = r.choice(victims + ["0" * 32, "../etc", "x" * 2000])
+        kind = r.randrange(4)
+        try:
+            if kind == 0:
+                resp = requests.post(f"{url}/v1/sessions/{sid}:plan", data=r.choice(bodies),
+                                     timeout=60)
+            elif kind == 1:
+                resp = requests.post(f"{url}/v1/sessions/{sid}:observe", data=r.choice(bodies),
+                                     timeout=60)
+            elif kind == 2:
+                resp = requests.post(f"{url}/v1/sessions", data=r.choice(bodies), timeout=60)
+            else:
+                resp = requests.get(f"{url}/v1/sessions/{sid}/belief", timeout=60,
+                                    headers={"Range": "bytes=0-1,3-4"})
+            rec.add(resp.status_code, f"{kind} {sid[:40]}")
+        except requests.exceptions.ConnectionError:
+            rec.add(-1, "connection error")
+    with concurrent.futures.ThreadPoolExecutor(max_workers=12) as pool:
+        list(pool.map(one, range(600)))
+    for raw in [b"GET / HTTP/1.1\r\n\r\n", b"\x00\x01\x02garbage\r\n\r\n",
+                b"GET /" + b"a" * 20000 + b" HTTP/1.1\r\n\r\n",
+                b"GET /healthz HTTP/1.1\r\n" + b"X-A: b\r\n" * 5000 + b"\r\n",
+                b"POST /v1/sessions HTTP/1.1\r\nTransfer-Encoding: chunked\r\n\r\nzz\r\n"]:
+        reply = raw_exchange(port, raw, timeout=5, shutdown=True)
+        code = status_of(reply)
+        assert code is None or code < 500, reply[:200]
+    assert -1 not in [c for c, _ in rec.codes]
+    del rnd
+    assert_alive_and_intact(hostile_server, before, rec)
