@@ -103,8 +103,19 @@ OccupancyMap::OccupancyMap(Vec2 min, Vec2 max, double resolution)
 }
 
 void OccupancyMap::AddBox(const Box& box, double margin) {
-  for (int iy = 0; iy < ny_; ++iy) {
-    for (int ix = 0; ix < nx_; ++ix) {
+  // Only the cells under the box's bounding circle can be inside it.
+  const double radius = 0.5 * std::hypot(box.size.x(), box.size.y()) + margin + 2.0 * resolution_;
+  const auto range = [&](double center, double origin, int n) {
+    const double a = std::floor((center - radius - origin) / resolution_) - 1.0;
+    const double b = std::ceil((center + radius - origin) / resolution_) + 1.0;
+    return std::pair<int, int>(static_cast<int>(std::clamp(a, 0.0, n - 1.0)),
+                               static_cast<int>(std::clamp(b, 0.0, n - 1.0)));
+  };
+  if (nx_ <= 0 || ny_ <= 0 || !box.center.allFinite()) return;
+  const auto [x0, x1] = range(box.center.x(), min_.x(), nx_);
+  const auto [y0, y1] = range(box.center.y(), min_.y(), ny_);
+  for (int iy = y0; iy <= y1; ++iy) {
+    for (int ix = x0; ix <= x1; ++ix) {
       const Vec3 p(min_.x() + (ix + 0.5) * resolution_, min_.y() + (iy + 0.5) * resolution_,
                    box.center.z());
       const Vec3 l = box.ToLocal(p);
@@ -266,6 +277,43 @@ std::vector<RobotConfig> World::ManualConfigurations() const {
     }
   }
   return out;
+}
+
+std::vector<Workspace> PriorMap::Workspaces() const {
+  std::vector<Workspace> out;
+  for (const Furniture& f : furniture) {
+    if (!f.workspace) continue;
+    Workspace w;
+    w.name = f.name;
+    w.center = f.box.center.head<2>();
+    w.yaw = f.box.yaw;
+    w.length = f.box.size.x();
+    w.width = f.box.size.y();
+    w.height = f.box.size.z();
+    out.push_back(w);
+  }
+  return out;
+}
+
+StatusOr<World> BuildWorld(const PriorMap& prior) {
+  auto robot = RobotPreset::ByName(prior.robot);
+  if (!robot.ok()) return InvalidFieldError("robot", robot.status().message());
+  OccupancyMap map(prior.room_min, prior.room_max, prior.map_resolution);
+  std::vector<Box> furniture;
+  for (const PriorMap::Furniture& f : prior.furniture) {
+    map.AddBox(f.box);
+    furniture.push_back(f.box);
+  }
+  World world =
+      World::Make(*robot, prior.params, std::move(furniture), std::move(map), prior.base_regions,
+                  GridWorld(prior.Workspaces(), kGridResolution), prior.start);
+  world.discrete_poses = prior.discrete_poses;
+  if (Status s = world.Validate(); !s.ok()) return s;
+  // The start need not be in a base region, but the footprint must be free.
+  if (!world.occupancy.DiscFree(prior.start.x, prior.start.y, world.robot.footprint_radius)) {
+    return InvalidFieldError("start", "the robot's footprint collides with the map");
+  }
+  return world;
 }
 
 Status ApplyDiscreteOutcome(World* world, int object, int kind_offset, bool success) {

@@ -440,5 +440,46 @@ TEST(HybridBaselinesTest, NewActionsAreFeasibleConfigurations) {
   }
 }
 
+TEST(WorldTest, AddBoxMarksExactlyTheCellsWhoseCentersTheBoxCovers) {
+  // Checked against every cell of the map, for boxes at random poses.
+  Rng rng(21);
+  OccupancyMap map(Vec2(-3, -2), Vec2(4, 3), 0.05);
+  for (int i = 0; i < 30; ++i) {
+    Box b;
+    b.center = Vec3(rng.Uniform(-3.5, 4.5), rng.Uniform(-2.5, 3.5), 0.4);
+    b.size = Vec3(rng.Uniform(0.05, 2.0), rng.Uniform(0.05, 2.0), 0.8);
+    b.yaw = rng.Uniform(-3.2, 3.2);
+    const double margin = i % 3 == 0 ? 0.1 : 0.0;
+    map.AddBox(b, margin);
+    for (int iy = 0; iy < map.ny(); ++iy) {
+      for (int ix = 0; ix < map.nx(); ++ix) {
+        const Vec3 l = b.ToLocal(Vec3(-3 + (ix + 0.5) * 0.05, -2 + (iy + 0.5) * 0.05, 0.4));
+        if (std::abs(l.x()) <= 0.5 * b.size.x() + margin &&
+            std::abs(l.y()) <= 0.5 * b.size.y() + margin) {
+          ASSERT_TRUE(map.Occupied(ix, iy)) << "box " << i << " cell " << ix << "," << iy;
+        }
+      }
+    }
+  }
+}
+
+TEST(WorldTest, BuildWorldNamesThePartOfThePriorMap) {
+  PriorMap prior;
+  prior.furniture.push_back({"table", {Vec3(1.5, 0, 0.375), 0.0, Vec3(1, 1, 0.75)}, true});
+  prior.base_regions.push_back({Vec2(-0.5, -0.5), Vec2(0.5, 0.5)});
+  auto w = BuildWorld(prior);
+  ASSERT_TRUE(w.ok()) << w.status().ToString();
+  EXPECT_EQ(w->grid.workspaces().size(), 1u);
+  EXPECT_TRUE(w->occupancy.Occupied(static_cast<int>((1.5 + 3) / 0.05), 60));
+  prior.start.x = 1.5;  // inside the table
+  auto bad = BuildWorld(prior);
+  ASSERT_FALSE(bad.ok());
+  ASSERT_EQ(bad.status().field_violations().size(), 1u);
+  EXPECT_EQ(bad.status().field_violations()[0].field, "start");
+  prior.start.x = 0;
+  prior.robot = "roomba";
+  EXPECT_EQ(BuildWorld(prior).status().field_violations()[0].field, "robot");
+}
+
 }  // namespace
 }  // namespace npfkct::object_search

@@ -87,20 +87,20 @@ Status Scenario::ValidateWorld() const {
   return OkStatus();
 }
 
-std::vector<object_search::Workspace> Scenario::Workspaces() const {
-  std::vector<object_search::Workspace> out;
-  for (const Furniture& f : furniture) {
-    if (!f.workspace) continue;
-    object_search::Workspace w;
-    w.name = f.name;
-    w.center = f.box.center.head<2>();
-    w.yaw = f.box.yaw;
-    w.length = f.box.size.x();
-    w.width = f.box.size.y();
-    w.height = f.box.size.z();
-    out.push_back(w);
-  }
-  return out;
+std::vector<object_search::Workspace> Scenario::Workspaces() const { return Prior().Workspaces(); }
+
+object_search::PriorMap Scenario::Prior() const {
+  object_search::PriorMap prior;
+  prior.robot = robot;
+  prior.room_min = room_min;
+  prior.room_max = room_max;
+  prior.map_resolution = map_resolution;
+  for (const Furniture& f : furniture) prior.furniture.push_back({f.name, f.box, f.workspace});
+  prior.base_regions = base_regions;
+  prior.discrete_poses = discrete_poses;
+  prior.start = start;
+  prior.params = params;
+  return prior;
 }
 
 namespace {
@@ -287,27 +287,7 @@ StatusOr<Scenario> LoadScenario(const std::string& path) {
 }
 
 StatusOr<object_search::World> InitialWorld(const Scenario& scenario) {
-  auto robot = object_search::RobotPreset::ByName(scenario.robot);
-  if (!robot.ok()) return robot.status();
-  object_search::OccupancyMap map(scenario.room_min, scenario.room_max, scenario.map_resolution);
-  std::vector<Box> furniture;
-  for (const Furniture& f : scenario.furniture) {
-    map.AddBox(f.box);
-    furniture.push_back(f.box);
-  }
-  object_search::World world = object_search::World::Make(
-      *robot, scenario.params, furniture, map, scenario.base_regions,
-      object_search::GridWorld(scenario.Workspaces(), 0.02), scenario.start);
-  world.discrete_poses = scenario.discrete_poses;
-  if (Status s = world.Validate(); !s.ok()) return s;
-  if (!world.BaseFeasible(scenario.start.x, scenario.start.y)) {
-    // The start need not be in a base region, but it must be free.
-    if (!world.occupancy.DiscFree(scenario.start.x, scenario.start.y,
-                                  world.robot.footprint_radius)) {
-      return Err("start", "the robot's footprint collides with the map");
-    }
-  }
-  return world;
+  return object_search::BuildWorld(scenario.Prior());
 }
 
 }  // namespace npfkct::sim

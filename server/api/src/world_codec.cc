@@ -14,7 +14,7 @@ using object_search::Box;
 using object_search::Vec2;
 using object_search::Vec3;
 
-constexpr double kGridResolution = 0.02;  // the grid world's cells (paper: 2 cm)
+using object_search::kGridResolution;
 
 // ceil(x) as a count, saturating far below int64 overflow.
 int64_t CeilCount(double x) {
@@ -30,52 +30,7 @@ int64_t SaturatingProduct(int64_t a, int64_t b) {
   return a * b;
 }
 
-std::vector<object_search::Workspace> WorkspacesOf(const WorldSpec& spec) {
-  std::vector<object_search::Workspace> out;
-  for (const WorldSpec::Furniture& f : spec.furniture) {
-    if (!f.workspace) continue;
-    object_search::Workspace w;
-    w.name = f.name;
-    w.center = f.box.center.head<2>();
-    w.yaw = f.box.yaw;
-    w.length = f.box.size.x();
-    w.width = f.box.size.y();
-    w.height = f.box.size.z();
-    out.push_back(w);
-  }
-  return out;
-}
-
 Status Lost(const std::string& what) { return Status(StatusCode::kDataLoss, "snapshot: " + what); }
-
-// Marks the footprint of an upright box occupied: the cells OccupancyMap::AddBox marks (the same
-// test on the same arithmetic), visiting only the cells under the box's bounding circle instead
-// of the whole map, so that many pieces of furniture on a fine map stay cheap.
-void MarkFootprint(const object_search::OccupancyMap& map, const Box& box,
-                   std::vector<uint8_t>* cells) {
-  const double res = map.resolution();
-  const Vec2 lo = map.min();
-  const double radius = 0.5 * std::hypot(box.size.x(), box.size.y()) + 2.0 * res;
-  const auto range = [&](double center, double origin, int n) {
-    const double a = std::floor((center - radius - origin) / res) - 1.0;
-    const double b = std::ceil((center + radius - origin) / res) + 1.0;
-    return std::pair<int, int>(static_cast<int>(std::clamp(a, 0.0, n - 1.0)),
-                               static_cast<int>(std::clamp(b, 0.0, n - 1.0)));
-  };
-  const auto [x0, x1] = range(box.center.x(), lo.x(), map.nx());
-  const auto [y0, y1] = range(box.center.y(), lo.y(), map.ny());
-  const double c = std::cos(box.yaw), s = std::sin(box.yaw);
-  for (int iy = y0; iy <= y1; ++iy) {
-    for (int ix = x0; ix <= x1; ++ix) {
-      const Vec3 p(lo.x() + (ix + 0.5) * res, lo.y() + (iy + 0.5) * res, box.center.z());
-      const Vec3 d = p - box.center;
-      const double lx = c * d.x() + s * d.y(), ly = -s * d.x() + c * d.y();
-      if (std::abs(lx) <= 0.5 * box.size.x() && std::abs(ly) <= 0.5 * box.size.y()) {
-        (*cells)[static_cast<size_t>(iy) * map.nx() + ix] = 1;
-      }
-    }
-  }
-}
 
 }  // namespace
 
@@ -521,32 +476,24 @@ StatusOr<World> BuildWorld(const WorldSpec& spec, const Limits& limits) {
       !(spec.map_resolution >= 0.005)) {
     return InvalidFieldError("world.mapResolution", "the occupancy map would be too large");
   }
-  const auto workspaces = internal::WorkspacesOf(spec);
-  if (GridCells(workspaces, internal::kGridResolution) > limits.max_grid_cells) {
+  const auto workspaces = spec.Workspaces();
+  if (GridCells(workspaces, object_search::kGridResolution) > limits.max_grid_cells) {
     return InvalidFieldError("world.furniture", "the workspaces' grid world would be too large");
   }
   if (static_cast<int64_t>(spec.furniture.size()) > limits.max_furniture) {
     return InvalidFieldError("world.furniture", "too many pieces");
   }
-  auto robot = object_search::RobotPreset::ByName(spec.robot);
-  if (!robot.ok()) return InvalidFieldError("world.robot", robot.status().message());
-  object_search::OccupancyMap map(spec.room_min, spec.room_max, spec.map_resolution);
-  std::vector<uint8_t> cells = map.cells();
-  std::vector<Box> furniture;
-  for (const WorldSpec::Furniture& f : spec.furniture) {
-    internal::MarkFootprint(map, f.box, &cells);
-    furniture.push_back(f.box);
+  auto world = object_search::BuildWorld(spec);
+  if (!world.ok()) {
+    // The builder names the part of the prior map; here it is a field of the request's world.
+    const Status& s = world.status();
+    if (!s.field_violations().empty()) {
+      const FieldViolation& v = s.field_violations().front();
+      return InvalidFieldError("world." + v.field, v.description);
+    }
+    return InvalidFieldError("world", s.message());
   }
-  if (Status s = map.SetCells(cells); !s.ok()) return s;
-  World world =
-      World::Make(*robot, spec.params, std::move(furniture), std::move(map), spec.base_regions,
-                  object_search::GridWorld(workspaces, internal::kGridResolution), spec.start);
-  world.discrete_poses = spec.discrete_poses;
-  if (Status s = world.Validate(); !s.ok()) return InvalidFieldError("world", s.message());
-  if (!world.occupancy.DiscFree(spec.start.x, spec.start.y, world.robot.footprint_radius)) {
-    return InvalidFieldError("world.start", "the robot's footprint collides with the map");
-  }
-  return world;
+  return *std::move(world);
 }
 
 }  // namespace npfkct::api

@@ -198,6 +198,39 @@ struct World {
   std::vector<RobotConfig> ManualConfigurations() const;
 };
 
+/// The resolution of the workspaces' grid world (paper: 2 cm).
+inline constexpr double kGridResolution = 0.02;
+
+/// What the robot knows of a room before it looks: the prior map of a scenario file or of a
+/// session's creation request.
+struct PriorMap {
+  /// A piece of furniture; its top is a workspace (a grid-world surface) when `workspace`.
+  struct Furniture {
+    std::string name;
+    Box box;  ///< Stands on the floor: center.z = size.z / 2.
+    bool workspace = false;
+  };
+  std::string robot = "fetch";
+  Vec2 room_min = Vec2(-3, -3);
+  Vec2 room_max = Vec2(3, 3);
+  double map_resolution = 0.05;
+  std::vector<Furniture> furniture;
+  std::vector<BaseRegion> base_regions;
+  std::vector<RobotConfig> discrete_poses;
+  RobotConfig start;
+  SearchParams params;
+
+  /// The furniture tops that are workspaces, as grid-world surfaces.
+  std::vector<Workspace> Workspaces() const;
+};
+
+/// The robot's initial knowledge of a prior map: the occupancy map of the room with the furniture,
+/// the base regions, the grid world over the workspaces (kGridResolution), no object but the
+/// guessed target, the robot at the start. Errors are INVALID_ARGUMENT; those about one part carry
+/// it as a field violation ("start", "robot").
+/// The caller bounds the sizes (cells, pieces) before calling: this allocates what they ask for.
+StatusOr<World> BuildWorld(const PriorMap& prior);
+
 /// Applies the outcome of a declare/remove action executed for real (`success` says whether the
 /// robot managed it). Status changes follow the paper: declared target 1, obstacle 0, removed -2.
 Status ApplyDiscreteOutcome(World* world, int object, int kind_offset, bool success);

@@ -75,6 +75,8 @@ struct Scenario {
   Status ValidateWorld() const;
   /// The workspaces (furniture tops) as grid-world surfaces.
   std::vector<object_search::Workspace> Workspaces() const;
+  /// The prior-map part: what the robot knows before it looks.
+  object_search::PriorMap Prior() const;
 };
 
 /// Parses a scenario from JSON text. Errors are INVALID_ARGUMENT naming the field path, e.g.

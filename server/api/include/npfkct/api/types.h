@@ -28,23 +28,7 @@ using object_search::World;
 // Requests
 
 /// The prior map a robot is told at creation: the scenario-file format without its objects.
-struct WorldSpec {
-  /// A piece of furniture; its top is a workspace (a grid-world surface) when `workspace`.
-  struct Furniture {
-    std::string name;
-    Box box;  ///< Stands on the floor: center.z = size.z / 2.
-    bool workspace = false;
-  };
-  std::string robot = "fetch";
-  Vec2 room_min = Vec2(-3, -3);
-  Vec2 room_max = Vec2(3, 3);
-  double map_resolution = 0.05;
-  std::vector<Furniture> furniture;
-  std::vector<object_search::BaseRegion> base_regions;
-  std::vector<RobotConfig> discrete_poses;
-  RobotConfig start;
-  object_search::SearchParams params;
-};
+using WorldSpec = object_search::PriorMap;
 
 /// Which planner a session uses and how.
 struct PlannerSpec {
