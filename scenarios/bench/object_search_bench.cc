@@ -215,11 +215,24 @@ EpisodeResult RunTrial(const TrialContext& ctx) {
       }
     }
     if (ctx.trace) {
-      std::fprintf(stderr, "%s %s trial %llu step %2d: %-62s %-32s sims %7lld value %9.1f\n",
+      // The knowledge after the step: per known object, the face grids confirmed as the
+      // target's (+) and as an obstacle's (-).
+      std::string known;
+      for (size_t i = 1; i < world.objects.size(); ++i) {
+        const auto& o = world.objects[i];
+        if (o.status == object_search::kRemoved) continue;
+        int plus = 0, minus = 0;
+        for (float v : o.odds) {
+          plus += v > world.params.declare_threshold;
+          minus += v < -world.params.declare_threshold;
+        }
+        known += " " + o.key + ":" + std::to_string(plus) + "/" + std::to_string(minus);
+      }
+      std::fprintf(stderr, "%s %s trial %llu step %2d: %-62s %-30s sims %7lld value %9.1f |%s\n",
                    ctx.scenario->name.c_str(), ctx.planner.c_str(),
                    static_cast<unsigned long long>(ctx.seed % 1000003ULL), t + 1,
                    Describe(d.action, world).c_str(), outcome.detail.c_str(),
-                   static_cast<long long>(d.stats.simulations), d.value);
+                   static_cast<long long>(d.stats.simulations), d.value, known.c_str());
     }
     if (!ctx.render_prefix.empty()) {
       char name[32];

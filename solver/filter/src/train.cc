@@ -47,6 +47,9 @@ Status TrainOptions::Validate() const {
   if (!(weight_decay >= 0.0) || !std::isfinite(weight_decay)) {
     return InvalidArgumentError("weight_decay must be >= 0");
   }
+  if (lr_decay_every < 1) return InvalidArgumentError("lr_decay_every must be >= 1");
+  if (!(lr_decay > 0.0 && lr_decay <= 1.0)) return InvalidArgumentError("lr_decay must be in (0, 1]");
+  if (patience < 1) return InvalidArgumentError("patience must be >= 1");
   if (min_context < 1 || max_context < min_context) {
     return InvalidArgumentError("min_context and max_context must satisfy 1 <= min <= max");
   }
@@ -122,6 +125,13 @@ StatusOr<TrainReport> TrainFilter(const Dataset& train, const Dataset& val,
       if (Status s = SaveNet(net, path); !s.ok()) return s;
     }
     if (epoch_done) epoch_done(e);
+    if (epoch - report.best_epoch >= options.patience) break;  // no better epoch for a while
+    if (epoch % options.lr_decay_every == 0) {
+      for (auto& group : optimizer.param_groups()) {
+        auto& o = static_cast<torch::optim::AdamOptions&>(group.options());
+        o.lr(o.lr() * options.lr_decay);
+      }
+    }
   }
   return report;
 }

@@ -17,6 +17,11 @@ struct TrainOptions {
   int batch = 16;  ///< Samples (scenes) per step.
   double learning_rate = 1e-3;
   double weight_decay = 1e-4;  ///< L2 penalty of Adam.
+  /// The learning rate is multiplied by lr_decay after every lr_decay_every epochs.
+  int lr_decay_every = 5;
+  double lr_decay = 0.5;
+  /// Training stops when the validation loss has not improved for this many epochs.
+  int patience = 6;
   int min_context = 8;         ///< Context size drawn per step in [min_context, max_context].
   int max_context = 24;
   int eval_context = 16;  ///< Context size of the validation loss.
