@@ -24,11 +24,14 @@ def free_port():
         return s.getsockname()[1]
 
 
-def _as_postgres(args):
-    """initdb and postgres refuse to run as root: as root, run them as the postgres user."""
+def _as_postgres():
+    """initdb and postgres refuse to run as root: as root, they run as the postgres user that
+    Debian's package creates. (Switched by subprocess itself rather than runuser, whose
+    supervising parent stops itself when postgres is stopped and would sit between the test and
+    the postmaster.)"""
     if os.geteuid() == 0:
-        return ["runuser", "-u", "postgres", "--"] + args
-    return args
+        return {"user": "postgres", "group": "postgres", "extra_groups": []}
+    return {}
 
 
 def pg_bin(name):
@@ -48,19 +51,23 @@ class Postgres:
         self.data = os.path.join(self.dir, "data")
         if os.geteuid() == 0:
             shutil.chown(self.dir, "postgres", "postgres")
-        subprocess.run(_as_postgres([pg_bin("initdb"), "-D", self.data, "-U", "postgres",
-                                     "--auth=trust", "-E", "UTF8", "--no-sync"]),
-                       check=True, capture_output=True)
+        subprocess.run([pg_bin("initdb"), "-D", self.data, "-U", "postgres", "--auth=trust",
+                        "-E", "UTF8", "--no-sync"], check=True, capture_output=True,
+                       cwd=self.dir, **_as_postgres())
         self.port = free_port()
         self.proc = None
         self.start()
 
     def start(self):
-        self.proc = subprocess.Popen(
-            _as_postgres([pg_bin("postgres"), "-D", self.data, "-p", str(self.port),
-                          "-c", "listen_addresses=127.0.0.1", "-c", f"unix_socket_directories={self.dir}",
-                          "-c", "fsync=off", "-c", "max_connections=100"]),
-            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True)
+        # The log goes to a file: a pipe nobody reads would stall postgres once full.
+        self.log = os.path.join(self.dir, "postgres.log")
+        with open(self.log, "a", encoding="utf-8") as log:
+            self.proc = subprocess.Popen(
+                [pg_bin("postgres"), "-D", self.data, "-p", str(self.port),
+                 "-c", "listen_addresses=127.0.0.1", "-c", f"unix_socket_directories={self.dir}",
+                 "-c", "fsync=off", "-c", "max_connections=100"],
+                stdout=subprocess.DEVNULL, stderr=log, start_new_session=True, cwd=self.dir,
+                **_as_postgres())
         deadline = time.time() + 60
         while time.time() < deadline:
             r = subprocess.run([pg_bin("pg_isready"), "-h", "127.0.0.1", "-p", str(self.port)],
@@ -68,7 +75,8 @@ class Postgres:
             if r.returncode == 0:
                 return
             if self.proc.poll() is not None:
-                raise RuntimeError("postgres did not start: " + self.proc.stderr.read())
+                with open(self.log, encoding="utf-8", errors="replace") as log:
+                    raise RuntimeError("postgres did not start: " + log.read()[-3000:])
             time.sleep(0.1)
         raise RuntimeError("postgres did not answer within 60 s")
 
@@ -86,25 +94,56 @@ class Postgres:
         self.psql(f"CREATE DATABASE {name}")
         return self.url(name)
 
+    def pids(self):
+        """The postmaster and its children. (Each backend makes itself a process group leader,
+        so signalling the postmaster's group would not reach them.)"""
+        try:
+            with open(os.path.join(self.data, "postmaster.pid"), encoding="utf-8") as f:
+                postmaster = int(f.readline())
+        except (OSError, ValueError):
+            return []
+        children = []
+        for entry in os.listdir("/proc"):
+            if not entry.isdigit():
+                continue
+            try:
+                with open(f"/proc/{entry}/stat", encoding="utf-8") as f:
+                    stat = f.read()
+            except OSError:
+                continue
+            if int(stat.rsplit(")", 1)[1].split()[1]) == postmaster:
+                children.append(int(entry))
+        return [postmaster] + children
+
     def signal(self, sig):
-        """Sends `sig` to the postmaster and every backend (its process group)."""
-        os.killpg(self.proc.pid, sig)
+        """Sends `sig` to the postmaster and every backend."""
+        for pid in self.pids():
+            try:
+                os.kill(pid, sig)
+            except ProcessLookupError:
+                pass
 
     def stop(self, fast=True):
+        """Fast shutdown (SIGINT to the postmaster), or with fast=False a crash: SIGKILL to the
+        postmaster and every backend."""
+        pids = []
         if self.proc and self.proc.poll() is None:
             self.signal(signal.SIGCONT)
-            self.proc.send_signal(signal.SIGINT if fast else signal.SIGKILL)
+            pids = self.pids()
+            if fast and pids:
+                os.kill(pids[0], signal.SIGINT)
+            else:
+                self.signal(signal.SIGKILL)
             try:
                 self.proc.wait(timeout=30)
             except subprocess.TimeoutExpired:
                 self.signal(signal.SIGKILL)
                 self.proc.wait()
-        if not fast:  # a killed postmaster leaves its backends: end them too
-            try:
-                self.signal(signal.SIGKILL)
-            except ProcessLookupError:
-                pass
-            time.sleep(0.2)
+        if not fast:
+            # A killed postmaster leaves its pid file: the next start must not see one alive.
+            deadline = time.time() + 10
+            while time.time() < deadline and any(os.path.exists(f"/proc/{p}") for p in pids):
+                time.sleep(0.05)
 
     def remove(self):
         self.stop()
@@ -196,19 +235,18 @@ def metric(url, name, labels=None):
     return 0.0
 
 
-class Retry(Exception):
-    """A request to send again: the fleet is failing over (502/503/504, ABORTED, a reset)."""
-
-
 def call(method, url, deadline, **kwargs):
     """One API call that retries what a client of a fleet retries (connection errors, 502, 503,
-    504, 409 ABORTED) until `deadline`; returns the final response (2xx, or an error that is
-    not worth retrying). Each retry is counted in call.retries."""
+    504, 409 ABORTED, 429 after its Retry-After) until `deadline`; returns the final response
+    (2xx, or an error that is not worth retrying). Each retry is counted in call.retries."""
     while True:
+        delay = 0.2
         try:
             r = requests.request(method, url, timeout=120, **kwargs)
-            if r.status_code not in (409, 502, 503, 504):
+            if r.status_code not in (409, 429, 502, 503, 504):
                 return r
+            if r.status_code == 429:
+                delay = min(float(r.headers.get("Retry-After", "1")), 5.0)
         except requests.RequestException:
             r = None
         call.retries += 1
@@ -216,7 +254,7 @@ def call(method, url, deadline, **kwargs):
             if r is None:
                 raise RuntimeError(f"{method} {url}: no answer before the deadline")
             return r
-        time.sleep(0.2)
+        time.sleep(delay)
 
 
 call.retries = 0
@@ -250,6 +288,8 @@ class FleetRobot:
         self.plan_latencies = []  # (client-seen seconds, planner's elapsedMs / 1000)
         self.recovered = []       # what was recovered from a lost reply
         self.belief_mismatches = []
+        self.observed = set()          # actionIds whose observation was acknowledged
+        self.lost_observations = []    # (step, actionId) served as pending again
         self.events = []          # (time, step) of every acknowledged observation
 
     def session_url(self):
@@ -271,16 +311,23 @@ class FleetRobot:
         if r.status_code == 400 and "is pending" in r.text:
             # The plan was saved by a replica whose reply never came: read it back.
             s = call("GET", self.session_url(), self.deadline).json()
+            pending = s["pendingAction"]["actionId"]
+            # An action this robot already executed and had its observation acknowledged is
+            # pending again only when that observation was lost.
+            if pending in self.observed:
+                self.lost_observations.append((self.steps, pending))
             self.recovered.append(("plan", self.steps))
-            return s["pendingAction"]["actionId"], s["pendingAction"]["action"]
+            return pending, s["pendingAction"]["action"]
         raise AssertionError(f":plan {r.status_code} {r.text}")
 
     def observe(self, action_id, body):
         r = call("POST", self.session_url() + ":observe", self.deadline,
                  json=dict(body, actionId=action_id))
         if r.status_code == 200:
+            self.observed.add(action_id)
             return r.json()["done"]
         if r.status_code == 400 and "already observed" in r.text:
+            self.observed.add(action_id)
             s = call("GET", self.session_url(), self.deadline).json()
             assert s["step"] == self.steps + 1, s
             self.recovered.append(("observe", self.steps))

@@ -61,11 +61,16 @@ def test_twelve_robots_survive_a_replica_killed_mid_episode(postgres, store):
         killed = {}
 
         def drive(robot):
-            while not robot.done and robot.steps < 50:
-                robot.step()
-                if robot.steps == 2:
-                    started.wait(timeout=300)
-            robot.robot.close()
+            try:
+                while not robot.done and robot.steps < 50:
+                    robot.step()
+                    if robot.steps == 2:
+                        started.wait(timeout=300)
+            except BaseException:
+                started.set()  # the others must not wait for this robot's second step
+                raise
+            finally:
+                robot.robot.close()
             return robot
 
         def killer():
@@ -74,14 +79,16 @@ def test_twelve_robots_survive_a_replica_killed_mid_episode(postgres, store):
             started.wait(timeout=300)
             owners = postgres.psql("SELECT updated_by, count(*) FROM npfkct_sessions "
                                    "GROUP BY updated_by ORDER BY 2 DESC", db=store.rsplit("/", 1)[1])
-            port = int(owners[0][0].split(":")[1].split("/")[0])
-            victim = next(r for r in replicas if r.port == port)
+            # updated_by is "host:port/pid" (the port as given: 0 here, so the pid tells).
+            pid = int(owners[0][0].rsplit("/", 1)[1])
+            victim = next(r for r in replicas if r.proc.pid == pid)
+            port = victim.port
             deadline = time.time() + 5
             while time.time() < deadline and metric(victim.url, "npfkct_planning_slots_busy") < 1:
                 time.sleep(0.01)
             killed["port"], killed["time"] = port, time.time()
             killed["sessions"] = [row[0] for row in postgres.psql(
-                "SELECT id FROM npfkct_sessions WHERE updated_by LIKE '%:" + str(port) + "/%'",
+                "SELECT id FROM npfkct_sessions WHERE updated_by LIKE '%/" + str(pid) + "'",
                 db=store.rsplit("/", 1)[1])]
             victim.kill()
 
@@ -107,6 +114,17 @@ def test_twelve_robots_survive_a_replica_killed_mid_episode(postgres, store):
         # No acknowledged observation was lost: the belief served before every plan, by
         # whichever replica, was the one acknowledged last.
         assert [r.belief_mismatches for r in finished] == [[]] * 12
+        # ... and no action whose observation was acknowledged was ever pending again.
+        assert [r.lost_observations for r in finished] == [[]] * 12
+        # The belief rebuilt from the store by a replica that never held the sessions equals
+        # the belief the fleet served last.
+        fresh = start_replica(store)
+        try:
+            for r in finished:
+                rebuilt = requests.get(fresh.url + f"/v1/sessions/{r.id}/belief").json()
+                assert rebuilt == r.acked_belief, r.id
+        finally:
+            stop_all(fresh)
         # No session was advanced twice: one save to create, one per plan, one per observation.
         db = store.rsplit("/", 1)[1]
         versions = dict((row[0], int(row[1])) for row in postgres.psql(
@@ -117,15 +135,6 @@ def test_twelve_robots_survive_a_replica_killed_mid_episode(postgres, store):
         assert killed["sessions"], "the killed replica held no session"
         assert sum(metric(s.url, "npfkct_sessions_loaded_total") for s in survivors) >= \
             len(killed["sessions"])
-        # The belief rebuilt from the store by a replica that never held the sessions equals
-        # the belief the fleet served last.
-        fresh = start_replica(store)
-        try:
-            for r in finished:
-                rebuilt = requests.get(fresh.url + f"/v1/sessions/{r.id}/belief").json()
-                assert rebuilt == r.acked_belief, r.id
-        finally:
-            stop_all(fresh)
         moved = [r for r in finished if r.id in killed["sessions"]]
         after = [min((t for t, _ in r.events if t > killed["time"]), default=None) for r in moved]
         print(f"\nkilled replica :{killed['port']} holding {len(killed['sessions'])} sessions; "
