@@ -8,8 +8,10 @@ set -euo pipefail
 NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 source "$NPFKCT_ROOT/scripts/deps.sh"
 npfkct_install_deps
+npfkct_install_test_deps
 BUILD_DIR="${1:-$NPFKCT_ROOT/build}"
-npfkct_build "$BUILD_DIR"
+# With the PostgreSQL session store, which the fleet tests need (never silently left out).
+npfkct_build "$BUILD_DIR" -DNPFKCT_WITH_POSTGRESQL=ON
 ctest --test-dir "$BUILD_DIR" --output-on-failure -j 2
 
 # The robustness and hostile tests again, against the server built with AddressSanitizer and
