@@ -5,12 +5,14 @@
 
 #include <spdlog/spdlog.h>
 
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
 #include <cstdio>
 #include <mutex>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "npfkct/api/api.h"
@@ -24,8 +26,9 @@ namespace npfkct::server {
 
 Status PostgresStoreOptions::Validate() const {
   if (url.rfind("postgresql://", 0) != 0 && url.rfind("postgres://", 0) != 0) {
-    return InvalidFieldError("store", "expected a PostgreSQL URL, postgresql://[user@]host[:port]/"
-                                      "dbname (sessions in a directory: --state-dir)");
+    return InvalidFieldError("store",
+                             "expected a PostgreSQL URL, postgresql://[user@]host[:port]/"
+                             "dbname (sessions in a directory: --state-dir)");
   }
   if (pool_size < 1 || pool_size > 64) return InvalidFieldError("store-pool", "must be in [1, 64]");
   if (!(timeout_seconds >= 0.1 && timeout_seconds <= 60.0)) {
@@ -122,7 +125,8 @@ Status Classify(const PGresult* r) {
 // Waits until the connection's socket is ready for `events` or the deadline passes.
 bool Wait(PGconn* c, short events, Clock::time_point deadline) {
   for (;;) {
-    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now());
+    const auto left =
+        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now());
     if (left.count() <= 0) return false;
     pollfd p{PQsocket(c), events, 0};
     const int n = ::poll(&p, 1, static_cast<int>(std::min<int64_t>(left.count(), 1000)));
@@ -149,10 +153,10 @@ StatusOr<Result> Exec(PGconn* c, const std::string& sql, const std::vector<Param
     lengths.push_back(static_cast<int>(p.value.size()));
     formats.push_back(p.binary ? 1 : 0);
   }
-  const int sent =
-      simple ? PQsendQuery(c, sql.c_str())
-             : PQsendQueryParams(c, sql.c_str(), static_cast<int>(params.size()), nullptr,
-                                 values.data(), lengths.data(), formats.data(), 1);
+  const int sent = simple
+                       ? PQsendQuery(c, sql.c_str())
+                       : PQsendQueryParams(c, sql.c_str(), static_cast<int>(params.size()), nullptr,
+                                           values.data(), lengths.data(), formats.data(), 1);
   if (!sent) {
     *broken = true;
     return Unavailable(Clean(PQerrorMessage(c)));
@@ -261,13 +265,25 @@ class Pool {
     const std::string options = "-c statement_timeout=" + ms + " -c lock_timeout=" + ms +
                                 " -c idle_in_transaction_session_timeout=" + ms + "0";
     // Our settings first: the URL's own parameters (dbname, expanded last) override them.
-    const char* keys[] = {"connect_timeout",  "keepalives", "keepalives_idle",
-                          "keepalives_interval", "keepalives_count", "tcp_user_timeout",
-                          "application_name", "options",    "dbname",
-                          nullptr};
-    const char* values[] = {connect_timeout.c_str(), "1", "5", "2", "3", ms.c_str(),
-                            "npfkct-server", options.c_str(), url_.c_str(), nullptr};
-    Conn c(PQconnectdbParams(keys, values, 1));
+    const std::pair<const char*, const char*> settings[] = {
+        {"connect_timeout", connect_timeout.c_str()},
+        {"keepalives", "1"},
+        {"keepalives_idle", "5"},
+        {"keepalives_interval", "2"},
+        {"keepalives_count", "3"},
+        {"tcp_user_timeout", ms.c_str()},
+        {"application_name", "npfkct-server"},
+        {"options", options.c_str()},
+        {"dbname", url_.c_str()},
+    };
+    std::vector<const char*> keys, values;
+    for (const auto& [key, value] : settings) {
+      keys.push_back(key);
+      values.push_back(value);
+    }
+    keys.push_back(nullptr);
+    values.push_back(nullptr);
+    Conn c(PQconnectdbParams(keys.data(), values.data(), 1));
     if (!c) return Unavailable("out of memory");
     if (PQstatus(c.get()) != CONNECTION_OK) {
       return Unavailable("cannot connect: " + Clean(PQerrorMessage(c.get())));
@@ -299,9 +315,10 @@ class PostgresStore : public SessionStore {
   // the schema version.
   Status Prepare() {
     static const std::string kSchema =
-        std::string("BEGIN; SELECT pg_advisory_xact_lock(4244837122);"
-                    " CREATE TABLE IF NOT EXISTS npfkct_schema (version integer NOT NULL);"
-                    " INSERT INTO npfkct_schema (version) SELECT ") +
+        std::string(
+            "BEGIN; SELECT pg_advisory_xact_lock(4244837122);"
+            " CREATE TABLE IF NOT EXISTS npfkct_schema (version integer NOT NULL);"
+            " INSERT INTO npfkct_schema (version) SELECT ") +
         std::to_string(kSchemaVersion) +
         " WHERE NOT EXISTS (SELECT 1 FROM npfkct_schema);"
         " CREATE TABLE IF NOT EXISTS " +
@@ -334,24 +351,27 @@ class PostgresStore : public SessionStore {
     const int64_t version = expected + 1;
     Param snapshot{EncodeSnapshot(record, version), true};
     if (snapshot.value.size() > options_.max_snapshot_bytes) {
-      return ResourceExhaustedError("the session's snapshot is " +
-                                    std::to_string(snapshot.value.size()) +
-                                    " bytes, more than the store's limit of " +
-                                    std::to_string(options_.max_snapshot_bytes));
+      return ResourceExhaustedError(
+          "the session's snapshot is " + std::to_string(snapshot.value.size()) +
+          " bytes, more than the store's limit of " + std::to_string(options_.max_snapshot_bytes));
     }
     char ttl[64];
     std::snprintf(ttl, sizeof ttl, "%.17g", record.ttl_seconds);
     const std::string& id = record.id;
     if (expected == 0) {
       // A new session: inserted only when the id is free and the table below its limit.
-      auto r = Query(std::string("INSERT INTO ") + kTable +
-                         " (id, version, snapshot, ttl_seconds, expires_at, updated_by)"
-                         " SELECT $1::text, 1, $2::bytea, $3::float8,"
-                         " now() + $3::float8 * interval '1 second', $4::text WHERE (SELECT count(*) FROM " +
-                         kTable + ") < $5::bigint ON CONFLICT (id) DO NOTHING RETURNING 1",
-                     {{id}, std::move(snapshot), {ttl}, {options_.replica},
-                      {std::to_string(options_.max_sessions)}},
-                     false);
+      auto r = Query(
+          std::string("INSERT INTO ") + kTable +
+              " (id, version, snapshot, ttl_seconds, expires_at, updated_by)"
+              " SELECT $1::text, 1, $2::bytea, $3::float8,"
+              " now() + $3::float8 * interval '1 second', $4::text WHERE (SELECT count(*) FROM " +
+              kTable + ") < $5::bigint ON CONFLICT (id) DO NOTHING RETURNING 1",
+          {{id},
+           std::move(snapshot),
+           {ttl},
+           {options_.replica},
+           {std::to_string(options_.max_sessions)}},
+          false);
       if (!r.ok()) return r.status();
       if (PQntuples(r->get()) == 1) return version;
       auto exists = Query(std::string("SELECT 1 FROM ") + kTable + " WHERE id = $1", {{id}}, true);
@@ -379,23 +399,23 @@ class PostgresStore : public SessionStore {
                    false);
     if (!r.ok()) return r.status();
     if (PQntuples(r->get()) == 1) return version;
-    auto now = Query(std::string("SELECT version::text FROM ") + kTable + " WHERE id = $1",
-                     {{id}}, true);
+    auto now =
+        Query(std::string("SELECT version::text FROM ") + kTable + " WHERE id = $1", {{id}}, true);
     if (!now.ok()) return now.status();
     if (PQntuples(now->get()) == 0) {
       return Status(StatusCode::kAborted, "sessions/" + id + " was deleted meanwhile");
     }
-    return Status(StatusCode::kAborted,
-                  "sessions/" + id + " was saved meanwhile by another request (version " +
-                      std::string(Value(now->get(), 0, 0)) + ", expected " +
-                      std::to_string(expected) + ")");
+    return Status(StatusCode::kAborted, "sessions/" + id +
+                                            " was saved meanwhile by another request (version " +
+                                            std::string(Value(now->get(), 0, 0)) + ", expected " +
+                                            std::to_string(expected) + ")");
   }
 
   Status Delete(const std::string& id, bool* existed) override {
     if (existed) *existed = false;
     if (!api::IsSessionId(id)) return OkStatus();
-    auto r = Query(std::string("DELETE FROM ") + kTable + " WHERE id = $1 RETURNING 1", {{id}},
-                   true);
+    auto r =
+        Query(std::string("DELETE FROM ") + kTable + " WHERE id = $1 RETURNING 1", {{id}}, true);
     if (!r.ok()) return r.status();
     if (existed) *existed = PQntuples(r->get()) > 0;
     return OkStatus();
@@ -425,14 +445,14 @@ class PostgresStore : public SessionStore {
   StatusOr<Refreshed> Refresh(const std::string& id, int64_t held_version) override {
     if (!api::IsSessionId(id)) return NotFoundError("not a session id");
     // One round trip: the time to live restarts, and the record comes only when it changed.
-    auto r = Query(std::string("UPDATE ") + kTable +
-                       " SET expires_at = now() + ttl_seconds * interval '1 second'"
-                       " WHERE id = $1 AND expires_at > now() RETURNING version::text,"
-                       " CASE WHEN version <> $2::bigint AND octet_length(snapshot) <= $3::bigint"
-                       " THEN snapshot END, octet_length(snapshot)::text",
-                   {{id}, {std::to_string(held_version)},
-                    {std::to_string(options_.max_snapshot_bytes)}},
-                   true);
+    auto r =
+        Query(std::string("UPDATE ") + kTable +
+                  " SET expires_at = now() + ttl_seconds * interval '1 second'"
+                  " WHERE id = $1 AND expires_at > now() RETURNING version::text,"
+                  " CASE WHEN version <> $2::bigint AND octet_length(snapshot) <= $3::bigint"
+                  " THEN snapshot END, octet_length(snapshot)::text",
+              {{id}, {std::to_string(held_version)}, {std::to_string(options_.max_snapshot_bytes)}},
+              true);
     if (!r.ok()) return r.status();
     if (PQntuples(r->get()) == 0) return NotFoundError("sessions/" + id + " is not stored");
     Refreshed out;
@@ -460,8 +480,7 @@ class PostgresStore : public SessionStore {
   }
 
   StatusOr<std::vector<std::string>> DeleteExpired(size_t limit) override {
-    auto r = Query(std::string("DELETE FROM ") + kTable + " WHERE id IN (SELECT id FROM " +
-                       kTable +
+    auto r = Query(std::string("DELETE FROM ") + kTable + " WHERE id IN (SELECT id FROM " + kTable +
                        " WHERE expires_at <= now() ORDER BY expires_at LIMIT $1::bigint"
                        " FOR UPDATE SKIP LOCKED) RETURNING id",
                    {{std::to_string(limit)}}, true);
@@ -481,8 +500,8 @@ class PostgresStore : public SessionStore {
   StatusOr<Loaded> Decode(const PGresult* r, const std::string& id) const {
     const int64_t version = IntValue(r, 0, 0);
     if (PQgetisnull(r, 0, 1)) {
-      return Status(StatusCode::kDataLoss, "snapshot: " + std::string(Value(r, 0, 2)) +
-                                               " bytes, more than the cap");
+      return Status(StatusCode::kDataLoss,
+                    "snapshot: " + std::string(Value(r, 0, 2)) + " bytes, more than the cap");
     }
     auto loaded = DecodeSnapshot(Value(r, 0, 1), id, limits_);
     if (!loaded.ok()) return loaded.status();

@@ -151,8 +151,7 @@ StatusOr<int> Registry::Open(const SamplerFactory& samplers) {
     auto opened = OpenPostgresStore(o, options_.limits);
     if (!opened.ok()) return opened.status();
     store = std::move(opened).value();
-    spdlog::info("session store {} (pool of {} connections)", RedactedStoreUrl(o.url),
-                 o.pool_size);
+    spdlog::info("session store {} (pool of {} connections)", RedactedStoreUrl(o.url), o.pool_size);
   } else if (!options_.state_dir.empty()) {
     auto opened =
         DirectoryStore::Open(options_.state_dir, options_.limits, options_.max_snapshot_bytes);
@@ -406,8 +405,8 @@ void Registry::Maintain(bool full_round) {
     for (const auto& [id, s] : sessions_) {
       if (s->busy()) {
         busy.push_back(id);
-      } else if (full_round && s->IdleSeconds() > std::min(options_.evict_idle_seconds,
-                                                           s->ttl_seconds())) {
+      } else if (full_round &&
+                 s->IdleSeconds() > std::min(options_.evict_idle_seconds, s->ttl_seconds())) {
         idle.push_back(id);
       }
     }

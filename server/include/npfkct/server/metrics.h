@@ -60,7 +60,7 @@ class Metrics {
   std::atomic<int> sessions_{0};
   std::atomic<uint64_t> expired_{0};
   std::map<std::string, Histogram> store_seconds_;  // op labels -> histogram
-  std::map<std::string, uint64_t> store_errors_;     // op labels -> count
+  std::map<std::string, uint64_t> store_errors_;    // op labels -> count
   std::atomic<uint64_t> store_conflicts_{0};
   std::atomic<uint64_t> loaded_{0};
   std::atomic<uint64_t> evicted_{0};
