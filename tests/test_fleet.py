@@ -211,17 +211,18 @@ def test_ttl_is_kept_in_the_store_and_acts_across_replicas(postgres, store):
     a, b = start_replica(store), start_replica(store)
     db = store.rsplit("/", 1)[1]
     try:
-        sid = create(a.url, ttlSeconds=2)
+        # A TTL of 3 s, so that a loaded machine's pauses between requests stay well within it.
+        sid = create(a.url, ttlSeconds=3)
         # Used through A for longer than its TTL: B's reaper must not delete it.
-        for _ in range(5):
+        for _ in range(6):
             time.sleep(0.8)
             assert requests.get(f"{a.url}/v1/sessions/{sid}").status_code == 200
         # A plan longer than the TTL keeps it alive too.
-        r = requests.post(f"{a.url}/v1/sessions/{sid}:plan", json={"budget": {"timeMs": 3500}})
+        r = requests.post(f"{a.url}/v1/sessions/{sid}:plan", json={"budget": {"timeMs": 4500}})
         assert r.status_code == 200, r.text
         assert requests.get(f"{b.url}/v1/sessions/{sid}").status_code == 200
-        # Unused: gone from the store and from both replicas.
-        time.sleep(4.5)
+        # Unused: gone from the store and from both replicas (TTL, then a reaper's round).
+        time.sleep(5.5)
         assert postgres.psql(f"SELECT count(*) FROM npfkct_sessions WHERE id = '{sid}'",
                              db=db) == [["0"]]
         for url in (a.url, b.url):
