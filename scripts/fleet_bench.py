@@ -11,7 +11,8 @@ fleet size:
                     p50 / p99 in ms: HTTP, nginx, the store's refresh and save, queueing for a
                     planning slot; and the replicas' own histogram (npfkct_plan_overhead_seconds,
                     request in to reply out, buckets merged over replicas) as a bucket bound
-                  (null: above the largest bound, 100 ms)
+                  (null: above the largest bound, 100 ms); the store's refresh and save
+                  latencies (npfkct_store_operation_seconds) the same way
 Then, --kills times, with 3 fresh replicas and the robots running, the replica holding the most of
 their sessions is killed with SIGKILL; reported over all its sessions of all rounds:
   probe             for each of its sessions, the time from the kill until a GET of the session
@@ -44,13 +45,14 @@ def percentile(values, q):
     return values[min(len(values) - 1, int(round(q * (len(values) - 1))))]
 
 
-def histogram_quantile(texts, name, q):
+def histogram_quantile(texts, name, q, labels=""):
     """Upper bound, in ms, of the bucket holding quantile q of a Prometheus histogram summed
-    over several replicas' /metrics texts."""
+    over several replicas' /metrics texts (`labels`: the series' labels before le, with their
+    comma)."""
     merged = {}
     for text in texts:
         for line in text.splitlines():
-            if line.startswith(name + "_bucket{"):
+            if line.startswith(name + "_bucket{" + labels + "le="):
                 le = line.split('le="', 1)[1].split('"', 1)[0]
                 bound = float("inf") if le == "+Inf" else float(le)
                 merged[bound] = merged.get(bound, 0) + int(line.split()[-1])
@@ -194,6 +196,13 @@ def main():
                         texts, "npfkct_plan_overhead_seconds", 0.5),
                     "server_plan_overhead_ms_p99_bucket": histogram_quantile(
                         texts, "npfkct_plan_overhead_seconds", 0.99),
+                    # The store's part of each :plan: a refresh, then a save.
+                    "store_refresh_ms_p50_bucket": histogram_quantile(
+                        texts, "npfkct_store_operation_seconds", 0.5, 'op="refresh",'),
+                    "store_save_ms_p50_bucket": histogram_quantile(
+                        texts, "npfkct_store_operation_seconds", 0.5, 'op="save",'),
+                    "store_save_ms_p99_bucket": histogram_quantile(
+                        texts, "npfkct_store_operation_seconds", 0.99, 'op="save",'),
                 })
                 print(json.dumps(results["fleets"][-1]), file=sys.stderr)
             finally:
