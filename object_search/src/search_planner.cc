@@ -160,7 +160,10 @@ const std::vector<PlannerInfo>& SearchPlanners() {
        "NPF-kCT: the k-center clustering tree over candidates from Net_sam (the neural filter); "
        "uniform candidates when no filter is loaded",
        true, false},
-      {"kct", "NPF-kCT's clustering tree with uniform candidates (no neural filter)", false, false},
+      {"kct",
+       "NPF-kCT's clustering tree without the neural filter: candidates aimed at what is left to "
+       "see (proposals.aimed = 0: uniform, as in the paper)",
+       false, false},
       {"pomcp",
        "POMCP (Silver & Veness 2010) on the paper's manual set: separate base (4 poses), lift (3) "
        "and head (9) actions; no guessed target, no tree reuse",

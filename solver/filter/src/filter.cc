@@ -9,7 +9,17 @@
 #include "npfkct/object_search/proposals.h"
 #include "npfkct/solver/option_table.h"
 
+// OpenBLAS's own thread count (libtorch's set_num_threads does not reach it). Weak: absent when
+// the BLAS in use is another one.
+extern "C" void openblas_set_num_threads(int num_threads) __attribute__((weak));
+
 namespace npfkct::filter {
+
+void SetComputeThreads(int threads) {
+  threads = std::max(1, threads);
+  torch::set_num_threads(threads);
+  if (openblas_set_num_threads != nullptr) openblas_set_num_threads(threads);
+}
 
 struct NeuralFilter::Impl {
   NpNet net{nullptr};
@@ -19,10 +29,10 @@ namespace {
 
 using object_search::kMoveKind;
 
-// Inference runs on the calling thread: one libtorch intra-op thread.
+// Inference runs on the calling thread: one libtorch intra-op thread, one OpenBLAS thread.
 void SingleThreaded() {
   static std::once_flag once;
-  std::call_once(once, [] { torch::set_num_threads(1); });
+  std::call_once(once, [] { SetComputeThreads(1); });
 }
 
 torch::Tensor FromVector(const std::vector<float>& v, std::vector<int64_t> shape) {

@@ -40,6 +40,12 @@ struct FilterOptions {
 /// integer fields are INVALID_ARGUMENT naming the key (Validate() checks the ranges).
 Status SetOption(FilterOptions* o, std::string_view key, double value);
 
+/// Sets how many threads libtorch and OpenBLAS use for the filter's tensor work in this process.
+/// Planning uses 1 (the default the filter sets before its first use): inference then runs on
+/// the planning thread alone, so a CPU-time budget counts all of it, and no BLAS worker threads
+/// spin on a loaded machine.
+void SetComputeThreads(int threads);
+
 /// The network's prediction of the score of each query.
 struct Prediction {
   std::vector<float> mu;
