@@ -12,9 +12,18 @@ NPFKCT_PACKAGES=(
   python3-std-msgs python3-sensor-msgs python3-geometry-msgs
 )
 
-npfkct_install_deps() {
+# Fleet mode (--store postgresql://...): the PostgreSQL client library the store is built with.
+# Not needed by a single-machine server, which builds without it.
+NPFKCT_STORE_PACKAGES=(libpq-dev)
+# What the fleet and deployment tests run besides (tests/test_fleet.py, tests/test_deploy.py): a
+# throwaway PostgreSQL cluster, nginx, docker-compose to check deploy/compose.yaml; Node.js and
+# npm for the Kubernetes manifests' validator (tests/k8s).
+NPFKCT_FLEET_TEST_PACKAGES=(postgresql postgresql-client nginx docker-compose)
+
+# Installs the packages given that are not installed yet.
+npfkct_install_packages() {
   local missing=()
-  for p in "${NPFKCT_PACKAGES[@]}"; do
+  for p in "$@"; do
     if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
       missing+=("$p")
     fi
@@ -28,6 +37,21 @@ npfkct_install_deps() {
   $sudo env DEBIAN_FRONTEND=noninteractive apt-get update -qq
   $sudo env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends \
     "${missing[@]}"
+}
+
+# What building and running npfkct-server on one machine needs (scripts/run.sh).
+npfkct_install_deps() {
+  npfkct_install_packages "${NPFKCT_PACKAGES[@]}"
+}
+
+# What scripts/test.sh needs on top: the store's library and the fleet tests' programs. Node.js
+# is looked for as a command, so that a Node.js installed from elsewhere (with its own npm) is
+# used as it is.
+npfkct_install_test_deps() {
+  npfkct_install_packages "${NPFKCT_STORE_PACKAGES[@]}" "${NPFKCT_FLEET_TEST_PACKAGES[@]}"
+  if ! command -v node >/dev/null || ! command -v npm >/dev/null; then
+    npfkct_install_packages nodejs npm
+  fi
 }
 
 npfkct_build() {

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Builds npfkct and runs every test: unit tests, integration tests (real server on loopback,
-# Python client, curl, ROS node with roscore, schemas, restart, the hostile suite), then the
+# Python client, curl, ROS node with roscore, schemas, restart, the hostile suite, a fleet of
+# replicas with PostgreSQL and nginx, the deploy/ files), then the
 # hostile-request tests again against an AddressSanitizer/UBSan build of the server (the
 # memory-bomb test runs the Release server under an address-space cap, which ASan cannot run
 # under). Usage: scripts/test.sh [build-dir]
@@ -8,8 +9,10 @@ set -euo pipefail
 NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 source "$NPFKCT_ROOT/scripts/deps.sh"
 npfkct_install_deps
+npfkct_install_test_deps
 BUILD_DIR="${1:-$NPFKCT_ROOT/build}"
-npfkct_build "$BUILD_DIR"
+# With the PostgreSQL session store, which the fleet tests need (never silently left out).
+npfkct_build "$BUILD_DIR" -DNPFKCT_WITH_POSTGRESQL=ON
 ctest --test-dir "$BUILD_DIR" --output-on-failure -j 2
 
 # The robustness and hostile tests again, against the server built with AddressSanitizer and

@@ -21,6 +21,19 @@ int main(int argc, char** argv) {
   app.add_option("--port", o.port, "port to bind (0: any free port, printed on stdout)");
   app.add_option("--state-dir", o.state_dir,
                  "directory for session snapshots; sessions survive restarts");
+  app.add_option("--store", o.store_url,
+                 "fleet mode: PostgreSQL URL of the session store the replicas share, "
+                 "postgresql://user@host:5432/db (or the NPFKCT_STORE environment variable)")
+      ->envname("NPFKCT_STORE");
+  app.add_option("--store-pool", o.store_pool, "connections to the store (fleet mode)");
+  app.add_option("--store-timeout", o.store_timeout_seconds,
+                 "seconds one store call may take before the request gets 503 (fleet mode)");
+  app.add_option("--store-wait", o.store_wait_seconds,
+                 "seconds to wait for the store at start-up (fleet mode)");
+  app.add_option("--max-stored-sessions", o.max_stored_sessions,
+                 "most sessions the store may hold (fleet mode)");
+  app.add_option("--evict-idle", o.evict_idle_seconds,
+                 "seconds unused before a session is dropped from memory (fleet mode)");
   app.add_option("--api-key", o.api_key, "require 'Authorization: Bearer KEY' on /v1");
   app.add_option("--session-ttl", o.session_ttl_seconds, "idle seconds before a session expires");
   app.add_option("--max-sessions", o.max_sessions, "most sessions held at once");

@@ -45,6 +45,18 @@ void Metrics::ObserveRequest(const std::string& method, const std::string& route
   h.Observe(seconds);
 }
 
+void Metrics::ObserveStore(const std::string& op, double seconds, bool failed) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const std::string labels = "op=\"" + op + "\"";
+  auto& h = store_seconds_[labels];
+  if (h.bounds.empty()) {
+    h.bounds = {0.0001, 0.00025, 0.0005, 0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 1, 5};
+    h.counts.assign(h.bounds.size() + 1, 0);
+  }
+  h.Observe(seconds);
+  if (failed) ++store_errors_[labels];
+}
+
 void Metrics::ObservePlan(double planning_seconds, double overhead_seconds, int64_t simulations) {
   std::lock_guard<std::mutex> lock(mutex_);
   planning_seconds_.Observe(planning_seconds);
@@ -93,11 +105,34 @@ std::string Metrics::Render(int planning, int waiting) const {
   out += "# HELP npfkct_simulations_total Simulations run by all planners.\n";
   out += "# TYPE npfkct_simulations_total counter\n";
   out += "npfkct_simulations_total " + std::to_string(simulations_) + "\n";
-  out += "# HELP npfkct_sessions Live sessions.\n# TYPE npfkct_sessions gauge\n";
+  out += "# HELP npfkct_sessions Sessions held in memory by this server.\n";
+  out += "# TYPE npfkct_sessions gauge\n";
   out += "npfkct_sessions " + std::to_string(sessions_.load()) + "\n";
   out += "# HELP npfkct_sessions_expired_total Sessions deleted after their idle TTL.\n";
   out += "# TYPE npfkct_sessions_expired_total counter\n";
   out += "npfkct_sessions_expired_total " + std::to_string(expired_.load()) + "\n";
+  out += "# HELP npfkct_store_operation_seconds Latency of session store calls by operation.\n";
+  out += "# TYPE npfkct_store_operation_seconds histogram\n";
+  for (const auto& [labels, h] : store_seconds_) {
+    RenderHistogram(&out, "npfkct_store_operation_seconds", labels, h);
+  }
+  out += "# HELP npfkct_store_errors_total Store calls that failed (unreachable, timed out).\n";
+  out += "# TYPE npfkct_store_errors_total counter\n";
+  for (const auto& [labels, n] : store_errors_) {
+    out += "npfkct_store_errors_total{" + labels + "} " + std::to_string(n) + "\n";
+  }
+  out += "# HELP npfkct_store_conflicts_total Saves refused: the session was saved meanwhile.\n";
+  out += "# TYPE npfkct_store_conflicts_total counter\n";
+  out += "npfkct_store_conflicts_total " + std::to_string(store_conflicts_.load()) + "\n";
+  out += "# HELP npfkct_store_up Whether the session store answered its last call.\n";
+  out += "# TYPE npfkct_store_up gauge\n";
+  out += "npfkct_store_up " + std::string(store_up_.load() ? "1" : "0") + "\n";
+  out += "# HELP npfkct_sessions_loaded_total Sessions loaded from the store (belief rebuilt).\n";
+  out += "# TYPE npfkct_sessions_loaded_total counter\n";
+  out += "npfkct_sessions_loaded_total " + std::to_string(loaded_.load()) + "\n";
+  out += "# HELP npfkct_sessions_evicted_total Sessions dropped from memory (still stored).\n";
+  out += "# TYPE npfkct_sessions_evicted_total counter\n";
+  out += "npfkct_sessions_evicted_total " + std::to_string(evicted_.load()) + "\n";
   out += "# HELP npfkct_planning_slots_busy Planning slots in use.\n";
   out += "# TYPE npfkct_planning_slots_busy gauge\n";
   out += "npfkct_planning_slots_busy " + std::to_string(planning) + "\n";

@@ -5,6 +5,7 @@
 #include <thread>
 
 #include "npfkct/api/api.h"
+#include "registry.h"
 
 namespace npfkct::server {
 
@@ -48,6 +49,13 @@ Status ServerOptions::Validate() const {
     if (!(t > 0.0 && t <= 3600.0)) return InvalidFieldError("timeouts", "must be in (0, 3600] s");
   }
   if (max_models < 1) return InvalidFieldError("max-models", "must be >= 1");
+  if (!store_url.empty()) {
+    if (!state_dir.empty()) {
+      return InvalidFieldError("store", "--store and --state-dir exclude each other");
+    }
+    if (Status s = StoreOptions(*this).Validate(); !s.ok()) return s;
+    if (!(evict_idle_seconds > 0.0)) return InvalidFieldError("evict-idle", "must be > 0");
+  }
   if (Status s = limits.Validate(); !s.ok()) return s;
   return OkStatus();
 }

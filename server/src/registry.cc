@@ -1,8 +1,137 @@
 #include "registry.h"
 
 #include <spdlog/spdlog.h>
+#include <sys/random.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstdio>
+
+#include "npfkct/api/api.h"
+#include "npfkct/server/postgres_store.h"
 
 namespace npfkct::server {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+Status NotHeld(const std::string& id) {
+  return NotFoundError("sessions/" + id.substr(0, 64) + " not found");
+}
+
+// A store that times every call into the metrics, counts conflicts and failures, and remembers
+// whether the store answered last time (for /healthz).
+class InstrumentedStore : public SessionStore {
+ public:
+  InstrumentedStore(std::unique_ptr<SessionStore> store, Metrics* metrics)
+      : store_(std::move(store)), metrics_(metrics) {}
+
+  StatusOr<int64_t> Save(const api::SessionRecord& r, int64_t expected) override {
+    return Timed("save", [&] { return store_->Save(r, expected); });
+  }
+  Status Delete(const std::string& id, bool* existed) override {
+    return Timed("delete", [&] { return store_->Delete(id, existed); });
+  }
+  StatusOr<std::vector<std::string>> List(size_t limit, const std::string& after) override {
+    return Timed("list", [&] { return store_->List(limit, after); });
+  }
+  StatusOr<Loaded> Load(const std::string& id) override {
+    return Timed("load", [&] { return store_->Load(id); });
+  }
+  bool shared() const override { return store_->shared(); }
+  StatusOr<Refreshed> Refresh(const std::string& id, int64_t held) override {
+    return Timed("refresh", [&] { return store_->Refresh(id, held); });
+  }
+  Status KeepAlive(const std::vector<std::string>& ids) override {
+    return Timed("keepalive", [&] { return store_->KeepAlive(ids); });
+  }
+  StatusOr<std::vector<std::string>> DeleteExpired(size_t limit) override {
+    return Timed("expire", [&] { return store_->DeleteExpired(limit); });
+  }
+  Status Ping() override {
+    return Timed("ping", [&] { return store_->Ping(); });
+  }
+  std::string backend() const override { return store_->backend(); }
+
+  StoreHealth health() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return health_;
+  }
+
+ private:
+  static const Status& StatusOf(const Status& s) { return s; }
+  template <typename T>
+  static const Status& StatusOf(const StatusOr<T>& s) {
+    return s.status();
+  }
+
+  template <typename F>
+  auto Timed(const char* op, F&& call) -> decltype(call()) {
+    const auto start = Clock::now();
+    auto result = call();
+    const Status& s = StatusOf(result);
+    const bool conflict = s.code() == StatusCode::kAborted;
+    const bool failed = !s.ok() && s.code() != StatusCode::kNotFound && !conflict &&
+                        s.code() != StatusCode::kAlreadyExists &&
+                        s.code() != StatusCode::kResourceExhausted;
+    metrics_->ObserveStore(op, std::chrono::duration<double>(Clock::now() - start).count(), failed);
+    if (conflict && std::string(op) == "save") metrics_->CountStoreConflict();
+    if (s.code() == StatusCode::kUnavailable || s.ok()) {
+      std::lock_guard<std::mutex> lock(mutex_);
+      const bool was_ok = health_.ok;
+      health_.ok = s.ok();
+      health_.message = s.ok() ? "" : std::string(s.message());
+      metrics_->SetStoreUp(health_.ok);
+      if (was_ok != health_.ok) {
+        if (health_.ok) {
+          spdlog::info("the session store answers again");
+        } else {
+          spdlog::warn("the session store is unavailable: {}", health_.message);
+        }
+      }
+    }
+    return result;
+  }
+
+  std::unique_ptr<SessionStore> store_;
+  Metrics* metrics_;
+  mutable std::mutex mutex_;
+  StoreHealth health_;
+};
+
+std::string ReplicaName(const ServerOptions& o) {
+  char host[256] = "";
+  if (::gethostname(host, sizeof host - 1) != 0) host[0] = '\0';
+  return std::string(host) + ":" + std::to_string(o.port) + "/" + std::to_string(::getpid());
+}
+
+}  // namespace
+
+PostgresStoreOptions StoreOptions(const ServerOptions& o) {
+  PostgresStoreOptions p;
+  p.url = o.store_url;
+  p.pool_size = o.store_pool;
+  p.timeout_seconds = o.store_timeout_seconds;
+  p.wait_seconds = o.store_wait_seconds;
+  p.max_snapshot_bytes = o.max_snapshot_bytes;
+  p.max_sessions = o.max_stored_sessions;
+  return p;
+}
+
+std::string Registry::NewId() {
+  unsigned char bytes[16];
+  size_t done = 0;
+  while (done < sizeof bytes) {
+    const ssize_t n = ::getrandom(bytes + done, sizeof bytes - done, 0);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) std::abort();  // the kernel's random source never fails once initialised
+    done += static_cast<size_t>(n);
+  }
+  char hex[33];
+  for (size_t i = 0; i < sizeof bytes; ++i) std::snprintf(hex + 2 * i, 3, "%02x", bytes[i]);
+  return hex;
+}
 
 Registry::Registry(const ServerOptions& options, Metrics* metrics)
     : options_(options), metrics_(metrics) {
@@ -14,18 +143,31 @@ Registry::Registry(const ServerOptions& options, Metrics* metrics)
 Registry::~Registry() { StopReaper(); }
 
 StatusOr<int> Registry::Open(const SamplerFactory& samplers) {
-  if (options_.state_dir.empty()) {
-    store_ = MakeMemoryStore();
-    return 0;
+  samplers_ = samplers;
+  std::unique_ptr<SessionStore> store;
+  if (!options_.store_url.empty()) {
+    PostgresStoreOptions o = StoreOptions(options_);
+    o.replica = ReplicaName(options_);
+    auto opened = OpenPostgresStore(o, options_.limits);
+    if (!opened.ok()) return opened.status();
+    store = std::move(opened).value();
+    spdlog::info("session store {} (pool of {} connections)", RedactedStoreUrl(o.url), o.pool_size);
+  } else if (!options_.state_dir.empty()) {
+    auto opened =
+        DirectoryStore::Open(options_.state_dir, options_.limits, options_.max_snapshot_bytes);
+    if (!opened.ok()) return opened.status();
+    store = std::move(opened).value();
+  } else {
+    store = MakeMemoryStore();
   }
-  auto store =
-      DirectoryStore::Open(options_.state_dir, options_.limits, options_.max_snapshot_bytes);
-  if (!store.ok()) return store.status();
-  store_ = std::move(store).value();
+  shared_ = store->shared();
+  store_ = std::make_unique<InstrumentedStore>(std::move(store), metrics_);
+  metrics_->SetStoreUp(true);
+  if (shared_) return 0;  // sessions are loaded when a request names them
   // Entries that do not restore do not count against --max-sessions; the listing itself is
   // bounded so that a directory full of junk cannot stall the start.
   const size_t max = static_cast<size_t>(options_.max_sessions);
-  auto ids = store_->List(16 * max + 1024);
+  auto ids = store_->List(16 * max + 1024, "");
   if (!ids.ok()) return ids.status();
   int restored = 0;
   for (const std::string& id : *ids) {
@@ -54,21 +196,115 @@ StatusOr<int> Registry::Open(const SamplerFactory& samplers) {
   return restored;
 }
 
-std::shared_ptr<Session> Registry::Find(const std::string& id) const {
-  std::shared_lock lock(mutex_);
-  auto it = sessions_.find(id);
-  return it == sessions_.end() ? nullptr : it->second;
+StatusOr<std::shared_ptr<Session>> Registry::Acquire(const std::string& id) {
+  if (!api::IsSessionId(id)) return NotHeld(id);
+  std::shared_ptr<Session> held;
+  {
+    std::shared_lock lock(mutex_);
+    auto it = sessions_.find(id);
+    if (it != sessions_.end()) held = it->second;
+  }
+  if (!shared_) {
+    if (!held) return NotHeld(id);
+    if (!held->stale()) return held;
+    // A save failed (a full disk): what was acknowledged is the stored record.
+    auto loaded = store_->Load(id);
+    if (!loaded.ok()) return loaded.status();
+    return Install(std::move(loaded).value(), held);
+  }
+  // Fleet: the store says which version is current (and restarts the session's time to live).
+  const int64_t held_version = held && !held->stale() ? held->version() : -1;
+  auto fresh = store_->Refresh(id, held_version);
+  if (!fresh.ok()) {
+    if (fresh.status().code() != StatusCode::kNotFound) return fresh.status();
+    if (held) Drop(id);
+    return NotHeld(id);
+  }
+  if (!fresh->loaded) return held;
+  return Install(std::move(*fresh->loaded), held);
 }
 
-std::vector<std::shared_ptr<Session>> Registry::Page(const std::string& token, int size,
-                                                     std::string* next) const {
-  std::vector<std::shared_ptr<Session>> page;
-  std::shared_lock lock(mutex_);
-  auto it = sessions_.upper_bound(token);
-  for (; it != sessions_.end() && static_cast<int>(page.size()) < size; ++it) {
-    page.push_back(it->second);
+StatusOr<std::shared_ptr<Session>> Registry::Install(SessionStore::Loaded loaded,
+                                                     const std::shared_ptr<Session>& replaced) {
+  const std::string id = loaded.record.id;
+  auto restored =
+      Session::Restore(std::move(loaded.record), loaded.version, samplers_, session_limits_);
+  if (!restored.ok()) {
+    spdlog::warn("session {} cannot be loaded from the store: {}", id,
+                 restored.status().ToString());
+    return restored.status();
   }
-  if (it != sessions_.end() && !page.empty()) *next = page.back()->id();
+  std::shared_ptr<Session> session = std::move(restored).value();
+  metrics_->CountLoaded();
+  std::unique_lock lock(mutex_);
+  auto it = sessions_.find(id);
+  if (it != sessions_.end() && it->second != replaced && !it->second->stale() &&
+      it->second->version() >= session->version()) {
+    return it->second;  // another request loaded it meanwhile
+  }
+  if (it == sessions_.end() && !MakeRoomLocked(1)) return FullError();
+  sessions_[id] = session;
+  metrics_->SetSessions(static_cast<int>(sessions_.size()));
+  return session;
+}
+
+bool Registry::MakeRoomLocked(int room) {
+  while (static_cast<int>(sessions_.size()) + room > options_.max_sessions) {
+    if (!shared_) return false;
+    // The least recently used session no request works on; it stays in the store.
+    auto victim = sessions_.end();
+    double idlest = 0.0;
+    for (auto it = sessions_.begin(); it != sessions_.end(); ++it) {
+      const double idle = it->second->IdleSeconds();
+      if (idle > idlest && !it->second->busy()) {
+        idlest = idle;
+        victim = it;
+      }
+    }
+    if (victim == sessions_.end()) return false;
+    sessions_.erase(victim);
+    metrics_->CountEvicted();
+  }
+  metrics_->SetSessions(static_cast<int>(sessions_.size()));
+  return true;
+}
+
+void Registry::Drop(const std::string& id) {
+  std::shared_ptr<Session> held;
+  {
+    std::unique_lock lock(mutex_);
+    auto it = sessions_.find(id);
+    if (it == sessions_.end()) return;
+    held = std::move(it->second);
+    sessions_.erase(it);
+    metrics_->SetSessions(static_cast<int>(sessions_.size()));
+  }
+  (void)held->Delete(nullptr);  // stops its plan; never saved again
+}
+
+StatusOr<std::vector<api::SessionView>> Registry::Page(const std::string& token, int size,
+                                                       std::string* next) const {
+  std::vector<api::SessionView> page;
+  if (!shared_) {
+    std::shared_lock lock(mutex_);
+    auto it = sessions_.upper_bound(token);
+    for (; it != sessions_.end() && static_cast<int>(page.size()) < size; ++it) {
+      page.push_back(it->second->View());
+    }
+    if (it != sessions_.end() && !page.empty()) *next = page.back().id;
+    return page;
+  }
+  // Fleet: the store's sessions, each read from its record (a page is at most 100 of them).
+  size = std::min(size, 100);
+  auto ids = store_->List(static_cast<size_t>(size) + 1, token);
+  if (!ids.ok()) return ids.status();
+  for (size_t i = 0; i < ids->size() && static_cast<int>(i) < size; ++i) {
+    auto loaded = store_->Load((*ids)[i]);
+    if (loaded.status().code() == StatusCode::kNotFound) continue;  // deleted meanwhile
+    if (!loaded.ok()) return loaded.status();
+    page.push_back(Session::ViewOf(loaded->record));
+  }
+  if (static_cast<int>(ids->size()) > size) *next = (*ids)[size - 1];
   return page;
 }
 
@@ -83,12 +319,17 @@ Status Registry::FullError() const {
                                 " sessions (--max-sessions); delete one or retry later");
 }
 
+Status Registry::CheckCapacity() {
+  std::unique_lock lock(mutex_);
+  return MakeRoomLocked(1) ? OkStatus() : FullError();
+}
+
 StatusOr<std::shared_ptr<Session>> Registry::Add(std::unique_ptr<Session> created) {
   std::shared_ptr<Session> session = std::move(created);
-  if (size() >= options_.max_sessions) return FullError();
+  if (Status s = CheckCapacity(); !s.ok()) return s;
   if (Status s = session->Save(store_.get()); !s.ok()) return s;
   std::unique_lock lock(mutex_);
-  if (static_cast<int>(sessions_.size()) >= options_.max_sessions) {
+  if (!MakeRoomLocked(1)) {
     lock.unlock();
     (void)session->Delete(store_.get());
     return FullError();
@@ -98,23 +339,38 @@ StatusOr<std::shared_ptr<Session>> Registry::Add(std::unique_ptr<Session> create
   return session;
 }
 
-Status Registry::Remove(const std::shared_ptr<Session>& session) {
+Status Registry::Remove(const std::string& id) {
+  if (!api::IsSessionId(id)) return NotHeld(id);
+  std::shared_ptr<Session> held;
   {
     std::unique_lock lock(mutex_);
-    auto it = sessions_.find(session->id());
-    if (it == sessions_.end() || it->second != session) {
-      return NotFoundError("sessions/" + session->id() + " not found");
+    auto it = sessions_.find(id);
+    if (it != sessions_.end()) {
+      held = std::move(it->second);
+      sessions_.erase(it);
+      metrics_->SetSessions(static_cast<int>(sessions_.size()));
     }
-    sessions_.erase(it);
-    metrics_->SetSessions(static_cast<int>(sessions_.size()));
   }
-  // Cancels a running plan and removes the snapshot under the session's persistence lock.
-  return session->Delete(store_.get());
+  if (!shared_) {
+    // Cancels a running plan and removes the snapshot under the session's persistence lock.
+    return held ? held->Delete(store_.get()) : NotHeld(id);
+  }
+  // Fleet: the row is the session, wherever it is held. The held copy is marked deleted first
+  // (waiting for a save in flight), so it is never written again.
+  if (held) (void)held->Delete(nullptr);
+  bool existed = false;
+  if (Status s = store_->Delete(id, &existed); !s.ok()) return s;
+  return existed ? OkStatus() : NotHeld(id);
 }
 
 void Registry::CancelAll() {
   std::shared_lock lock(mutex_);
   for (const auto& [id, s] : sessions_) s->Cancel();
+}
+
+StoreHealth Registry::store_health() const {
+  if (!shared_ || !store_) return StoreHealth{};
+  return static_cast<const InstrumentedStore*>(store_.get())->health();
 }
 
 void Registry::Reap() {
@@ -139,14 +395,54 @@ void Registry::Reap() {
   }
 }
 
+// Fleet upkeep: keeps the sessions requests work on from expiring (every tick); once a second,
+// checks the store, deletes expired sessions (any replica may) and drops idle ones from memory.
+void Registry::Maintain(bool full_round) {
+  std::vector<std::string> busy;
+  std::vector<std::string> idle;
+  {
+    std::shared_lock lock(mutex_);
+    for (const auto& [id, s] : sessions_) {
+      if (s->busy()) {
+        busy.push_back(id);
+      } else if (full_round &&
+                 s->IdleSeconds() > std::min(options_.evict_idle_seconds, s->ttl_seconds())) {
+        idle.push_back(id);
+      }
+    }
+  }
+  if (!busy.empty()) (void)store_->KeepAlive(busy);
+  if (!full_round) return;
+  (void)store_->Ping();
+  if (auto expired = store_->DeleteExpired(100); expired.ok()) {
+    for (const std::string& id : *expired) {
+      Drop(id);
+      metrics_->CountExpired();
+      spdlog::info("session {} expired", id);
+    }
+  }
+  std::unique_lock lock(mutex_);
+  for (const std::string& id : idle) {
+    auto it = sessions_.find(id);
+    if (it == sessions_.end() || it->second->busy()) continue;
+    sessions_.erase(it);
+    metrics_->CountEvicted();
+  }
+  metrics_->SetSessions(static_cast<int>(sessions_.size()));
+}
+
 void Registry::StartReaper() {
   reaper_ = std::thread([this] {
     std::unique_lock<std::mutex> lock(stop_mutex_);
-    while (!stopping_) {
+    for (int tick = 0; !stopping_; ++tick) {
       stop_cv_.wait_for(lock, std::chrono::milliseconds(250));
       if (stopping_) break;
       lock.unlock();
-      Reap();
+      if (shared_) {
+        Maintain(tick % 4 == 0);
+      } else {
+        Reap();
+      }
       lock.lock();
     }
   });

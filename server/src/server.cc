@@ -20,14 +20,6 @@ namespace {
 using Request = httplib::Request;
 using Response = httplib::Response;
 
-std::string NewSessionId() {
-  static thread_local std::mt19937_64 gen(std::random_device{}());
-  char buf[33];
-  std::snprintf(buf, sizeof buf, "%016llx%016llx", static_cast<unsigned long long>(gen()),
-                static_cast<unsigned long long>(gen()));
-  return buf;
-}
-
 void Json(Response& res, int status, std::string body) {
   res.status = status;
   res.set_content(std::move(body), "application/json");
@@ -48,7 +40,9 @@ bool Matches(std::string_view route, std::string_view path) {
   return id.find_first_of("/:") == std::string_view::npos;
 }
 
+// UNAVAILABLE (the session store did not answer) is worth retrying in a second.
 void Fail(Response& res, const Status& s, int http_status = 0, int retry_after = 0) {
+  if (retry_after == 0 && s.code() == StatusCode::kUnavailable) retry_after = 1;
   const int code = http_status > 0 ? http_status : api::HttpStatusOf(s.code());
   Json(res, code, api::RenderError(s, code, retry_after));
   if (retry_after > 0) res.set_header("Retry-After", std::to_string(retry_after));
@@ -81,8 +75,12 @@ struct Server::Impl {
 
   // ---- handlers ----
 
+  // Answers from what the store last said (never waits for it): 503 while it is unavailable.
   void Health(const Request&, Response& res, const std::string&) {
-    Json(res, 200, api::RenderHealth());
+    const StoreHealth store = registry.store_health();
+    const api::HealthView h{registry.store()->backend(), store.ok, store.message, registry.size()};
+    Json(res, store.ok ? 200 : 503, api::RenderHealth(h));
+    if (!store.ok) res.set_header("Retry-After", "1");
   }
 
   void MetricsText(const Request&, Response& res, const std::string&) {
@@ -91,11 +89,11 @@ struct Server::Impl {
                     "text/plain; version=0.0.4; charset=utf-8");
   }
 
+  // The session of the path, held or (fleet mode) loaded from the store.
   std::shared_ptr<Session> Find(const Request& req, Response& res) {
-    const std::string id = req.matches[1];
-    auto s = api::IsSessionId(id) ? registry.Find(id) : nullptr;
-    if (!s) Fail(res, NotFoundError("sessions/" + id.substr(0, 64) + " not found"));
-    return s;
+    auto s = registry.Acquire(req.matches[1]);
+    if (!s.ok()) Fail(res, s.status());
+    return s.ok() ? *s : nullptr;
   }
 
   void Create(const Request&, Response& res, const std::string& body) {
@@ -107,11 +105,11 @@ struct Server::Impl {
                                                                options.session_ttl_seconds)) +
                                                            " (the server's --session-ttl)"));
     }
-    if (registry.size() >= options.max_sessions) return Fail(res, registry.FullError(), 0, 5);
+    if (Status full = registry.CheckCapacity(); !full.ok()) return Fail(res, full, 0, 5);
     auto world = api::BuildWorld(req->world, options.limits);
     if (!world.ok()) return Fail(res, world.status());
     SessionConfig config{
-        NewSessionId(),
+        Registry::NewId(),
         req->display_name,
         req->planner,
         req->target,
@@ -135,11 +133,9 @@ struct Server::Impl {
     auto list = api::ParseList(param("pageSize"), param("pageToken"));
     if (!list.ok()) return Fail(res, list.status());
     std::string next;
-    std::vector<api::SessionView> views;
-    for (const auto& s : registry.Page(list->page_token, list->page_size, &next)) {
-      views.push_back(s->View());
-    }
-    Json(res, 200, api::RenderSessionList(views, next));
+    auto views = registry.Page(list->page_token, list->page_size, &next);
+    if (!views.ok()) return Fail(res, views.status());
+    Json(res, 200, api::RenderSessionList(*views, next));
   }
 
   void Get(const Request& req, Response& res, const std::string&) {
@@ -150,10 +146,9 @@ struct Server::Impl {
   }
 
   void Delete(const Request& req, Response& res, const std::string&) {
-    auto s = Find(req, res);
-    if (!s) return;
-    if (Status st = registry.Remove(s); !st.ok()) return Fail(res, st);
-    spdlog::info("session {} deleted", s->id());
+    const std::string id = req.matches[1];
+    if (Status st = registry.Remove(id); !st.ok()) return Fail(res, st);
+    spdlog::info("session {} deleted", id);
     Json(res, 200, api::RenderEmpty());
   }
 

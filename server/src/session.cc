@@ -329,7 +329,10 @@ Status Session::SaveUnderOp(SessionStore* store) {
   std::lock_guard<std::mutex> lock(persist_mutex_);
   if (deleted_) return Status(StatusCode::kAborted, "the session was deleted meanwhile");
   auto version = store->Save(record, version_);
-  if (!version.ok()) return version.status();
+  if (!version.ok()) {
+    stale_ = true;  // this copy is ahead of what was acknowledged
+    return version.status();
+  }
   version_ = *version;
   return OkStatus();
 }
@@ -344,7 +347,17 @@ Status Session::Delete(SessionStore* store) {
   std::lock_guard<std::mutex> lock(persist_mutex_);
   if (deleted_) return OkStatus();
   deleted_ = true;
-  return store->Delete(id_);
+  return store ? store->Delete(id_) : OkStatus();
+}
+
+int64_t Session::version() const {
+  std::lock_guard<std::mutex> lock(persist_mutex_);
+  return version_;
+}
+
+bool Session::busy() const {
+  std::unique_lock<std::mutex> op(op_mutex_, std::try_to_lock);
+  return !op.owns_lock();
 }
 
 bool Session::ExpireIfIdle(SessionStore* store) {

@@ -65,7 +65,7 @@ StatusOr<std::unique_ptr<Session>> Session::Restore(api::SessionRecord r, int64_
   return s;
 }
 
-api::ActionView Session::ActionViewOf(const HybridAction& a, const World& w) const {
+api::ActionView Session::ActionViewOf(const HybridAction& a, const World& w) {
   api::ActionView v;
   if (a.kind == object_search::kMoveKind) {
     v.type = api::ActionView::Type::kMove;
@@ -104,6 +104,30 @@ api::SessionView Session::ViewLocked() const {
   }
   v.total_simulations = total_simulations_;
   v.planning_seconds_used = planning_seconds_;
+  return v;
+}
+
+api::SessionView Session::ViewOf(const api::SessionRecord& r) {
+  api::SessionView v;
+  v.id = r.id;
+  v.display_name = r.display_name;
+  v.state = r.state;
+  v.create_time = FromMillis(r.create_time_ms);
+  v.update_time = FromMillis(r.update_time_ms);
+  v.ttl_seconds = r.ttl_seconds;
+  v.planner = r.planner;
+  v.seed = r.seed;
+  v.target_description = r.target.description;
+  v.photo_count = static_cast<int>(r.target.photos.size());
+  if (r.perception) v.perception_tracks = static_cast<int>(r.perception->second.size());
+  v.step = r.world.steps;
+  v.robot = r.world.robot_config;
+  v.object_count = static_cast<int>(r.world.objects.size()) - 1;
+  if (r.state == api::SessionState::kActionPending) {
+    v.pending = std::make_pair(r.pending_action_id, ActionViewOf(r.pending_action, r.world));
+  }
+  v.total_simulations = r.total_simulations;
+  v.planning_seconds_used = r.planning_seconds_used;
   return v;
 }
 

@@ -23,11 +23,17 @@ class MemoryStore : public SessionStore {
   StatusOr<int64_t> Save(const api::SessionRecord&, int64_t expected_version) override {
     return expected_version + 1;
   }
-  Status Delete(const std::string&) override { return OkStatus(); }
-  StatusOr<std::vector<std::string>> List(size_t) override { return std::vector<std::string>{}; }
+  Status Delete(const std::string&, bool* existed) override {
+    if (existed) *existed = false;
+    return OkStatus();
+  }
+  StatusOr<std::vector<std::string>> List(size_t, const std::string&) override {
+    return std::vector<std::string>{};
+  }
   StatusOr<Loaded> Load(const std::string& id) override {
     return NotFoundError("sessions/" + id + " is not stored");
   }
+  std::string backend() const override { return "memory"; }
 };
 
 bool FsyncPath(const std::string& path, bool directory) {
@@ -49,7 +55,7 @@ bool WriteAll(int fd, const std::string& data) {
   return true;
 }
 
-uint32_t Crc32(const std::string& data) {
+uint32_t Crc32(std::string_view data) {
   uLong crc = crc32(0L, Z_NULL, 0);
   size_t done = 0;
   while (done < data.size()) {
@@ -80,6 +86,45 @@ std::string RandomHex() {
 }
 
 }  // namespace
+
+StatusOr<SessionStore::Refreshed> SessionStore::Refresh(const std::string&, int64_t) {
+  return Status(StatusCode::kUnimplemented, "not a shared store");
+}
+Status SessionStore::KeepAlive(const std::vector<std::string>&) { return OkStatus(); }
+StatusOr<std::vector<std::string>> SessionStore::DeleteExpired(size_t) {
+  return std::vector<std::string>{};
+}
+
+std::string EncodeSnapshot(const api::SessionRecord& record, int64_t version) {
+  const std::string payload = api::EncodeRecord(record);
+  char header[128];
+  std::snprintf(header, sizeof header, "%s %lld %zu %08x\n", kMagic,
+                static_cast<long long>(version), payload.size(), Crc32(payload));
+  return header + payload;
+}
+
+StatusOr<SessionStore::Loaded> DecodeSnapshot(std::string_view data, const std::string& id,
+                                              const api::Limits& limits) {
+  const size_t newline = data.find('\n');
+  long long version = 0;
+  size_t length = 0;
+  unsigned crc = 0;
+  char magic[32] = "";
+  if (newline == std::string::npos || newline > 100 ||
+      std::sscanf(std::string(data.substr(0, newline)).c_str(), "%31s 2 %lld %zu %8x", magic,
+                  &version, &length, &crc) != 4 ||
+      data.compare(0, sizeof kMagic - 1, kMagic) != 0 || version < 1) {
+    return Status(StatusCode::kDataLoss, "snapshot: not an npfkct snapshot (format 2)");
+  }
+  const std::string_view payload = data.substr(newline + 1);
+  if (payload.size() != length || Crc32(payload) != crc) {
+    return Status(StatusCode::kDataLoss, "snapshot: truncated or corrupted (checksum)");
+  }
+  auto record = api::DecodeRecord(payload, limits);
+  if (!record.ok()) return record.status();
+  if (record->id != id) return Status(StatusCode::kDataLoss, "snapshot: its id is not its name");
+  return SessionStore::Loaded{std::move(record).value(), version};
+}
 
 std::unique_ptr<SessionStore> MakeMemoryStore() { return std::make_unique<MemoryStore>(); }
 
@@ -120,16 +165,13 @@ StatusOr<int64_t> DirectoryStore::Save(const api::SessionRecord& record, int64_t
     }
   }
   const int64_t version = expected_version + 1;
-  const std::string payload = api::EncodeRecord(record);
-  char header[128];
-  std::snprintf(header, sizeof header, "%s %lld %zu %08x\n", kMagic,
-                static_cast<long long>(version), payload.size(), Crc32(payload));
+  const std::string snapshot = EncodeSnapshot(record, version);
   const std::string path = PathOf(record.id);
   const std::string tmp = path + ".tmp." + RandomHex();
   // O_EXCL | O_NOFOLLOW: never write through a planted file or symbolic link.
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0600);
   if (fd < 0) return Status(StatusCode::kUnavailable, "cannot write the session snapshot");
-  const bool written = WriteAll(fd, header) && WriteAll(fd, payload) && ::fsync(fd) == 0;
+  const bool written = WriteAll(fd, snapshot) && ::fsync(fd) == 0;
   ::close(fd);
   if (!written || ::rename(tmp.c_str(), path.c_str()) != 0 || !FsyncPath(dir_, true)) {
     ::unlink(tmp.c_str());
@@ -140,25 +182,27 @@ StatusOr<int64_t> DirectoryStore::Save(const api::SessionRecord& record, int64_t
   return version;
 }
 
-Status DirectoryStore::Delete(const std::string& id) {
+Status DirectoryStore::Delete(const std::string& id, bool* existed) {
+  if (existed) *existed = false;
   if (!api::IsSessionId(id)) return OkStatus();
   const int r = ::unlink(PathOf(id).c_str());
   if (r != 0 && errno != ENOENT) {
     return Status(StatusCode::kUnavailable, "cannot remove the session snapshot");
   }
+  if (existed) *existed = r == 0;
   FsyncPath(dir_, true);
   std::lock_guard<std::mutex> lock(mutex_);
   versions_.erase(id);
   return OkStatus();
 }
 
-StatusOr<std::vector<std::string>> DirectoryStore::List(size_t limit) {
+StatusOr<std::vector<std::string>> DirectoryStore::List(size_t limit, const std::string& after) {
   std::vector<std::string> ids;
   DIR* d = ::opendir(dir_.c_str());
   if (d == nullptr) return Status(StatusCode::kUnavailable, "cannot read the state directory");
   while (dirent* e = ::readdir(d)) {
     std::string id;
-    if (!IsSnapshotName(e->d_name, &id)) continue;
+    if (!IsSnapshotName(e->d_name, &id) || id <= after) continue;
     // Only regular files, never followed through a symbolic link.
     struct stat st {};
     if (::fstatat(::dirfd(d), e->d_name, &st, AT_SYMLINK_NOFOLLOW) != 0 || !S_ISREG(st.st_mode)) {
@@ -200,27 +244,11 @@ StatusOr<SessionStore::Loaded> DirectoryStore::Load(const std::string& id) {
   }
   ::close(fd);
   data.resize(done);
-  const size_t newline = data.find('\n');
-  long long version = 0;
-  size_t length = 0;
-  unsigned crc = 0;
-  char magic[32] = "";
-  if (newline == std::string::npos || newline > 100 ||
-      std::sscanf(data.substr(0, newline).c_str(), "%31s 2 %lld %zu %8x", magic, &version, &length,
-                  &crc) != 4 ||
-      data.compare(0, sizeof kMagic - 1, kMagic) != 0 || version < 1) {
-    return Status(StatusCode::kDataLoss, "snapshot: not an npfkct snapshot (format 2)");
-  }
-  std::string payload = data.substr(newline + 1);
-  if (payload.size() != length || Crc32(payload) != crc) {
-    return Status(StatusCode::kDataLoss, "snapshot: truncated or corrupted (checksum)");
-  }
-  auto record = api::DecodeRecord(payload, limits_);
-  if (!record.ok()) return record.status();
-  if (record->id != id) return Status(StatusCode::kDataLoss, "snapshot: its id is not its name");
+  auto loaded = DecodeSnapshot(data, id, limits_);
+  if (!loaded.ok()) return loaded.status();
   std::lock_guard<std::mutex> lock(mutex_);
-  versions_[id] = version;
-  return Loaded{std::move(record).value(), version};
+  versions_[id] = loaded->version;
+  return loaded;
 }
 
 }  // namespace npfkct::server

@@ -290,6 +290,15 @@ StatusOr<std::string> RenderBeliefPng(const World& world, int64_t max_pixels) {
 }
 
 std::string RenderHealth() { return R"({"status":"SERVING"})"; }
+
+std::string RenderHealth(const HealthView& h) {
+  json store = {{"backend", h.store_backend}, {"status", h.store_ok ? "OK" : "UNAVAILABLE"}};
+  if (!h.store_ok) store["message"] = h.store_message;
+  json j = {{"status", h.store_ok ? "SERVING" : "NOT_SERVING"},
+            {"store", store},
+            {"sessionsHeld", h.sessions_held}};
+  return internal::Dump(j);
+}
 std::string RenderEmpty() { return "{}"; }
 
 }  // namespace npfkct::api

@@ -17,11 +17,22 @@ struct ServerOptions {
   int port = 8080;
   /// Directory for session snapshots; empty: sessions live in memory only.
   std::string state_dir;
+  /// PostgreSQL URL of the session store a fleet of replicas shares (fleet mode); empty: none.
+  std::string store_url;
+  /// Fleet mode: connections to the store, the longest a store call may take, how long to wait
+  /// for the store at start-up, and the most sessions the store may hold.
+  int store_pool = 4;
+  double store_timeout_seconds = 5.0;
+  double store_wait_seconds = 10.0;
+  int64_t max_stored_sessions = 10000;
+  /// Fleet mode: sessions unused for this long are dropped from memory (they stay stored).
+  double evict_idle_seconds = 300.0;
   /// Bearer token clients must send on /v1; empty: no authentication.
   std::string api_key;
   /// Sessions idle for longer than this are deleted (a session may ask for less).
   double session_ttl_seconds = 3600.0;
-  /// Sessions held at once (restored ones included).
+  /// Sessions held in memory at once (restored ones included). In fleet mode the least recently
+  /// used idle session is dropped from memory to make room.
   int max_sessions = 256;
   /// Request threads (health and metrics have their own).
   int threads = 16;

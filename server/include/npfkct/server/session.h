@@ -61,6 +61,13 @@ class Session {
   ~Session();
 
   const std::string& id() const { return id_; }
+  /// The version of the session's record in the store (0 before the first save).
+  int64_t version() const;
+  /// Whether a save failed after the session changed: the stored record, not this copy, holds
+  /// what was acknowledged, and the session must be loaded again.
+  bool stale() const { return stale_.load(); }
+  /// Whether a request (plan or observe) works on the session now.
+  bool busy() const;
 
   /// Plans within `budget` (its time capped by what is left of the session's planning budget),
   /// stopping early when Cancel() is called or `client_gone` returns true (polled every few
@@ -79,10 +86,14 @@ class Session {
   /// The knowledge the belief is sampled from, as of now (immutable; later requests replace it).
   std::shared_ptr<const object_search::World> Belief() const;
 
+  /// The API resource of a stored record (a session this server does not hold).
+  static api::SessionView ViewOf(const api::SessionRecord& record);
+
   /// Saves the session to `store` unless it was deleted (for creation).
   Status Save(SessionStore* store);
   /// Stops a running plan at its next check, marks the session deleted and removes its stored
-  /// copy, under the same lock as every save: a deleted session is never written again.
+  /// copy (none when `store` is null: it was removed already), under the same lock as every
+  /// save: a deleted session is never written again.
   Status Delete(SessionStore* store);
   /// Expires the session when it is idle past its TTL and no request works on it: deletes it
   /// (as Delete) and returns true.
@@ -103,7 +114,7 @@ class Session {
   ParticleBelief<object_search::State> FreshBelief();
   api::SessionRecord RecordLocked() const;
   api::SessionView ViewLocked() const;
-  api::ActionView ActionViewOf(const HybridAction& a, const object_search::World& w) const;
+  static api::ActionView ActionViewOf(const HybridAction& a, const object_search::World& w);
   Status SaveUnderOp(SessionStore* store);
 
   // Fixed at creation.
@@ -117,7 +128,7 @@ class Session {
   std::chrono::system_clock::time_point create_time_;
 
   // Owned by the request working on the session (op_mutex_).
-  std::mutex op_mutex_;
+  mutable std::mutex op_mutex_;
   Rng rng_;
   std::unique_ptr<object_search::ObjectSearchModel> model_;
   std::unique_ptr<object_search::SearchPlanner> planner_;
@@ -139,9 +150,10 @@ class Session {
   bool in_use_ = false;
 
   // Persistence (persist_mutex_): the stored version and whether the session was deleted.
-  std::mutex persist_mutex_;
+  mutable std::mutex persist_mutex_;
   int64_t version_ = 0;
   bool deleted_ = false;
+  std::atomic<bool> stale_{false};
 
   // Cancellation of a running plan.
   std::atomic<bool> cancel_{false};

@@ -1,6 +1,7 @@
 // Where sessions are kept between requests and across restarts. The interface fits a shared
 // database with optimistic concurrency (every save names the version it replaces); the directory
-// backend is the embedded default, the memory backend keeps nothing.
+// backend is the embedded default, the memory backend keeps nothing, and the PostgreSQL backend
+// (postgres_store.h) is shared by the replicas of a fleet.
 //
 //   auto store = DirectoryStore::Open("/var/lib/npfkct", limits).value();
 //   int64_t v = store->Save(record, /*expected_version=*/0).value();   // a new session
@@ -12,7 +13,9 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "npfkct/api/limits.h"
@@ -29,25 +32,58 @@ class SessionStore {
     api::SessionRecord record;
     int64_t version = 0;
   };
+  /// What Refresh found: the stored version, and the record when it is not the caller's.
+  struct Refreshed {
+    int64_t version = 0;
+    std::optional<Loaded> loaded;
+  };
 
   virtual ~SessionStore() = default;
   /// Stores `record` durably before returning. `expected_version` is the version the caller last
   /// loaded or saved (0 for a new session); the new version is returned. ABORTED when the stored
-  /// version is another (someone else saved the session meanwhile).
+  /// version is another (someone else saved the session meanwhile) or the session was deleted;
+  /// ALREADY_EXISTS when a new session's id is taken; UNAVAILABLE when the store cannot be
+  /// reached (the save may or may not have happened).
   virtual StatusOr<int64_t> Save(const api::SessionRecord& record, int64_t expected_version) = 0;
-  /// Removes a session; OK when it was not stored.
-  virtual Status Delete(const std::string& id) = 0;
-  /// The ids of stored sessions, at most `limit` of them.
-  virtual StatusOr<std::vector<std::string>> List(size_t limit) = 0;
+  /// Removes a session; OK when it was not stored (`existed`, when given, tells which).
+  virtual Status Delete(const std::string& id, bool* existed = nullptr) = 0;
+  /// The ids of stored sessions in id order, after `after`, at most `limit` of them.
+  virtual StatusOr<std::vector<std::string>> List(size_t limit, const std::string& after = "") = 0;
   /// A stored session; NOT_FOUND when absent, DATA_LOSS when unreadable.
   virtual StatusOr<Loaded> Load(const std::string& id) = 0;
+
+  // ---- shared stores (several replicas write them) ----
+
+  /// Whether other processes write this store too: a held session may be stale, and the store
+  /// keeps the sessions' time to live.
+  virtual bool shared() const { return false; }
+  /// Marks a session used now (its time to live counts from here) and returns its stored
+  /// version, with the record when that version is not `held_version`. NOT_FOUND when absent
+  /// or expired. Shared stores only.
+  virtual StatusOr<Refreshed> Refresh(const std::string& id, int64_t held_version);
+  /// Keeps sessions that requests are working on from expiring (a plan may outlast the TTL).
+  virtual Status KeepAlive(const std::vector<std::string>& ids);
+  /// Deletes up to `limit` sessions whose time to live has passed; returns their ids.
+  virtual StatusOr<std::vector<std::string>> DeleteExpired(size_t limit);
+  /// Whether the store answers (UNAVAILABLE with the reason when not). Bounded in time.
+  virtual Status Ping() { return OkStatus(); }
+  /// "memory", "directory" or "postgresql".
+  virtual std::string backend() const = 0;
 };
+
+/// The bytes of a snapshot, one format for every store: a header line "npfkct-snapshot 2
+/// <version> <payload length> <CRC-32 of the payload, 8 hex digits>" then the record
+/// (api::EncodeRecord).
+std::string EncodeSnapshot(const api::SessionRecord& record, int64_t version);
+/// Reads snapshot bytes that should hold session `id`: DATA_LOSS when they are not a snapshot,
+/// are truncated or corrupted (checksum), break a limit, or hold another session.
+StatusOr<SessionStore::Loaded> DecodeSnapshot(std::string_view bytes, const std::string& id,
+                                              const api::Limits& limits);
 
 /// A store that keeps nothing (sessions live in memory only).
 std::unique_ptr<SessionStore> MakeMemoryStore();
 
-/// Snapshots in a directory, one file "<id>.snap" per session: a header line with the format,
-/// the version, the payload length and its CRC-32, then the record (api::EncodeRecord). Writes go
+/// Snapshots in a directory, one file "<id>.snap" per session (EncodeSnapshot). Writes go
 /// to a new temporary file (O_CREAT | O_EXCL | O_NOFOLLOW), fsync, rename, fsync of the
 /// directory. Reads open with O_NOFOLLOW | O_NONBLOCK, skip anything that is not a regular file,
 /// cap the size before reading, and check the checksum and the record's limits.
@@ -58,9 +94,10 @@ class DirectoryStore : public SessionStore {
                                                         const api::Limits& limits,
                                                         size_t max_snapshot_bytes = 256 << 20);
   StatusOr<int64_t> Save(const api::SessionRecord& record, int64_t expected_version) override;
-  Status Delete(const std::string& id) override;
-  StatusOr<std::vector<std::string>> List(size_t limit) override;
+  Status Delete(const std::string& id, bool* existed = nullptr) override;
+  StatusOr<std::vector<std::string>> List(size_t limit, const std::string& after = "") override;
   StatusOr<Loaded> Load(const std::string& id) override;
+  std::string backend() const override { return "directory"; }
 
  private:
   DirectoryStore(std::string dir, const api::Limits& limits, size_t max_bytes)

@@ -68,6 +68,9 @@ std::string RenderBelief(const World& world);
 StatusOr<std::string> RenderBeliefPng(const World& world, int64_t max_pixels = 4'000'000);
 /// {"status": "SERVING"}.
 std::string RenderHealth();
+/// {"status": "SERVING" | "NOT_SERVING" (the store is unavailable), "store": {"backend",
+/// "status": "OK" | "UNAVAILABLE", "message"}, "sessionsHeld"}.
+std::string RenderHealth(const HealthView& health);
 /// {}.
 std::string RenderEmpty();
 

@@ -143,6 +143,17 @@ struct ObserveReply {
   SessionView session;
 };
 
+/// GET /healthz: whether the server serves, and its session store's state.
+struct HealthView {
+  /// "memory", "directory" or "postgresql".
+  std::string store_backend = "memory";
+  bool store_ok = true;
+  /// Why the store is unavailable.
+  std::string store_message;
+  /// Sessions held in memory.
+  int sessions_held = 0;
+};
+
 // ---------------------------------------------------------------------------------------------
 // Records
 

@@ -1,0 +1,421 @@
+"""Fleet mode: a real PostgreSQL (a throwaway cluster on loopback), real npfkct-server replicas
+sharing it (--store) and Debian's nginx routing with deploy/nginx/npfkct.conf."""
+
+import concurrent.futures
+import json
+import os
+import signal
+import subprocess
+import threading
+import time
+
+import pytest
+import requests
+
+from conftest import BUILD, SERVER_BIN, ServerProcess, SimRobot, world_of
+from fleet import FleetRobot, Nginx, Postgres, call, metric, start_replica
+
+SCENARIOS = ["loose1", "hidden1", "loose2", "covered1"]
+PLANNERS = [("pomcp", None), ("npfkct", "filter.pt"), ("kct", None)]
+
+
+@pytest.fixture(scope="module")
+def postgres():
+    pg = Postgres()
+    yield pg
+    pg.remove()
+
+
+@pytest.fixture
+def store(postgres, request):
+    """A fresh database of the module's cluster for each test."""
+    name = "t_" + request.node.name.lower().replace("[", "_").replace("]", "")[:40]
+    return postgres.create_database(name)
+
+
+def stop_all(*processes):
+    for p in processes:
+        if p.alive():
+            assert p.stop() == 0, "".join(p.output)[-3000:]
+
+
+def create(url, scenario="loose1", seed=1, **extra):
+    r = requests.post(url + "/v1/sessions", json=dict({"world": world_of(scenario), "seed": seed,
+                                                       "planner": {"name": "pomcp"}}, **extra))
+    assert r.status_code == 200, r.text
+    return r.json()["id"]
+
+
+def test_twelve_robots_survive_a_replica_killed_mid_episode(postgres, store):
+    replicas = [start_replica(store, "--plan-slots", "1") for _ in range(3)]
+    nginx = Nginx([r.port for r in replicas])
+    robots = []
+    try:
+        # Sessions are created through nginx on any replica; each then lives on the replica its
+        # id hashes to.
+        with concurrent.futures.ThreadPoolExecutor(12) as pool:
+            robots = list(pool.map(
+                lambda i: FleetRobot(nginx.url, SCENARIOS[i % 4], seed=100 + i,
+                                     planner=PLANNERS[i % 3][0], model=PLANNERS[i % 3][1]),
+                range(12)))
+        killed = {}
+
+        def drive(robot):
+            try:
+                while not robot.done and robot.steps < 50:
+                    robot.step()
+                    if robot.steps == 2:
+                        started.wait(timeout=300)
+            except BaseException:
+                started.set()  # the others must not wait for this robot's second step
+                raise
+            finally:
+                robot.robot.close()
+            return robot
+
+        def killer():
+            # When every robot has two acknowledged steps: kill -9 the replica that last saved
+            # the most sessions (the one they live on), preferably while it is planning.
+            started.wait(timeout=300)
+            owners = postgres.psql("SELECT updated_by, count(*) FROM npfkct_sessions "
+                                   "GROUP BY updated_by ORDER BY 2 DESC", db=store.rsplit("/", 1)[1])
+            # updated_by is "host:port/pid" (the port as given: 0 here, so the pid tells).
+            pid = int(owners[0][0].rsplit("/", 1)[1])
+            victim = next(r for r in replicas if r.proc.pid == pid)
+            port = victim.port
+            deadline = time.time() + 5
+            while time.time() < deadline and metric(victim.url, "npfkct_planning_slots_busy") < 1:
+                time.sleep(0.01)
+            killed["port"], killed["time"] = port, time.time()
+            killed["sessions"] = [row[0] for row in postgres.psql(
+                "SELECT id FROM npfkct_sessions WHERE updated_by LIKE '%/" + str(pid) + "'",
+                db=store.rsplit("/", 1)[1])]
+            victim.kill()
+
+        started = threading.Event()
+
+        def watch():
+            while min(r.steps for r in robots) < 2 and not all(r.done for r in robots):
+                time.sleep(0.05)
+            started.set()
+
+        threading.Thread(target=watch, daemon=True).start()
+        kill_thread = threading.Thread(target=killer)
+        kill_thread.start()
+        with concurrent.futures.ThreadPoolExecutor(12) as pool:
+            finished = list(pool.map(drive, robots))
+        kill_thread.join()
+        assert "port" in killed, "no replica was killed"
+        survivors = [r for r in replicas if r.port != killed["port"]]
+
+        # Every episode finished: the target removed, as the simulated robot also says.
+        for r in finished:
+            assert r.done, f"session {r.id} ({r.steps} steps) did not finish"
+        # No acknowledged observation was lost: the belief served before every plan, by
+        # whichever replica, was the one acknowledged last.
+        assert [r.belief_mismatches for r in finished] == [[]] * 12
+        # ... and no action whose observation was acknowledged was ever pending again.
+        assert [r.lost_observations for r in finished] == [[]] * 12
+        # The belief rebuilt from the store by a replica that never held the sessions equals
+        # the belief the fleet served last.
+        fresh = start_replica(store)
+        try:
+            for r in finished:
+                rebuilt = requests.get(fresh.url + f"/v1/sessions/{r.id}/belief").json()
+                assert rebuilt == r.acked_belief, r.id
+        finally:
+            stop_all(fresh)
+        # No session was advanced twice: one save to create, one per plan, one per observation.
+        db = store.rsplit("/", 1)[1]
+        versions = dict((row[0], int(row[1])) for row in postgres.psql(
+            "SELECT id, version FROM npfkct_sessions", db=db))
+        for r in finished:
+            assert versions[r.id] == 1 + 2 * r.steps, (r.id, versions[r.id], r.steps)
+        # The killed replica's sessions were loaded by the others from the store.
+        assert killed["sessions"], "the killed replica held no session"
+        assert sum(metric(s.url, "npfkct_sessions_loaded_total") for s in survivors) >= \
+            len(killed["sessions"])
+        moved = [r for r in finished if r.id in killed["sessions"]]
+        after = [min((t for t, _ in r.events if t > killed["time"]), default=None) for r in moved]
+        print(f"\nkilled replica :{killed['port']} holding {len(killed['sessions'])} sessions; "
+              f"their next acknowledged step came {[round(a - killed['time'], 2) for a in after if a]}"
+              f" s after; steps {[r.steps for r in finished]}; recovered lost replies "
+              f"{sum(len(r.recovered) for r in finished)}; client retries {call.retries}")
+        stop_all(*survivors)
+    finally:
+        for r in replicas:
+            if r.alive():
+                r.kill()
+        nginx.stop()
+
+
+def race(urls, path, body):
+    """Sends the same POST to every url at once; returns the responses."""
+    barrier = threading.Barrier(len(urls))
+
+    def send(url):
+        barrier.wait()
+        return requests.post(url + path, json=body, timeout=60)
+
+    with concurrent.futures.ThreadPoolExecutor(len(urls)) as pool:
+        return list(pool.map(send, urls))
+
+
+def test_the_same_observe_on_two_replicas_advances_the_session_once(postgres, store):
+    a, b = start_replica(store), start_replica(store)
+    db = store.rsplit("/", 1)[1]
+    outcomes = []
+    try:
+        sid = create(a.url, seed=7)
+        robot = SimRobot("loose1", seed=7)
+        for round_ in range(6):
+            # Both replicas hold the session at the same version before the race.
+            for url in (a.url, b.url):
+                assert requests.get(f"{url}/v1/sessions/{sid}").status_code == 200
+            plans = race([a.url, b.url], f"/v1/sessions/{sid}:plan", {"budget": {"cpuMs": 50}})
+            codes = sorted(r.status_code for r in plans)
+            assert codes[0] == 200 and codes[1] in (400, 409), [r.text for r in plans]
+            loser = next(r for r in plans if r.status_code != 200).json()["error"]["status"]
+            assert loser in ("FAILED_PRECONDITION", "ABORTED")
+            plan = next(r for r in plans if r.status_code == 200).json()
+            for url in (a.url, b.url):
+                assert requests.get(f"{url}/v1/sessions/{sid}").status_code == 200
+            version = int(postgres.psql(f"SELECT version FROM npfkct_sessions WHERE id = '{sid}'",
+                                        db=db)[0][0])
+            observation = robot.execute(plan["action"])["observation"]
+            replies = race([a.url, b.url], f"/v1/sessions/{sid}:observe",
+                           dict(observation, actionId=plan["actionId"]))
+            ok = [r for r in replies if r.status_code == 200]
+            refused = [r.json()["error"]["status"] for r in replies if r.status_code != 200]
+            assert len(ok) == 1 and len(refused) == 1, [r.text for r in replies]
+            assert refused[0] in ("FAILED_PRECONDITION", "ABORTED"), refused
+            outcomes += [loser, refused[0]]
+            after = int(postgres.psql(f"SELECT version FROM npfkct_sessions WHERE id = '{sid}'",
+                                      db=db)[0][0])
+            assert after == version + 1, (version, after)
+            # Both replicas now serve the one acknowledged observation.
+            beliefs = [requests.get(f"{u}/v1/sessions/{sid}/belief").json() for u in (a.url, b.url)]
+            assert beliefs[0] == beliefs[1]
+            if ok[0].json()["done"]:
+                break
+        robot.close()
+        conflicts = metric(a.url, "npfkct_store_conflicts_total") + \
+            metric(b.url, "npfkct_store_conflicts_total")
+        assert conflicts == outcomes.count("ABORTED")
+        print(f"\nlosers: {outcomes}")
+    finally:
+        stop_all(a, b)
+
+
+def test_ttl_is_kept_in_the_store_and_acts_across_replicas(postgres, store):
+    a, b = start_replica(store), start_replica(store)
+    db = store.rsplit("/", 1)[1]
+    try:
+        # A TTL of 3 s, so that a loaded machine's pauses between requests stay well within it.
+        sid = create(a.url, ttlSeconds=3)
+        # Used through A for longer than its TTL: B's reaper must not delete it.
+        for _ in range(6):
+            time.sleep(0.8)
+            assert requests.get(f"{a.url}/v1/sessions/{sid}").status_code == 200
+        # A plan longer than the TTL keeps it alive too.
+        r = requests.post(f"{a.url}/v1/sessions/{sid}:plan", json={"budget": {"timeMs": 4500}})
+        assert r.status_code == 200, r.text
+        assert requests.get(f"{b.url}/v1/sessions/{sid}").status_code == 200
+        # Unused: gone from the store and from both replicas (TTL, then a reaper's round).
+        time.sleep(5.5)
+        assert postgres.psql(f"SELECT count(*) FROM npfkct_sessions WHERE id = '{sid}'",
+                             db=db) == [["0"]]
+        for url in (a.url, b.url):
+            assert requests.get(f"{url}/v1/sessions/{sid}").status_code == 404
+        assert metric(a.url, "npfkct_sessions_expired_total") + \
+            metric(b.url, "npfkct_sessions_expired_total") == 1
+    finally:
+        stop_all(a, b)
+
+
+def test_any_replica_lists_and_deletes_and_held_copies_follow(postgres, store):
+    a, b, c = (start_replica(store, "--max-sessions", "2") for _ in range(3))
+    try:
+        ids = sorted(create(a.url, seed=i) for i in range(3))  # A holds 2: one was dropped
+        assert metric(a.url, "npfkct_sessions") == 2
+        assert metric(a.url, "npfkct_sessions_evicted_total") == 1
+        listed = requests.get(f"{b.url}/v1/sessions").json()["sessions"]
+        assert [s["id"] for s in listed] == ids
+        page = requests.get(f"{c.url}/v1/sessions?pageSize=2").json()
+        assert [s["id"] for s in page["sessions"]] == ids[:2] and page["nextPageToken"]
+        # Deleted through C: A, which holds it, must not serve it any more.
+        assert requests.get(f"{a.url}/v1/sessions/{ids[0]}").status_code == 200
+        assert requests.delete(f"{c.url}/v1/sessions/{ids[0]}").status_code == 200
+        assert requests.get(f"{a.url}/v1/sessions/{ids[0]}").status_code == 404
+        assert requests.delete(f"{b.url}/v1/sessions/{ids[0]}").status_code == 404
+        # Advanced by B: A, holding an older version, serves the new one.
+        sid = ids[1]
+        assert requests.get(f"{a.url}/v1/sessions/{sid}").json()["state"] == "READY"
+        assert requests.post(f"{b.url}/v1/sessions/{sid}:plan",
+                             json={"budget": {"cpuMs": 20}}).status_code == 200
+        assert requests.get(f"{a.url}/v1/sessions/{sid}").json()["state"] == "ACTION_PENDING"
+    finally:
+        stop_all(a, b, c)
+
+
+def test_ids_are_random_across_replicas(store):
+    replicas = [start_replica(store) for _ in range(3)]
+    try:
+        ids = [create(replicas[i % 3].url, seed=i) for i in range(12)]
+        assert len(set(ids)) == 12
+        # 128 random bits: every hex digit shows up across 12 ids * 32 digits.
+        assert set("".join(ids)) == set("0123456789abcdef")
+    finally:
+        stop_all(*replicas)
+
+
+def test_the_stored_snapshot_is_the_directory_format(postgres, store, tmp_path):
+    a = start_replica(store)
+    db = store.rsplit("/", 1)[1]
+    try:
+        sid = create(a.url)
+        assert requests.post(f"{a.url}/v1/sessions/{sid}:plan",
+                             json={"budget": {"cpuMs": 20}}).status_code == 200
+        assert postgres.psql("SELECT max(version) FROM npfkct_schema", db=db) == [["1"]]
+        columns = postgres.psql("SELECT column_name, data_type FROM information_schema.columns "
+                                "WHERE table_name = 'npfkct_sessions' ORDER BY ordinal_position",
+                                db=db)
+        assert [c[0] for c in columns] == ["id", "version", "snapshot", "ttl_seconds",
+                                           "expires_at", "created_at", "updated_at", "updated_by"]
+        hexdump = postgres.psql(f"SELECT encode(snapshot, 'hex'), version FROM npfkct_sessions "
+                                f"WHERE id = '{sid}'", db=db)[0]
+        snapshot = bytes.fromhex(hexdump[0])
+        assert snapshot.startswith(f"npfkct-snapshot 2 {hexdump[1]} ".encode())
+        # The row's bytes, as a file, are a snapshot the directory store restores.
+        state = tmp_path / "state"
+        state.mkdir()
+        (state / f"{sid}.snap").write_bytes(snapshot)
+        single = ServerProcess("--state-dir", str(state))
+        try:
+            assert requests.get(f"{single.url}/v1/sessions/{sid}").json()["state"] == \
+                "ACTION_PENDING"
+            assert requests.get(f"{single.url}/v1/sessions/{sid}/belief").json() == \
+                requests.get(f"{a.url}/v1/sessions/{sid}/belief").json()
+        finally:
+            stop_all(single)
+    finally:
+        stop_all(a)
+
+
+def test_bad_store_flags_are_clear_errors_at_start(postgres):
+    def run(*args, timeout=60):
+        t0 = time.time()
+        p = subprocess.run([SERVER_BIN, "--port", "0", *args], capture_output=True, text=True,
+                           timeout=timeout)
+        return p.returncode, p.stderr, time.time() - t0
+
+    code, err, _ = run("--store", "mysql://x@localhost/db")
+    assert code == 1 and "expected a PostgreSQL URL" in err, err
+    code, err, _ = run("--store", "postgresql://x@[::1/db")
+    assert code == 1 and "malformed PostgreSQL URL" in err, err
+    code, err, _ = run("--store", postgres.url(), "--state-dir", "/tmp/x")
+    assert code == 1 and "exclude each other" in err, err
+    code, err, _ = run("--store", postgres.url(), "--store-pool", "0")
+    assert code == 1 and "store-pool" in err, err
+    # A store that is down: retried for --store-wait, then a clear error, never a hang.
+    from fleet import free_port
+    code, err, took = run("--store", f"postgresql://u:secret@127.0.0.1:{free_port()}/db",
+                          "--store-wait", "1")
+    assert code == 1 and "cannot connect" in err and took < 30, (err, took)
+    assert "secret" not in err  # the password never reaches a log
+    code, err, _ = run("--store", postgres.url("no_such_db"), "--store-wait", "30")
+    assert code == 1 and "does not exist" in err, err
+
+
+def test_a_store_outage_is_503_and_the_replica_recovers():
+    pg = Postgres()
+    try:
+        url = pg.create_database("outage")
+        a = start_replica(url, "--store-timeout", "1")
+        try:
+            sid = create(a.url)
+            plan = requests.post(f"{a.url}/v1/sessions/{sid}:plan",
+                                 json={"budget": {"cpuMs": 20}}).json()
+            assert requests.get(a.url + "/healthz").json()["store"] == {"backend": "postgresql",
+                                                                         "status": "OK"}
+            # The database stops answering (every process stopped): requests fail in bounded
+            # time with 503 and Retry-After, and /healthz says so (answering at once).
+            pg.signal(signal.SIGSTOP)
+            t0 = time.time()
+            r = requests.get(f"{a.url}/v1/sessions/{sid}", timeout=30)
+            assert r.status_code == 503 and r.headers["Retry-After"] == "1", r.text
+            assert r.json()["error"]["status"] == "UNAVAILABLE"
+            assert time.time() - t0 < 5
+            r = requests.post(a.url + "/v1/sessions", json={"world": world_of("loose1")},
+                              timeout=30)
+            assert r.status_code == 503, r.text
+            t0 = time.time()
+            health = requests.get(a.url + "/healthz", timeout=5)
+            assert time.time() - t0 < 0.5
+            assert health.status_code == 503 and health.json()["status"] == "NOT_SERVING"
+            assert metric(a.url, "npfkct_store_up") == 0
+            pg.signal(signal.SIGCONT)
+            assert wait_ok(a.url + "/healthz", 15)
+            r = call("POST", f"{a.url}/v1/sessions/{sid}:observe", time.time() + 10,
+                     json={"actionId": plan["actionId"], "succeeded": False})
+            assert r.status_code == 200, r.text
+            # The database dies while a plan runs, and comes back on the same data.
+            planned = {}
+            t = threading.Thread(target=lambda: planned.setdefault("r", requests.post(
+                f"{a.url}/v1/sessions/{sid}:plan", json={"budget": {"timeMs": 2000}}, timeout=60)))
+            t.start()
+            time.sleep(0.7)
+            pg.stop(fast=False)
+            t.join()
+            assert planned["r"].status_code == 503, planned["r"].text  # its save failed
+            r = requests.get(f"{a.url}/v1/sessions/{sid}", timeout=30)
+            assert r.status_code == 503, r.text
+            pg.start()
+            assert wait_ok(a.url + "/healthz", 20)
+            assert wait_ok(f"{a.url}/v1/sessions/{sid}", 10)
+            # The plan that was never acknowledged is not served: the stored session is READY.
+            session = requests.get(f"{a.url}/v1/sessions/{sid}").json()
+            assert session["state"] == "READY" and session["step"] == 1, session
+            r = requests.post(f"{a.url}/v1/sessions/{sid}:plan", json={"budget": {"cpuMs": 20}})
+            assert r.status_code == 200, r.text
+            assert a.alive()
+        finally:
+            stop_all(a)
+    finally:
+        pg.remove()
+
+
+def test_a_save_that_loses_the_race_is_not_served_afterwards(postgres, store):
+    """A plans for long while B plans the same session quickly: A's save conflicts (409
+    ABORTED), and A then serves B's plan, not its own unacknowledged one."""
+    a, b = start_replica(store), start_replica(store)
+    try:
+        sid = create(a.url)
+        assert requests.get(f"{b.url}/v1/sessions/{sid}").status_code == 200
+        slow = {}
+        t = threading.Thread(target=lambda: slow.setdefault("r", requests.post(
+            f"{a.url}/v1/sessions/{sid}:plan", json={"budget": {"timeMs": 2000}})))
+        t.start()
+        time.sleep(0.3)
+        quick = requests.post(f"{b.url}/v1/sessions/{sid}:plan", json={"budget": {"cpuMs": 20}})
+        assert quick.status_code == 200, quick.text
+        t.join()
+        assert slow["r"].status_code == 409, slow["r"].text
+        assert slow["r"].json()["error"]["status"] == "ABORTED"
+        assert metric(a.url, "npfkct_store_conflicts_total") == 1
+        served = requests.get(f"{a.url}/v1/sessions/{sid}").json()
+        assert served["pendingAction"]["actionId"] == quick.json()["actionId"]
+    finally:
+        stop_all(a, b)
+
+
+def wait_ok(url, seconds):
+    deadline = time.time() + seconds
+    while time.time() < deadline:
+        try:
+            if requests.get(url, timeout=5).status_code == 200:
+                return True
+        except requests.RequestException:
+            pass
+        time.sleep(0.2)
+    return False
