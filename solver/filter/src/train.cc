@@ -48,7 +48,9 @@ Status TrainOptions::Validate() const {
     return InvalidArgumentError("weight_decay must be >= 0");
   }
   if (lr_decay_every < 1) return InvalidArgumentError("lr_decay_every must be >= 1");
-  if (!(lr_decay > 0.0 && lr_decay <= 1.0)) return InvalidArgumentError("lr_decay must be in (0, 1]");
+  if (!(lr_decay > 0.0 && lr_decay <= 1.0)) {
+    return InvalidArgumentError("lr_decay must be in (0, 1]");
+  }
   if (patience < 1) return InvalidArgumentError("patience must be >= 1");
   if (min_context < 1 || max_context < min_context) {
     return InvalidArgumentError("min_context and max_context must satisfy 1 <= min <= max");

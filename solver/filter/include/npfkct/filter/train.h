@@ -22,7 +22,7 @@ struct TrainOptions {
   double lr_decay = 0.5;
   /// Training stops when the validation loss has not improved for this many epochs.
   int patience = 6;
-  int min_context = 8;         ///< Context size drawn per step in [min_context, max_context].
+  int min_context = 8;  ///< Context size drawn per step in [min_context, max_context].
   int max_context = 24;
   int eval_context = 16;  ///< Context size of the validation loss.
   uint64_t seed = 1;
