@@ -13,20 +13,7 @@
 set -euo pipefail
 NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 source "$NPFKCT_ROOT/scripts/deps.sh"
-RUN=run1
-CPU_MS=250
-TRIALS=5
-COMMIT=0
-while [ $# -gt 0 ]; do
-  case "$1" in
-    --run) RUN="$2"; shift 2 ;;
-    --cpu-ms) CPU_MS="$2"; shift 2 ;;
-    --trials) TRIALS="$2"; shift 2 ;;
-    --commit) COMMIT=1; shift ;;
-    -h|--help) sed -n '2,13p' "$0"; exit 0 ;;
-    *) echo "bench_generated.sh: unknown argument $1 (see --help)" >&2; exit 2 ;;
-  esac
-done
+npfkct_bench_args 250 5 13 "$@"
 npfkct_prepare
 SEEDS="${SEEDS:-$(seq 900001 900030)}"
 PLANNERS="${PLANNERS:-oracle npfkct kct pomcp-joint gpomcp vomcpow}"

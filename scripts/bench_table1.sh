@@ -15,20 +15,7 @@
 set -euo pipefail
 NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 source "$NPFKCT_ROOT/scripts/deps.sh"
-RUN=run1
-CPU_MS=1000
-TRIALS=20
-COMMIT=0
-while [ $# -gt 0 ]; do
-  case "$1" in
-    --run) RUN="$2"; shift 2 ;;
-    --cpu-ms) CPU_MS="$2"; shift 2 ;;
-    --trials) TRIALS="$2"; shift 2 ;;
-    --commit) COMMIT=1; shift ;;
-    -h|--help) sed -n '2,17p' "$0"; exit 0 ;;
-    *) echo "bench_table1.sh: unknown argument $1 (see --help)" >&2; exit 2 ;;
-  esac
-done
+npfkct_bench_args 1000 20 17 "$@"
 npfkct_prepare
 SCENES="${SCENES:-loose1 loose2 hidden1 covered1 complex1 fig16}"
 PLANNERS="${PLANNERS:-oracle npfkct kct pomcp gpomcp pomcp-joint pomcpow vomcpow advt}"

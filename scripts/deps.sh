@@ -69,6 +69,29 @@ npfkct_prepare() {
   npfkct_build "$BUILD_DIR" >/dev/null
 }
 
+# The arguments of the resumable benchmark scripts: [--run NAME] [--cpu-ms MS] [--trials N]
+# [--commit]. Sets RUN (default run1), CPU_MS, TRIALS and COMMIT (0; 1 with --commit, which
+# npfkct_bench_cell reads); --help prints lines 2 to HELP_END of the calling script.
+# Usage: npfkct_bench_args DEFAULT_CPU_MS DEFAULT_TRIALS HELP_END "$@"
+npfkct_bench_args() {
+  RUN=run1
+  CPU_MS="$1"
+  TRIALS="$2"
+  COMMIT=0
+  local help_end="$3"
+  shift 3
+  while [ $# -gt 0 ]; do
+    case "$1" in
+      --run) RUN="$2"; shift 2 ;;
+      --cpu-ms) CPU_MS="$2"; shift 2 ;;
+      --trials) TRIALS="$2"; shift 2 ;;
+      --commit) COMMIT=1; shift ;;
+      -h|--help) sed -n "2,${help_end}p" "$0"; exit 0 ;;
+      *) echo "$(basename "$0"): unknown argument $1 (see --help)" >&2; exit 2 ;;
+    esac
+  done
+}
+
 # One cell of a resumable benchmark table: runs npfkct-bench with the given arguments and stores
 # its JSON line in FILE, unless FILE already holds a finished run of TRIALS trials. The line is
 # written to a temporary file first, so an interrupted run leaves no half cell. With COMMIT=1 the
