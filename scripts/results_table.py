@@ -90,15 +90,15 @@ def mean_ci(values):
     return m, t_quantile(0.975, n - 1) * sd / math.sqrt(n)
 
 
-def load_cells(root):
-    """{(scene, planner): record} from ROOT/*/*.jsonl."""
+def load_cells(root, key=lambda path, r: (r["scenario"], r["planner"])):
+    """{key(path, record): record} from ROOT/*/*.jsonl; by default keyed (scene, planner)."""
     cells = {}
     for path in sorted(glob.glob(os.path.join(root, "*", "*.jsonl"))):
         with open(path, encoding="utf-8") as f:
             line = f.readline()
         if line.strip():
             r = json.loads(line)
-            cells[(r["scenario"], r["planner"])] = r
+            cells[key(path, r)] = r
     return cells
 
 
@@ -175,13 +175,9 @@ ABLATION_ROWS = ["paper", "aimed", "candidates", "sibling", "visits", "w2-rule",
 
 
 def ablation(root):
-    cells = {}
-    for path in sorted(glob.glob(os.path.join(root, "*", "*.jsonl"))):
-        with open(path, encoding="utf-8") as f:
-            line = f.readline()
-        if line.strip():
-            r = json.loads(line)
-            cells[(os.path.basename(os.path.dirname(path)), r["scenario"])] = r
+    # Keyed (row, scene): the row is the record's folder.
+    cells = load_cells(root, key=lambda path, r: (os.path.basename(os.path.dirname(path)),
+                                                  r["scenario"]))
     rows = order({row for row, _ in cells}, ABLATION_ROWS)
     scenes = order({s for _, s in cells}, PAPER_SCENES)
     print("| Row | Planner and options |" + "".join(f" {s} |" for s in scenes) + " Mean |")
