@@ -13,6 +13,7 @@ import os
 import random
 import resource
 import select
+import signal
 import socket
 import struct
 import threading
@@ -373,6 +374,35 @@ def test_slow_and_idle_clients_and_busy_planners_never_delay_health(hostile_serv
     assert all(c in (200, 429) for c in codes), codes
     assert codes.count(200) >= 2
     assert_alive_and_intact(hostile_server, before, rec)
+
+
+def test_a_burst_of_connections_fits_the_listen_backlog(hostile_server):
+    """A burst of connects while the accept loop cannot run (here: the process is stopped) must
+    complete in the kernel. With httplib's default backlog of 5 the seventh SYN was dropped and
+    its client waited for the 1 s retransmission: a /healthz beside six plan requests took 1 s."""
+    url, port = hostile_server.url, hostile_server.port
+    burst = 64
+    sockets = []
+    hostile_server.proc.send_signal(signal.SIGSTOP)
+    try:
+        for _ in range(burst):
+            s = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+            s.setblocking(False)
+            s.connect_ex(("127.0.0.1", port))
+            sockets.append(s)
+        deadline = time.monotonic() + 0.5
+        pending = list(sockets)
+        while pending and time.monotonic() < deadline:
+            _, writable, _ = select.select([], pending, [], 0.05)
+            pending = [s for s in pending if s not in writable]
+        connected = sum(1 for s in sockets if s.getsockopt(socket.SOL_SOCKET, socket.SO_ERROR) == 0
+                        and s not in pending)
+    finally:
+        hostile_server.proc.send_signal(signal.SIGCONT)
+        for s in sockets:
+            s.close()
+    assert connected == burst, f"only {connected} of {burst} connects completed"
+    assert http("GET", url + "/healthz", timeout=5).status_code == 200
 
 
 # ---- 5. memory bombs under an address-space cap ----

@@ -254,6 +254,11 @@ bool HttpFront::ClientGone() {
 }
 
 void HttpFront::Start() {
+  // Debian's libcpp-httplib is a compiled library that listens with a backlog of 5: a burst of
+  // connects (six plans and a health check at once) overflowed it while the accept loop waited
+  // for a core, and the kernel dropped the SYN the client retries only after 1 s. listen() again
+  // on the bound socket widens the queue (the kernel caps it at net.core.somaxconn).
+  if (svr_sock_ != INVALID_SOCKET) ::listen(svr_sock_, SOMAXCONN);
   epoll_fd_ = ::epoll_create1(EPOLL_CLOEXEC);
   wake_fd_ = ::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
   epoll_event ev{};

@@ -67,7 +67,7 @@ class HttpFront : public httplib::Server {
   HttpFront(HttpFrontOptions options, ErrorRenderer render_error, FrontResponseObserver observe);
   ~HttpFront() override;
 
-  /// Starts the reactor and the worker threads.
+  /// Starts the reactor and the worker threads, and widens the bound socket's listen backlog.
   void Start();
   /// Stops accepting, closes every connection the reactor holds and joins the threads (after
   /// httplib's stop()).
