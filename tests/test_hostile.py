@@ -28,8 +28,10 @@ from conftest import BUILD, SERVER_BIN, ServerProcess, SimRobot, world_of
 RELEASE_BIN = os.environ.get("NPFKCT_RELEASE_SERVER_BIN",
                              os.path.join(BUILD, "server", "npfkct-server"))
 SANITIZED = SERVER_BIN != RELEASE_BIN
-# Latency bounds: the sanitized build is several times slower.
-HEALTH_BOUND = 0.1
+# Health must never wait behind plans (2.5 s each here), slow clients or a full accept queue (a
+# dropped SYN costs 1 s): the bound sits well below both and well above a loaded 2-core CI
+# machine running the sanitized build, which is several times slower.
+HEALTH_BOUND = 0.5
 
 
 # ---- helpers ----
