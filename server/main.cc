@@ -8,12 +8,29 @@
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 
 #include "npfkct/server/server.h"
 
+namespace {
+
+// The shipped models: <prefix>/share/npfkct/models beside an installed binary, else the source
+// tree's folder (a binary run from its build directory).
+std::string DefaultModelDir() {
+  std::error_code error;
+  const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", error);
+  if (!error) {
+    const std::filesystem::path installed = exe.parent_path() / NPFKCT_INSTALLED_MODEL_DIR;
+    if (std::filesystem::is_directory(installed, error)) return installed.lexically_normal();
+  }
+  return NPFKCT_MODEL_DIR;
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
   npfkct::server::ServerOptions o;
-  o.model_dir = NPFKCT_MODEL_DIR;
+  o.model_dir = DefaultModelDir();
   std::string log_level = "info";
   double max_body_mb = 32, max_inflight_mb = 128;
   CLI::App app{"npfkct-server: an embeddable planning server for robot object search"};
@@ -34,7 +51,10 @@ int main(int argc, char** argv) {
                  "most sessions the store may hold (fleet mode)");
   app.add_option("--evict-idle", o.evict_idle_seconds,
                  "seconds unused before a session is dropped from memory (fleet mode)");
-  app.add_option("--api-key", o.api_key, "require 'Authorization: Bearer KEY' on /v1");
+  app.add_option("--api-key", o.api_key, "require 'Authorization: Bearer KEY' on /v1")
+      ->envname("NPFKCT_API_KEY");
+  app.add_flag("--insecure", o.insecure, "allow serving a non-loopback --host without an API key")
+      ->envname("NPFKCT_INSECURE");
   app.add_option("--session-ttl", o.session_ttl_seconds, "idle seconds before a session expires");
   app.add_option("--max-sessions", o.max_sessions, "most sessions held at once");
   app.add_option("--threads", o.threads, "request threads (health and metrics have their own)");
@@ -58,6 +78,8 @@ int main(int argc, char** argv) {
   app.add_option("--max-particles", o.limits.max_particles, "largest planner.particles");
   app.add_option("--model-dir", o.model_dir,
                  "folder of the neural filter models clients may name (planner.model)");
+  app.add_option("--default-model", o.default_model,
+                 "model of npfkct sessions that name none (\"\": uniform candidates)");
   app.add_option("--max-models", o.max_models, "models kept loaded at once");
   app.add_option("--log-level", log_level, "trace | debug | info | warn | error");
   CLI11_PARSE(app, argc, argv);

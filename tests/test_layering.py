@@ -44,7 +44,8 @@ def test_the_server_and_the_runtime_filter_do_not_use_the_simulator():
 
 def test_wire_formats_live_in_the_api_layer_only():
     wire = re.compile(r"Base64|imdecode|imencode|DecodeCloud|EncodeCloud")
-    for d in ("perception/src", "perception/include", "scenarios/src", "scenarios/include"):
+    for d in ("perception/src", "perception/include", "scenarios/src", "scenarios/include",
+              "render/src", "render/include"):
         bad = [p for p, text in sources(d) if wire.search(text)]
         assert not bad, bad
     bad = [(p, i) for p, i in includes("scenarios/src", "scenarios/include")
@@ -53,16 +54,18 @@ def test_wire_formats_live_in_the_api_layer_only():
 
 
 def test_lower_modules_never_include_higher_ones():
-    order = ["solver", "object_search", "filter", "perception", "sim", "api", "server"]
+    order = ["solver", "object_search", "render", "filter", "perception", "sim", "api", "server"]
     homes = {"solver/src": "solver", "solver/include": "solver", "object_search": "object_search",
              "solver/filter/src": "filter", "solver/filter/include": "filter",
              "perception/src": "perception", "perception/include": "perception",
-             "scenarios/src": "sim", "scenarios/include": "sim", "server/api": "api"}
+             "scenarios/src": "sim", "scenarios/include": "sim", "server/api": "api",
+             "render": "render"}
     allowed = {"solver": {"solver"}, "object_search": {"solver", "object_search"},
                "filter": {"solver", "object_search", "filter"},
                "perception": {"solver", "object_search", "perception"},
-               "sim": {"solver", "object_search", "sim"},
-               "api": {"solver", "object_search", "perception", "api"}}
+               "render": {"solver", "object_search", "render"},
+               "sim": {"solver", "object_search", "render", "sim"},
+               "api": {"solver", "object_search", "render", "perception", "api"}}
     for d, module in homes.items():
         for path, inc in includes(d):
             if not inc.startswith("npfkct/"):
@@ -70,6 +73,6 @@ def test_lower_modules_never_include_higher_ones():
             used = inc.split("/")[1]
             used = {"object_search": "object_search", "filter": "filter", "sim": "sim",
                     "perception": "perception", "api": "api", "server": "server",
-                    "solver": "solver"}.get(used, used)
+                    "solver": "solver", "render": "render"}.get(used, used)
             if used in order:
                 assert used in allowed[module], f"{path} ({module}) includes {inc}"

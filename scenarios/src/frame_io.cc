@@ -5,6 +5,8 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "npfkct/render/belief_picture.h"
+
 namespace npfkct::sim {
 
 cv::Mat FrameBgr(const Frame& frame) {
@@ -52,67 +54,12 @@ pcl::PointCloud<pcl::PointXYZRGB>::Ptr FrameCloud(const Frame& frame, bool world
   return cloud;
 }
 
-cv::Mat RenderGridWorld(const object_search::World& world, int ppm) {
-  const auto& occ = world.occupancy;
-  const Vec2 lo = occ.min(), hi = occ.max();
-  const int w = std::max(1, static_cast<int>((hi.x() - lo.x()) * ppm));
-  const int h = std::max(1, static_cast<int>((hi.y() - lo.y()) * ppm));
-  cv::Mat img(h, w, CV_8UC3, cv::Scalar(245, 245, 245));
-  auto px = [&](double x, double y) {
-    return cv::Point(static_cast<int>((x - lo.x()) * ppm), static_cast<int>((hi.y() - y) * ppm));
-  };
-  // Occupied map cells.
-  const double r = occ.resolution();
-  for (int iy = 0; iy < occ.ny(); ++iy) {
-    for (int ix = 0; ix < occ.nx(); ++ix) {
-      if (!occ.Occupied(ix, iy)) continue;
-      cv::rectangle(img, px(lo.x() + ix * r, lo.y() + (iy + 1) * r),
-                    px(lo.x() + (ix + 1) * r, lo.y() + iy * r), cv::Scalar(200, 200, 200),
-                    cv::FILLED);
-    }
-  }
-  for (const auto& region : world.base_regions) {
-    cv::rectangle(img, px(region.min.x(), region.max.y()), px(region.max.x(), region.min.y()),
-                  cv::Scalar(60, 60, 220), 1);
-  }
-  // Grid-world odds: probability as colour (blue 0 -> white 0.5 -> red 1).
-  const auto& grid = world.grid;
-  const double half = 0.5 * grid.resolution();
-  for (int c = 0; c < grid.num_cells(); ++c) {
-    const Vec3 p = grid.CellCenter(c);
-    const double prob = 1.0 / (1.0 + std::exp(-grid.log_odds(c)));
-    cv::Scalar color = prob > 0.5 ? cv::Scalar(255 * (2 - 2 * prob), 255 * (2 - 2 * prob), 255)
-                                  : cv::Scalar(255, 255 * 2 * prob, 255 * 2 * prob);
-    cv::rectangle(img, px(p.x() - half, p.y() + half), px(p.x() + half, p.y() - half), color,
-                  cv::FILLED);
-  }
-  // Known objects: footprints coloured by status.
-  for (size_t i = 1; i < world.objects.size(); ++i) {
-    const auto& o = world.objects[i];
-    if (o.status == object_search::kRemoved) continue;
-    const auto corners = o.box.Corners();
-    std::vector<cv::Point> poly = {
-        px(corners[0].x(), corners[0].y()), px(corners[1].x(), corners[1].y()),
-        px(corners[3].x(), corners[3].y()), px(corners[2].x(), corners[2].y())};
-    cv::Scalar color = o.status == object_search::kDeclaredTarget     ? cv::Scalar(0, 160, 0)
-                       : o.status == object_search::kDeclaredObstacle ? cv::Scalar(0, 0, 0)
-                                                                      : cv::Scalar(90, 90, 90);
-    cv::polylines(img, poly, true, color, 2);
-  }
-  // The robot and its view direction.
-  const auto& c = world.robot_config;
-  cv::circle(img, px(c.x, c.y), static_cast<int>(world.robot.footprint_radius * ppm),
-             cv::Scalar(40, 40, 40), 2);
-  const double heading = c.yaw + c.pan;
-  cv::arrowedLine(img, px(c.x, c.y),
-                  px(c.x + 0.6 * std::cos(heading), c.y + 0.6 * std::sin(heading)),
-                  cv::Scalar(0, 120, 255), 2);
-  return img;
-}
-
 cv::Mat RenderStep(const object_search::World& world, const Frame& view,
                    const std::string& caption) {
-  cv::Mat left = RenderGridWorld(world, 120);
+  render::BeliefPictureOptions options;
+  options.title = caption;
+  options.map_pixels = 640;
+  cv::Mat left = render::RenderBelief(world, options);
   cv::Mat right = FrameBgr(view);
   const int height = std::max(left.rows, right.rows);
   auto pad = [&](const cv::Mat& m) {
@@ -122,11 +69,7 @@ cv::Mat RenderStep(const object_search::World& world, const Frame& view,
   };
   cv::Mat row;
   cv::hconcat(pad(left), pad(right), row);
-  cv::Mat canvas(row.rows + 40, row.cols, CV_8UC3, cv::Scalar(255, 255, 255));
-  row.copyTo(canvas(cv::Rect(0, 0, row.cols, row.rows)));
-  cv::putText(canvas, caption, cv::Point(10, row.rows + 28), cv::FONT_HERSHEY_SIMPLEX, 0.6,
-              cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
-  return canvas;
+  return row;
 }
 
 std::vector<cv::Mat> ObjectPhotos(const SceneObject& object, int pixels) {

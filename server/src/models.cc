@@ -2,6 +2,7 @@
 
 #include <dirent.h>
 #include <fcntl.h>
+#include <spdlog/spdlog.h>
 #include <sys/stat.h>
 
 #include <algorithm>
@@ -15,6 +16,7 @@ std::shared_ptr<ModelRegistry> ModelRegistry::Open(const std::string& dir, size_
                                                    size_t max_file_bytes) {
   std::shared_ptr<ModelRegistry> r(new ModelRegistry());
   r->max_loaded_ = std::max<size_t>(1, max_loaded);
+  r->dir_ = dir;
   DIR* d = dir.empty() ? nullptr : ::opendir(dir.c_str());
   if (d == nullptr) return r;
   while (dirent* e = ::readdir(d)) {
@@ -38,6 +40,15 @@ std::vector<std::string> ModelRegistry::names() const {
   std::vector<std::string> out;
   for (const auto& [name, path] : files_) out.push_back(name);
   return out;
+}
+
+std::string ModelRegistry::DefaultModel(const std::string& name) const {
+  if (name.empty() || files_.count(name) > 0) return name;
+  spdlog::warn(
+      "the default model {} is not in the model folder '{}': npfkct sessions that name no model "
+      "plan with uniform candidates",
+      name, dir_);
+  return "";
 }
 
 StatusOr<std::shared_ptr<const filter::NeuralFilter>> ModelRegistry::Get(const std::string& name) {

@@ -32,6 +32,16 @@ HttpFrontOptions FrontOptions(const ServerOptions& o) {
 
 Status ServerOptions::Validate() const {
   if (port < 0 || port > 65535) return InvalidFieldError("port", "must be in [0, 65535]");
+  const bool loopback = host == "localhost" || host == "::1" || host.rfind("127.", 0) == 0;
+  if (api_key.empty() && !insecure && !loopback) {
+    return InvalidFieldError("api-key", "serving " + host +
+                                            " without --api-key would let anyone who reaches it "
+                                            "plan and delete sessions; set --api-key (or the "
+                                            "NPFKCT_API_KEY variable), or pass --insecure");
+  }
+  if (!default_model.empty() && !api::IsModelName(default_model)) {
+    return InvalidFieldError("default-model", "must be a file name of --model-dir");
+  }
   if (!(session_ttl_seconds > 0.0)) return InvalidFieldError("session-ttl", "must be > 0");
   if (max_sessions < 1) return InvalidFieldError("max-sessions", "must be >= 1");
   if (threads < 1 || threads > 1024) return InvalidFieldError("threads", "must be in [1, 1024]");
@@ -69,6 +79,22 @@ HttpFront::ErrorRenderer FrontErrors() {
                               : code == 431 ? StatusCode::kResourceExhausted
                                             : StatusCode::kInvalidArgument;
     return api::RenderError(Status(status, message), code, code == 429 ? 1 : 0);
+  };
+}
+
+httplib::Server::HandlerWithResponse HttpErrorBodies() {
+  return [](const httplib::Request&, httplib::Response& res) {
+    using R = httplib::Server::HandlerResponse;
+    if (!res.body.empty()) return R::Unhandled;
+    const int code = res.status;
+    const StatusCode status = code == 404   ? StatusCode::kNotFound
+                              : code == 413 ? StatusCode::kResourceExhausted
+                              : code == 416 ? StatusCode::kOutOfRange
+                              : code >= 500 ? StatusCode::kInternal
+                                            : StatusCode::kInvalidArgument;
+    res.set_content(api::RenderError(Status(status, "HTTP " + std::to_string(code)), code),
+                    "application/json");
+    return R::Handled;
   };
 }
 

@@ -22,4 +22,8 @@ HttpFrontOptions FrontOptions(const ServerOptions& o);
 /// OUT_OF_RANGE, else INVALID_ARGUMENT).
 HttpFront::ErrorRenderer FrontErrors();
 
+/// httplib's error handler: the errors httplib answers itself (a malformed request line, a URI
+/// too long) get the API's error body too.
+httplib::Server::HandlerWithResponse HttpErrorBodies();
+
 }  // namespace npfkct::server

@@ -9,6 +9,7 @@
 #include <thread>
 
 #include "admission.h"
+#include "console.h"
 #include "http_front.h"
 #include "npfkct/api/api.h"
 #include "options.h"
@@ -25,12 +26,12 @@ void Json(Response& res, int status, std::string body) {
   res.set_content(std::move(body), "application/json");
 }
 
-// Whether `path` matches a route template: literal, with "{id}" standing for one non-empty
-// segment without '/' or ':' (the `([^/:]+)` of the route's pattern).
+// Whether `path` matches a route template: literal, with "{id}" (or "{file}") standing for one
+// non-empty segment without '/' or ':' (the `([^/:]+)` of the route's pattern).
 bool Matches(std::string_view route, std::string_view path) {
-  const size_t hole = route.find("{id}");
-  if (hole == std::string_view::npos) return route == path;
-  const std::string_view prefix = route.substr(0, hole), suffix = route.substr(hole + 4);
+  const size_t hole = route.find('{'), close = route.find('}');
+  if (hole == std::string_view::npos || close < hole) return route == path;
+  const std::string_view prefix = route.substr(0, hole), suffix = route.substr(close + 1);
   if (path.size() <= prefix.size() + suffix.size() || path.substr(0, prefix.size()) != prefix ||
       path.substr(path.size() - suffix.size()) != suffix) {
     return false;
@@ -69,6 +70,7 @@ struct Server::Impl {
   std::unique_ptr<HttpFront> http;
   std::vector<Route> routes;
   std::thread serve_thread;
+  std::string default_model;  // of sessions that name none; empty when not in the model folder
 
   explicit Impl(const ServerOptions& o)
       : options(o), registry(o, &metrics), admission(o.plan_slots, o.plan_queue) {}
@@ -108,6 +110,10 @@ struct Server::Impl {
     if (Status full = registry.CheckCapacity(); !full.ok()) return Fail(res, full, 0, 5);
     auto world = api::BuildWorld(req->world, options.limits);
     if (!world.ok()) return Fail(res, world.status());
+    // npfkct plans with the server's default model unless the request names one ("": none).
+    if (req->planner.name == "npfkct" && !req->planner.model_given) {
+      req->planner.model = default_model;
+    }
     SessionConfig config{
         Registry::NewId(),
         req->display_name,
@@ -208,12 +214,19 @@ struct Server::Impl {
     if (!s) return;
     s->Touch();
     const auto world = s->Belief();
-    if (*f == api::BeliefFormat::kJson) return Json(res, 200, api::RenderBelief(*world));
-    auto png = api::RenderBeliefPng(*world);
+    const api::SessionView view = s->View();
+    if (*f == api::BeliefFormat::kJson) return Json(res, 200, api::RenderBelief(*world, &view));
+    auto png = api::RenderBeliefPng(*world, &view);
     if (!png.ok()) return Fail(res, png.status());
     res.status = 200;
     res.set_content(std::move(png).value(), "image/png");
   }
+
+  void Steps(const Request& req, Response& res, const std::string&) {
+    if (auto s = Find(req, res)) Json(res, 200, api::RenderSteps(s->Steps()));
+  }
+
+  void Console(const Request& req, Response& res, const std::string&) { ServeConsole(req, res); }
 
   // ---- routing ----
 
@@ -245,6 +258,10 @@ struct Server::Impl {
              &Impl::Observe);
     AddRoute("GET", "/v1/sessions/{id}/belief", R"(/v1/sessions/([^/:]+)/belief)", true,
              &Impl::Belief);
+    AddRoute("GET", "/v1/sessions/{id}/steps", R"(/v1/sessions/([^/:]+)/steps)", true,
+             &Impl::Steps);
+    for (const char* ui : {"/ui", "/ui/"}) AddRoute("GET", ui, ui, false, &Impl::Console);
+    AddRoute("GET", "/ui/{file}", R"(/ui/([^/:]+))", false, &Impl::Console);
     for (const Route& route : routes) {
       const Route* r = &route;
       if (!r->body) {
@@ -313,19 +330,7 @@ struct Server::Impl {
       return R::Unhandled;
     });
     // Errors httplib answers itself (a malformed request line, a URI too long): JSON too.
-    http->set_error_handler(httplib::Server::HandlerWithResponse([](const Request&, Response& res) {
-      using R = httplib::Server::HandlerResponse;
-      if (!res.body.empty()) return R::Unhandled;
-      const int code = res.status;
-      const StatusCode status = code == 404   ? StatusCode::kNotFound
-                                : code == 413 ? StatusCode::kResourceExhausted
-                                : code == 416 ? StatusCode::kOutOfRange
-                                : code >= 500 ? StatusCode::kInternal
-                                              : StatusCode::kInvalidArgument;
-      res.set_content(api::RenderError(Status(status, "HTTP " + std::to_string(code)), code),
-                      "application/json");
-      return R::Handled;
-    }));
+    http->set_error_handler(HttpErrorBodies());
     http->set_exception_handler([](const Request&, Response& res, std::exception_ptr) {
       Fail(res, InternalError("unexpected error"));
     });
@@ -351,8 +356,9 @@ Status Server::Start() {
   const ServerOptions o = Resolved(options_);
   impl_ = std::make_unique<Impl>(o);
   Impl& im = *impl_;
-  im.samplers =
-      samplers_ ? samplers_ : FilterSamplerFactory(ModelRegistry::Open(o.model_dir, o.max_models));
+  auto models = ModelRegistry::Open(o.model_dir, o.max_models);
+  im.default_model = samplers_ ? o.default_model : models->DefaultModel(o.default_model);
+  im.samplers = samplers_ ? samplers_ : FilterSamplerFactory(models);
   auto restored = im.registry.Open(im.samplers);
   if (!restored.ok()) return restored.status();
   restored_ = *restored;

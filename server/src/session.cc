@@ -25,6 +25,12 @@ std::string RandomHex(int bytes) {
   return out;
 }
 
+int64_t UnixMillis() {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
 Status Busy() {
   return Status(StatusCode::kAborted,
                 "another request is working on this session; retry when it has finished");
@@ -177,6 +183,10 @@ StatusOr<api::PlanReply> Session::Plan(const Budget& asked,
   reply.stats = d.stats;
   reply.candidates = planner_->candidate_stats();
   reply.budget = budget;
+  history_.push_back({static_cast<int>(actions_), reply.action_id, reply.action, d.value, d.stats,
+                      reply.candidates, UnixMillis(), std::nullopt});
+  if (history_.size() > static_cast<size_t>(api::kMaxHistorySteps))
+    history_.erase(history_.begin());
   state.unlock();
   if (Status s = SaveUnderOp(store); !s.ok()) return s;
   reply.session = View();
@@ -304,6 +314,15 @@ StatusOr<api::ObserveReply> Session::Observe(api::ObserveRequest req, SessionSto
     update_time_ = std::chrono::system_clock::now();
     last_used_ = std::chrono::steady_clock::now();
     if (perception_) perception_tracks_ = perception_->tracks();
+    if (!history_.empty() && history_.back().action_id == last_action_id_) {
+      history_.back().outcome = {req.succeeded,
+                                 reward,
+                                 static_cast<int>(obs.objects.size()),
+                                 static_cast<int>(fresh.size()),
+                                 req.frame.has_value(),
+                                 done,
+                                 UnixMillis()};
+    }
   }
   Reseed();
   if (!done) {

@@ -42,6 +42,7 @@ StatusOr<std::unique_ptr<Session>> Session::Restore(api::SessionRecord r, int64_
   s->last_action_id_ = std::move(r.last_action_id);
   s->pending_action_id_ = std::move(r.pending_action_id);
   s->pending_action_ = std::move(r.pending_action);
+  s->history_ = std::move(r.history);
   s->version_ = version;
   if (Status st = s->Init(samplers); !st.ok()) return st;
   if (r.perception) {
@@ -141,6 +142,11 @@ std::shared_ptr<const World> Session::Belief() const {
   return world_;
 }
 
+std::vector<api::StepRecord> Session::Steps() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  return history_;
+}
+
 api::SessionRecord Session::RecordLocked() const {
   api::SessionRecord r;
   r.id = id_;
@@ -160,6 +166,7 @@ api::SessionRecord Session::RecordLocked() const {
   r.pending_action_id = pending_action_id_;
   r.pending_action = pending_action_;
   r.world = *world_;
+  r.history = history_;
   if (perception_) {
     int next_id = 0;
     auto tracks = perception_->SaveTracks(&next_id);

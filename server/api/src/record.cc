@@ -5,6 +5,7 @@
 #include "npfkct/api/api.h"
 #include "npfkct/api/wire.h"
 #include "npfkct/object_search/model.h"
+#include "step_codec.h"
 #include "world_codec.h"
 
 namespace npfkct::api {
@@ -72,6 +73,11 @@ std::string EncodeRecord(const SessionRecord& r) {
       tracks.push_back({{"id", t.id}, {"surface", t.surface}, {"points", FloatsBase64(t.points)}});
     }
     j["perception"] = {{"nextId", r.perception->first}, {"tracks", tracks}};
+  }
+  if (!r.history.empty()) {
+    json history = json::array();
+    for (const StepRecord& step : r.history) history.push_back(internal::StepJson(step, true));
+    j["history"] = history;
   }
   return internal::Dump(j);
 }
@@ -202,6 +208,15 @@ StatusOr<SessionRecord> DecodeRecord(std::string_view bytes, const Limits& limit
     const int64_t next_id = internal::Integer(pj, "nextId");
     if (next_id < 0 || next_id > 1'000'000'000) return Lost("perception next id");
     r.perception = std::make_pair(static_cast<int>(next_id), std::move(tracks));
+  }
+  if (j.contains("history")) {
+    const json& h = j.at("history");
+    if (!h.is_array() || h.size() > static_cast<size_t>(kMaxHistorySteps)) return Lost("history");
+    for (const json& step : h) {
+      StepRecord s;
+      if (!internal::ReadStep(step, &s)) return Lost("history step");
+      r.history.push_back(std::move(s));
+    }
   }
   return r;
 }

@@ -1,11 +1,12 @@
 // Typed replies to response bodies.
 #include <cmath>
 #include <ctime>
-#include <opencv2/imgproc.hpp>
 
 #include "json_util.h"
 #include "npfkct/api/api.h"
 #include "npfkct/api/wire.h"
+#include "npfkct/render/belief_picture.h"
+#include "step_codec.h"
 #include "world_codec.h"
 
 namespace npfkct::api {
@@ -14,16 +15,8 @@ namespace {
 using internal::json;
 
 std::string Rfc3339(std::chrono::system_clock::time_point t) {
-  const int64_t ms =
-      std::chrono::duration_cast<std::chrono::milliseconds>(t.time_since_epoch()).count();
-  const std::time_t secs = static_cast<std::time_t>(ms / 1000);
-  std::tm tm{};
-  gmtime_r(&secs, &tm);
-  char buf[96];
-  std::snprintf(buf, sizeof buf, "%04d-%02d-%02dT%02d:%02d:%02d.%03dZ", tm.tm_year + 1900,
-                tm.tm_mon + 1, tm.tm_mday, tm.tm_hour, tm.tm_min, tm.tm_sec,
-                static_cast<int>(ms % 1000));
-  return buf;
+  return internal::Rfc3339(
+      std::chrono::duration_cast<std::chrono::milliseconds>(t.time_since_epoch()).count());
 }
 
 const char* StateName(SessionState s) {
@@ -38,17 +31,7 @@ const char* StateName(SessionState s) {
   return "READY";
 }
 
-json ActionJson(const ActionView& a) {
-  static const char* kTypes[] = {"MOVE", "DECLARE_TARGET", "DECLARE_OBSTACLE", "REMOVE"};
-  json out = {{"type", kTypes[static_cast<int>(a.type)]}};
-  if (a.type == ActionView::Type::kMove) {
-    out["configuration"] = internal::ConfigJson(a.configuration);
-  } else {
-    out["objectId"] = a.object_id;
-    if (a.object_box) out["objectBox"] = internal::BoxJson(*a.object_box);
-  }
-  return out;
-}
+using internal::ActionJson;
 
 json OptionsJson(const PlannerSpec& p) {
   json options = json::object();
@@ -77,7 +60,9 @@ json SessionJson(const SessionView& s) {
   j["planner"] = {{"name", s.planner.name},
                   {"particles", s.planner.particles},
                   {"options", OptionsJson(s.planner)}};
-  if (!s.planner.model.empty()) j["planner"]["model"] = s.planner.model;
+  // The model that plans: npfkct always says (""), so that uniform candidates are never silent.
+  if (!s.planner.model.empty() || s.planner.name == "npfkct")
+    j["planner"]["model"] = s.planner.model;
   j["seed"] = std::to_string(s.seed);
   j["target"] = {{"description", s.target_description}, {"photoCount", s.photo_count}};
   if (s.perception_tracks) j["perceptionTracks"] = *s.perception_tracks;
@@ -173,23 +158,7 @@ std::string RenderPlan(const PlanReply& r) {
   out["actionId"] = r.action_id;
   out["action"] = ActionJson(r.action);
   out["expectedValue"] = r.expected_value;
-  const SearchStats& s = r.stats;
-  out["stats"] = {{"simulations", s.simulations},
-                  {"elapsedMs", s.elapsed_ms},
-                  {"cpuMs", s.cpu_ms},
-                  {"teardownMs", s.teardown_ms},
-                  {"treeNodes", s.tree_nodes},
-                  {"maxDepth", s.max_depth},
-                  {"rootActions", s.root_actions},
-                  {"rootVisits", s.root_visits},
-                  {"reusedVisits", s.reused_visits},
-                  {"refinements", s.refinements},
-                  {"budgetExhausted", s.budget_exhausted}};
-  if (r.candidates.sampled > 0) {
-    out["stats"]["candidates"] = {{"sampled", r.candidates.sampled},
-                                  {"accepted", r.candidates.accepted},
-                                  {"elapsedMs", r.candidates.elapsed_ms}};
-  }
+  out["stats"] = internal::StatsJson(r.stats, r.candidates);
   out["budget"] = BudgetJson(r.budget);
   out["session"] = SessionJson(r.session);
   return internal::Dump(out);
@@ -228,65 +197,43 @@ std::string RenderObserve(const ObserveReply& r) {
   return internal::Dump(out);
 }
 
-std::string RenderBelief(const World& world) { return internal::Dump(internal::BeliefJson(world)); }
+std::string RenderBelief(const World& world, const SessionView* session) {
+  return internal::Dump(internal::BeliefJson(world, session));
+}
 
-StatusOr<std::string> RenderBeliefPng(const World& world, int64_t max_pixels) {
-  const auto& occ = world.occupancy;
-  const object_search::Vec2 lo = occ.min(), hi = occ.max();
-  const double area = std::max(1e-6, (hi.x() - lo.x()) * (hi.y() - lo.y()));
-  // 150 pixels per metre, fewer for a large room so that the picture stays within max_pixels.
-  const double ppm =
-      std::max(1e-3, std::min(150.0, std::sqrt(static_cast<double>(max_pixels) / area)));
-  const int w = std::clamp(static_cast<int>((hi.x() - lo.x()) * ppm), 1, 8192);
-  const int h = std::clamp(static_cast<int>((hi.y() - lo.y()) * ppm), 1, 8192);
-  cv::Mat img(h, w, CV_8UC3, cv::Scalar(245, 245, 245));
-  auto px = [&](double x, double y) {
-    return cv::Point(static_cast<int>((x - lo.x()) * ppm), static_cast<int>((hi.y() - y) * ppm));
-  };
-  // Occupied map cells: the map at its own resolution, scaled up (row 0 is the top, max y).
-  if (occ.nx() > 0 && occ.ny() > 0) {
-    cv::Mat cells(occ.ny(), occ.nx(), CV_8U, const_cast<uint8_t*>(occ.cells().data()));
-    cv::Mat flipped, mask;
-    cv::flip(cells, flipped, 0);
-    cv::resize(flipped, mask, cv::Size(w, h), 0, 0, cv::INTER_NEAREST);
-    img.setTo(cv::Scalar(200, 200, 200), mask);
+StatusOr<std::string> RenderBeliefPng(const World& world, const SessionView* session,
+                                      int64_t max_pixels) {
+  render::BeliefPictureOptions options;
+  options.max_pixels = max_pixels;
+  options.title = "step " + std::to_string(world.steps);
+  if (session) {
+    options.title = "session " + session->id.substr(0, 12) + " - step " +
+                    std::to_string(world.steps) + " - " + StateName(session->state);
+    options.subtitle = session->planner.name;
+    if (!session->planner.model.empty()) {
+      options.subtitle += " (model " + session->planner.model + ")";
+    }
+    if (!session->target_description.empty()) {
+      options.subtitle += " - target: " + session->target_description.substr(0, 80);
+    }
+    if (session->pending) {
+      const ActionView& a = session->pending->second;
+      if (a.type == ActionView::Type::kMove) {
+        options.next_view = a.configuration;
+      } else {
+        static const char* kTypes[] = {"MOVE", "DECLARE_TARGET", "DECLARE_OBSTACLE", "REMOVE"};
+        options.next_action = std::string(kTypes[static_cast<int>(a.type)]) + " " + a.object_id;
+      }
+    }
   }
-  for (const auto& region : world.base_regions) {
-    cv::rectangle(img, px(region.min.x(), region.max.y()), px(region.max.x(), region.min.y()),
-                  cv::Scalar(60, 60, 220), 1);
-  }
-  // Grid-world odds as colour: blue (0) -> white (0.5) -> red (1).
-  const auto& grid = world.grid;
-  const double half = 0.5 * grid.resolution();
-  for (int c = 0; c < grid.num_cells(); ++c) {
-    const auto p = grid.CellCenter(c);
-    const double prob = 1.0 / (1.0 + std::exp(-grid.log_odds(c)));
-    const cv::Scalar color = prob > 0.5
-                                 ? cv::Scalar(255 * (2 - 2 * prob), 255 * (2 - 2 * prob), 255)
-                                 : cv::Scalar(255, 255 * 2 * prob, 255 * 2 * prob);
-    cv::rectangle(img, px(p.x() - half, p.y() + half), px(p.x() + half, p.y() - half), color,
-                  cv::FILLED);
-  }
-  for (size_t i = 1; i < world.objects.size(); ++i) {
-    const auto& o = world.objects[i];
-    if (o.status == object_search::kRemoved) continue;
-    const auto k = o.box.Corners();
-    const std::vector<cv::Point> poly = {px(k[0].x(), k[0].y()), px(k[1].x(), k[1].y()),
-                                         px(k[3].x(), k[3].y()), px(k[2].x(), k[2].y())};
-    const cv::Scalar color = o.status == object_search::kDeclaredTarget ? cv::Scalar(0, 160, 0)
-                             : o.status == object_search::kDeclaredObstacle
-                                 ? cv::Scalar(0, 0, 0)
-                                 : cv::Scalar(90, 90, 90);
-    cv::polylines(img, poly, true, color, 2);
-  }
-  const auto& c = world.robot_config;
-  cv::circle(img, px(c.x, c.y), std::max(1, static_cast<int>(world.robot.footprint_radius * ppm)),
-             cv::Scalar(40, 40, 40), 2);
-  const double heading = c.yaw + c.pan;
-  cv::arrowedLine(img, px(c.x, c.y),
-                  px(c.x + 0.6 * std::cos(heading), c.y + 0.6 * std::sin(heading)),
-                  cv::Scalar(0, 120, 255), 2);
-  return EncodePng(img);
+  return EncodePng(render::RenderBelief(world, options));
+}
+
+std::string RenderSteps(const std::vector<StepRecord>& steps) {
+  json out;
+  out["steps"] = json::array();
+  for (const StepRecord& s : steps) out["steps"].push_back(internal::StepJson(s, false));
+  return internal::Dump(out);
 }
 
 std::string RenderHealth() { return R"({"status":"SERVING"})"; }

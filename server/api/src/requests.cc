@@ -85,7 +85,8 @@ Status ReadPlanner(const json& p, const Limits& limits, PlannerSpec* spec) {
   }
   if (p.contains("model")) {
     spec->model = p.at("model").get<std::string>();
-    if (!IsModelName(spec->model)) {
+    spec->model_given = true;
+    if (!spec->model.empty() && !IsModelName(spec->model)) {
       return InvalidFieldError("planner.model",
                                "expected a model file name (letters, digits, '.', '_', '-'; no "
                                "path), e.g. \"filter.pt\"");

@@ -6,6 +6,7 @@
 #include <set>
 
 #include "npfkct/api/api.h"
+#include "npfkct/render/belief_picture.h"
 
 namespace npfkct::api::internal {
 namespace {
@@ -422,10 +423,33 @@ StatusOr<World> WorldFromJson(const json& j, const Limits& limits) {
   return w;
 }
 
-json BeliefJson(const World& w) {
+json BeliefJson(const World& w, const SessionView* session) {
   json j;
   j["robot"] = ConfigJson(w.robot_config);
   j["step"] = w.steps;
+  // What the web console draws: the same crop, frusta and colours as the PNG (npfkct/render).
+  auto polygon = [](const std::vector<Vec2>& points) {
+    json out = json::array();
+    for (const Vec2& p : points) out.push_back(Vec(p));
+    return out;
+  };
+  j["camera"] = {{"frustum", polygon(render::FrustumFootprint(w, w.robot_config))}};
+  j["robotRadius"] = w.robot.footprint_radius;
+  std::optional<RobotConfig> next;
+  if (session && session->pending && session->pending->second.type == ActionView::Type::kMove) {
+    next = session->pending->second.configuration;
+    j["nextView"] = {{"actionId", session->pending->first},
+                     {"configuration", ConfigJson(*next)},
+                     {"frustum", polygon(render::FrustumFootprint(w, *next))}};
+  }
+  const auto [lo, hi] = render::CropBounds(w, next, render::BeliefPictureOptions{}.margin);
+  j["view"] = {{"min", Vec(lo)}, {"max", Vec(hi)}};
+  j["furniture"] = json::array();
+  for (const Box& b : w.furniture) j["furniture"].push_back(BoxJson(b));
+  j["baseRegions"] = json::array();
+  for (const auto& br : w.base_regions) {
+    j["baseRegions"].push_back({{"min", Vec(br.min)}, {"max", Vec(br.max)}});
+  }
   j["grid"]["resolution"] = w.grid.resolution();
   j["grid"]["workspaces"] = json::array();
   const auto mass = w.grid.WorkspaceMass();

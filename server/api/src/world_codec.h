@@ -18,8 +18,8 @@ json WorldJson(const World& w);
 /// Errors are DATA_LOSS.
 StatusOr<World> WorldFromJson(const json& j, const Limits& limits);
 
-/// The belief the API shows.
-json BeliefJson(const World& w);
+/// The belief the API shows; with `session`, its planned next view.
+json BeliefJson(const World& w, const SessionView* session);
 
 /// Cells of the grid world over `workspaces` at `resolution`, as GridWorld counts them, in 64
 /// bits (and saturating), so that a limit can be checked before the grid is built.

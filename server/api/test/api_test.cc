@@ -410,7 +410,7 @@ TEST(Replies, BeliefPngStaysWithinItsPixelBudget) {
   spec.start.x = 3;
   auto world = BuildWorld(spec, kLimits);
   ASSERT_TRUE(world.ok()) << world.status().ToString();
-  auto png = RenderBeliefPng(*world, 1'000'000);
+  auto png = RenderBeliefPng(*world, nullptr, 1'000'000);
   ASSERT_TRUE(png.ok());
   auto info = ProbeImage(*png, "png").value();
   EXPECT_LE(info.width * info.height, 1'000'000);

@@ -1,6 +1,7 @@
 // Conversions of simulator frames to OpenCV images and PCL clouds, and the per-step pictures of
-// `npfkct-bench --render` (grid-world odds, the robot's view, the chosen action, like the paper's
-// figure 5). Only executables and the perception/server layers include this header.
+// `npfkct-bench --render` (the belief picture of npfkct/render, the robot's view, the chosen
+// action, like the paper's figure 5). Only executables and the perception/server layers include
+// this header.
 #pragma once
 
 #include <pcl/point_cloud.h>
@@ -22,12 +23,9 @@ cv::Mat FrameDepth(const Frame& frame);
 /// z forward) or, with `world_frame`, in the world frame.
 pcl::PointCloud<pcl::PointXYZRGB>::Ptr FrameCloud(const Frame& frame, bool world_frame);
 
-/// A top view of the grid world's odds (red: likely target positions, blue: seen empty) with the
-/// known objects' footprints and the robot's pose.
-cv::Mat RenderGridWorld(const object_search::World& world, int pixels_per_metre = 200);
-
-/// The picture of one step: grid world on the left, the robot's view on the right, `caption`
-/// underneath.
+/// The picture of one step: the belief picture of npfkct/render (titled `caption`: the grid
+/// world's odds with a colour bar, labelled objects and face odds, the robot and its view,
+/// cropped to the workspaces) on the left, the robot's camera view on the right.
 cv::Mat RenderStep(const object_search::World& world, const Frame& view,
                    const std::string& caption);
 

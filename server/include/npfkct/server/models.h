@@ -29,12 +29,16 @@ class ModelRegistry {
                                              size_t max_file_bytes = 64 << 20);
   /// The names clients may use.
   std::vector<std::string> names() const;
+  /// `name` when it is in the listing (the model npfkct sessions that name none plan with);
+  /// otherwise "" and a warning in the log (they plan with uniform candidates).
+  std::string DefaultModel(const std::string& name) const;
   /// The loaded model `name`: INVALID_ARGUMENT naming planner.model for a name not in the listing
   /// or a file that does not load (not cached, so the operator can fix it).
   StatusOr<std::shared_ptr<const filter::NeuralFilter>> Get(const std::string& name);
 
  private:
   ModelRegistry() = default;
+  std::string dir_;
   std::map<std::string, std::string> files_;  // name -> path, fixed at Open()
   size_t max_loaded_ = 4;
   std::mutex mutex_;

@@ -29,6 +29,8 @@ struct ServerOptions {
   double evict_idle_seconds = 300.0;
   /// Bearer token clients must send on /v1; empty: no authentication.
   std::string api_key;
+  /// Serve a non-loopback address without an API key (refused otherwise).
+  bool insecure = false;
   /// Sessions idle for longer than this are deleted (a session may ask for less).
   double session_ttl_seconds = 3600.0;
   /// Sessions held in memory at once (restored ones included). In fleet mode the least recently
@@ -50,6 +52,9 @@ struct ServerOptions {
   double idle_timeout_seconds = 5.0;
   /// Folder of the neural filter models clients may name (planner.model).
   std::string model_dir;
+  /// The model npfkct sessions plan with when they name none (planner.model absent); "" for
+  /// none. When the folder lacks it, such sessions plan with uniform candidates (and say so).
+  std::string default_model = "filter.pt";
   /// Models kept loaded at once.
   int max_models = 4;
   /// Largest snapshot file read at start-up.

@@ -85,6 +85,8 @@ class Session {
   api::SessionView View() const;
   /// The knowledge the belief is sampled from, as of now (immutable; later requests replace it).
   std::shared_ptr<const object_search::World> Belief() const;
+  /// The steps so far (the last api::kMaxHistorySteps), oldest first.
+  std::vector<api::StepRecord> Steps() const;
 
   /// The API resource of a stored record (a session this server does not hold).
   static api::SessionView ViewOf(const api::SessionRecord& record);
@@ -145,6 +147,7 @@ class Session {
   int64_t total_simulations_ = 0;
   double planning_seconds_ = 0.0;
   int perception_tracks_ = -1;  // -1: no raw data yet
+  std::vector<api::StepRecord> history_;
   std::chrono::system_clock::time_point update_time_;
   std::chrono::steady_clock::time_point last_used_;
   bool in_use_ = false;

@@ -61,11 +61,16 @@ std::string RenderSessionList(const std::vector<SessionView>& sessions,
                               const std::string& next_page_token);
 std::string RenderPlan(const PlanReply& reply);
 std::string RenderObserve(const ObserveReply& reply);
-/// Grid-world log-odds per workspace, objects with face odds, the robot.
-std::string RenderBelief(const World& world);
-/// A top view of the belief as PNG bytes (map, base regions, grid-world probability, objects,
-/// robot), at most `max_pixels` pixels.
-StatusOr<std::string> RenderBeliefPng(const World& world, int64_t max_pixels = 4'000'000);
+/// Grid-world log-odds per workspace, objects with face odds, the robot and its camera frustum,
+/// the furniture and the picture's crop; with `session`, the planned next view (a pending MOVE).
+std::string RenderBelief(const World& world, const SessionView* session = nullptr);
+/// The belief picture of npfkct/render as PNG bytes (title: session and step; colour bar, scale,
+/// labelled objects with face odds, robot, frustum, next view; cropped to the workspaces), at
+/// most `max_pixels` pixels.
+StatusOr<std::string> RenderBeliefPng(const World& world, const SessionView* session = nullptr,
+                                      int64_t max_pixels = 4'000'000);
+/// GET /v1/sessions/{id}/steps: {"steps": [...]}, oldest first.
+std::string RenderSteps(const std::vector<StepRecord>& steps);
 /// {"status": "SERVING"}.
 std::string RenderHealth();
 /// {"status": "SERVING" | "NOT_SERVING" (the store is unavailable), "store": {"backend",

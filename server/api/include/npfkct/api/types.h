@@ -36,6 +36,9 @@ struct PlannerSpec {
   int particles = 300;
   /// A model file name inside the server's --model-dir (planner.model); empty: none.
   std::string model;
+  /// Whether the request named planner.model (when it did not, npfkct gets the server's default
+  /// model; "" asks for none).
+  bool model_given = false;
   /// Option overrides in the order given: (key as sent, lowerCamelCase; value, booleans 0/1).
   std::vector<std::pair<std::string, double>> options;
   /// Which option values were booleans (for echoing them back as booleans).
@@ -154,6 +157,32 @@ struct HealthView {
   int sessions_held = 0;
 };
 
+/// One step of a session's history: the plan that chose the action and, once observed, what
+/// followed it (what the web console's step table shows).
+struct StepRecord {
+  /// What followed the action (its :observe).
+  struct Outcome {
+    bool succeeded = true;
+    double reward = 0.0;
+    int detections = 0;   ///< Objects seen.
+    int new_objects = 0;  ///< Objects seen for the first time.
+    bool raw = false;     ///< Raw sensor data went through the session's perception.
+    bool done = false;    ///< The target was removed.
+    int64_t time_ms = 0;  ///< When it was observed (Unix ms).
+  };
+  int step = 0;  ///< 1 for the first action.
+  std::string action_id;
+  ActionView action;
+  double expected_value = 0.0;
+  SearchStats stats;
+  CandidateStats candidates;
+  int64_t plan_time_ms = 0;  ///< When the plan finished (Unix ms).
+  std::optional<Outcome> outcome;
+};
+
+/// Steps a session keeps in its history (the oldest are dropped first).
+inline constexpr int kMaxHistorySteps = 500;
+
 // ---------------------------------------------------------------------------------------------
 // Records
 
@@ -177,6 +206,8 @@ struct SessionRecord {
   TargetSpec target;
   /// Perception's object tracks (present once raw data arrived).
   std::optional<std::pair<int, std::vector<perception::TrackState>>> perception;
+  /// The last kMaxHistorySteps steps.
+  std::vector<StepRecord> history;
 };
 
 }  // namespace npfkct::api

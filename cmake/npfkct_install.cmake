@@ -1,0 +1,60 @@
+# Install rules and the exported package (included by the top-level CMakeLists.txt after every
+# target exists).
+#
+#   cmake --install build [--prefix DIR]
+#
+#   bin/      npfkct-server npfkct-drive npfkct-bench npfkct-train npfkct-sim-robot
+#             npfkct-scenegen, npfkct (the Python client's CLI)
+#   lib/      libnpfkct_solver.a libnpfkct_object_search.a libnpfkct_client.a
+#   lib/cmake/npfkct/   npfkctConfig.cmake, npfkctConfigVersion.cmake, npfkctTargets.cmake
+#   include/npfkct/{solver,object_search,client}/
+#   share/npfkct/models/      the shipped filter model (npfkct-server's default --model-dir)
+#   share/npfkct/scenarios/   the scenario files (npfkct-drive --scenario)
+#   share/npfkct/schemas/     JSON Schemas and openapi.yaml
+#   share/npfkct/python/      the Python client package (bin/npfkct runs it)
+include(CMakePackageConfigHelpers)
+
+set(NPFKCT_INSTALL_CMAKEDIR ${CMAKE_INSTALL_LIBDIR}/cmake/npfkct)
+set(NPFKCT_INSTALL_DATADIR ${CMAKE_INSTALL_DATADIR}/npfkct)
+
+install(PROGRAMS
+  $<TARGET_FILE:npfkct-server> $<TARGET_FILE:npfkct-drive> $<TARGET_FILE:npfkct-bench>
+  $<TARGET_FILE:npfkct-train> $<TARGET_FILE:npfkct-sim-robot> $<TARGET_FILE:npfkct-scenegen>
+  DESTINATION ${CMAKE_INSTALL_BINDIR})
+
+# The libraries for embedding, with their public headers.
+set_target_properties(npfkct_solver PROPERTIES EXPORT_NAME solver)
+set_target_properties(npfkct_object_search PROPERTIES EXPORT_NAME object_search)
+set_target_properties(npfkct_client PROPERTIES EXPORT_NAME client)
+install(TARGETS npfkct_solver npfkct_object_search npfkct_client
+  EXPORT npfkctTargets
+  ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
+  LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
+  INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
+install(DIRECTORY solver/include/npfkct object_search/include/npfkct clients/cpp/include/npfkct
+  DESTINATION ${CMAKE_INSTALL_INCLUDEDIR} FILES_MATCHING PATTERN "*.h")
+install(EXPORT npfkctTargets NAMESPACE npfkct:: DESTINATION ${NPFKCT_INSTALL_CMAKEDIR})
+configure_package_config_file(cmake/npfkctConfig.cmake.in
+  ${CMAKE_CURRENT_BINARY_DIR}/npfkctConfig.cmake
+  INSTALL_DESTINATION ${NPFKCT_INSTALL_CMAKEDIR}
+  PATH_VARS NPFKCT_INSTALL_DATADIR)
+write_basic_package_version_file(${CMAKE_CURRENT_BINARY_DIR}/npfkctConfigVersion.cmake
+  VERSION ${PROJECT_VERSION} COMPATIBILITY SameMinorVersion)
+install(FILES ${CMAKE_CURRENT_BINARY_DIR}/npfkctConfig.cmake
+              ${CMAKE_CURRENT_BINARY_DIR}/npfkctConfigVersion.cmake
+  DESTINATION ${NPFKCT_INSTALL_CMAKEDIR})
+
+# Data: models, scenarios, schemas.
+install(FILES solver/filter/model/filter.pt DESTINATION ${NPFKCT_INSTALL_DATADIR}/models)
+install(DIRECTORY scenarios/data/ DESTINATION ${NPFKCT_INSTALL_DATADIR}/scenarios
+  FILES_MATCHING PATTERN "*.json")
+install(DIRECTORY schemas/ DESTINATION ${NPFKCT_INSTALL_DATADIR}/schemas)
+
+# The Python client: its package, and bin/npfkct that runs its CLI from there (pip install
+# ./clients/python installs the same package into a Python environment instead).
+install(DIRECTORY clients/python/npfkct_client DESTINATION ${NPFKCT_INSTALL_DATADIR}/python
+  FILES_MATCHING PATTERN "*.py")
+file(RELATIVE_PATH NPFKCT_PYTHON_FROM_BIN ${CMAKE_INSTALL_FULL_BINDIR}
+     ${CMAKE_INSTALL_FULL_DATADIR}/npfkct/python)
+configure_file(cmake/npfkct_cli.in ${CMAKE_CURRENT_BINARY_DIR}/npfkct @ONLY)
+install(PROGRAMS ${CMAKE_CURRENT_BINARY_DIR}/npfkct DESTINATION ${CMAKE_INSTALL_BINDIR})
