@@ -19,7 +19,7 @@ set -euo pipefail
 NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 source "$NPFKCT_ROOT/scripts/deps.sh"
 npfkct_bench_args 1000 20 19 "$@"
-npfkct_prepare
+npfkct_prepare npfkct-bench
 SCENES="${SCENES:-loose1 loose2 hidden1 covered1 complex1 fig16}"
 ROWS="${ROWS:-paper aimed candidates sibling visits w2-rule filter}"
 PAPER="proposals.aimed=0 sample_candidates=0 final_choice=0 normalization=1 w2=0.5"

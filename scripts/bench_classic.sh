@@ -8,7 +8,7 @@
 set -euo pipefail
 NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 source "$NPFKCT_ROOT/scripts/deps.sh"
-npfkct_prepare
+npfkct_prepare npfkct-bench
 BENCH="$BUILD_DIR/scenarios/npfkct-bench"
 OUT="${OUT:-$NPFKCT_ROOT/bench/results/classic.jsonl}"
 mkdir -p "$(dirname "$OUT")"

@@ -14,7 +14,7 @@ set -euo pipefail
 NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 source "$NPFKCT_ROOT/scripts/deps.sh"
 npfkct_bench_args 250 5 13 "$@"
-npfkct_prepare
+npfkct_prepare npfkct-bench npfkct-scenegen
 SEEDS="${SEEDS:-$(seq 900001 900030)}"
 PLANNERS="${PLANNERS:-oracle npfkct kct pomcp-joint gpomcp vomcpow}"
 OUT="$NPFKCT_ROOT/bench/results/generated/$RUN"

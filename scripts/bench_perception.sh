@@ -7,7 +7,7 @@
 set -euo pipefail
 NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 source "$NPFKCT_ROOT/scripts/deps.sh"
-npfkct_prepare
+npfkct_prepare npfkct-bench npfkct-perception-bench
 OUT="${OUT:-$NPFKCT_ROOT/bench/results}"
 mkdir -p "$OUT"
 D="$NPFKCT_ROOT/scenarios/data"

@@ -16,7 +16,7 @@ set -euo pipefail
 NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 source "$NPFKCT_ROOT/scripts/deps.sh"
 npfkct_bench_args 1000 20 17 "$@"
-npfkct_prepare
+npfkct_prepare npfkct-bench
 SCENES="${SCENES:-loose1 loose2 hidden1 covered1 complex1 fig16}"
 PLANNERS="${PLANNERS:-oracle npfkct kct pomcp gpomcp pomcp-joint pomcpow vomcpow advt}"
 OUT="$NPFKCT_ROOT/bench/results/table1/$RUN"

@@ -9,7 +9,7 @@
 set -euo pipefail
 NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 source "$NPFKCT_ROOT/scripts/deps.sh"
-npfkct_prepare
+npfkct_prepare npfkct-bench
 TRIALS="${1:-10}"
 PLANNER="${PLANNER:-npfkct}"
 OUT="$NPFKCT_ROOT/bench/results/threads"

@@ -3,7 +3,7 @@
 set -euo pipefail
 
 NPFKCT_PACKAGES=(
-  build-essential cmake pkg-config ccache curl
+  build-essential cmake pkg-config ccache curl jq
   libeigen3-dev libgtest-dev libgmock-dev libcli11-dev
   nlohmann-json3-dev libcpp-httplib-dev libspdlog-dev libvalijson-dev zlib1g-dev
   libopencv-dev libpcl-dev libtorch-dev libopenblas0-pthread
@@ -19,6 +19,8 @@ NPFKCT_STORE_PACKAGES=(libpq-dev)
 # throwaway PostgreSQL cluster, nginx, docker-compose to check deploy/compose.yaml; Node.js and
 # npm for the Kubernetes manifests' validator (tests/k8s).
 NPFKCT_FLEET_TEST_PACKAGES=(postgresql postgresql-client nginx docker-compose)
+# The web console's browser test (tests/test_console.py): Debian's Chromium, headless.
+NPFKCT_BROWSER_TEST_PACKAGES=(chromium)
 
 # Installs the packages given that are not installed yet.
 npfkct_install_packages() {
@@ -48,7 +50,8 @@ npfkct_install_deps() {
 # is looked for as a command, so that a Node.js installed from elsewhere (with its own npm) is
 # used as it is.
 npfkct_install_test_deps() {
-  npfkct_install_packages "${NPFKCT_STORE_PACKAGES[@]}" "${NPFKCT_FLEET_TEST_PACKAGES[@]}"
+  npfkct_install_packages "${NPFKCT_STORE_PACKAGES[@]}" "${NPFKCT_FLEET_TEST_PACKAGES[@]}" \
+    "${NPFKCT_BROWSER_TEST_PACKAGES[@]}"
   if ! command -v node >/dev/null || ! command -v npm >/dev/null; then
     npfkct_install_packages nodejs npm
   fi
@@ -61,12 +64,27 @@ npfkct_build() {
   cmake --build "$build_dir" -j "$(nproc)"
 }
 
-# The start of every script that runs a built program: installs what is missing, then builds
-# BUILD_DIR (default build/) quietly. Needs NPFKCT_ROOT.
+# The start of every script that runs a built program: installs what is missing, then builds the
+# targets given (default: every target) in BUILD_DIR (default build/), printing the build's
+# progress lines to stderr (a first build takes several minutes on 2 cores). Needs NPFKCT_ROOT.
+# Usage: npfkct_prepare [target...]
 npfkct_prepare() {
   npfkct_install_deps
   BUILD_DIR="${BUILD_DIR:-$NPFKCT_ROOT/build}"
-  npfkct_build "$BUILD_DIR" >/dev/null
+  local configure_log
+  configure_log="$(mktemp)"
+  if ! cmake -S "$NPFKCT_ROOT" -B "$BUILD_DIR" -DCMAKE_BUILD_TYPE=Release >"$configure_log" 2>&1
+  then
+    cat "$configure_log" >&2
+    rm -f "$configure_log"
+    return 1
+  fi
+  rm -f "$configure_log"
+  local targets=()
+  for t in "$@"; do targets+=(--target "$t"); done
+  echo "npfkct: building ${*:-every target} in $BUILD_DIR" >&2
+  # The build's own progress ("[ 42%] Building ..."), on stderr so that stdout stays the job's.
+  cmake --build "$BUILD_DIR" -j "$(nproc)" "${targets[@]}" >&2
 }
 
 # The arguments of the resumable benchmark scripts: [--run NAME] [--cpu-ms MS] [--trials N]

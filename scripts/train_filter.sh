@@ -9,7 +9,7 @@
 set -euo pipefail
 NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 source "$NPFKCT_ROOT/scripts/deps.sh"
-npfkct_prepare
+npfkct_prepare npfkct-train
 DATA_DIR="${DATA_DIR:-$BUILD_DIR/filter-data}"
 MODEL="${MODEL:-$NPFKCT_ROOT/solver/filter/model/filter.pt}"
 # Five epochs: in a 20-epoch run the validation loss bottomed out at epoch 5 and rose after it

@@ -114,3 +114,29 @@ def wait_for(predicate, timeout=10.0, interval=0.05):
             return True
         time.sleep(interval)
     return False
+
+
+def npm_tool(source_dir, name):
+    """A Node.js tool of the tests (source_dir: its package.json, package-lock.json and scripts)
+    with its node_modules, installed with `npm ci` into BUILD/name once per lock file; returns
+    that directory, which holds copies of the tool's scripts."""
+    import shutil
+    for tool in ("node", "npm"):
+        if not shutil.which(tool):
+            pytest.fail(f"{tool} is not installed (scripts/deps.sh installs nodejs and npm)")
+    work = os.path.join(BUILD, name)
+    os.makedirs(work, exist_ok=True)
+    with open(os.path.join(source_dir, "package-lock.json"), encoding="utf-8") as f:
+        lock = f.read()
+    stamp = os.path.join(work, "node_modules", ".npfkct-lock")
+    if not os.path.exists(stamp) or open(stamp, encoding="utf-8").read() != lock:
+        for file in ("package.json", "package-lock.json"):
+            shutil.copy(os.path.join(source_dir, file), work)
+        subprocess.run(["npm", "ci", "--no-audit", "--no-fund", "--loglevel=error"], cwd=work,
+                       check=True, capture_output=True, timeout=900)
+        with open(stamp, "w", encoding="utf-8") as f:
+            f.write(lock)
+    for file in os.listdir(source_dir):
+        if file.endswith((".mjs", ".js", ".yaml")):
+            shutil.copy(os.path.join(source_dir, file), work)
+    return work

@@ -369,7 +369,9 @@ function describeOutcome(step) {
   if (o.done) return 'target removed';
   if (!o.succeeded) return 'failed';
   const seen = o.detections === 1 ? '1 object seen' : `${o.detections} objects seen`;
-  return `${step.action.type === 'MOVE' ? 'moved' : 'done'}; ${seen}` +
+  const did = {MOVE: 'moved', DECLARE_TARGET: 'declared', DECLARE_OBSTACLE: 'declared',
+               REMOVE: 'removed'}[step.action.type] || 'executed';
+  return `${did}; ${seen}` +
          (o.newObjects ? ` (${o.newObjects} new)` : '') + (o.raw ? ', raw frame' : '');
 }
 

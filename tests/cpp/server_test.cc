@@ -207,11 +207,26 @@ TEST_F(ServerTest, FilterModelsAreNamedNeverPathsAndLoadedAtCreation) {
     EXPECT_EQ(r.status, 400) << r.raw;
     EXPECT_EQ(r.body["error"]["details"][0]["fieldViolations"][0]["field"], field) << r.raw;
   }
+  // "model": "" asks for no model (uniform candidates): the filter's options are then refused.
   Reply no_model = Post(
-      "/v1/sessions", {{"world", world},
-                       {"planner", {{"name", "npfkct"}, {"options", {{"filter.explore", 0.5}}}}}});
+      "/v1/sessions",
+      {{"world", world},
+       {"planner", {{"name", "npfkct"}, {"model", ""}, {"options", {{"filter.explore", 0.5}}}}}});
   EXPECT_EQ(no_model.status, 400) << no_model.raw;
   EXPECT_EQ(Get("/v1/sessions").body["sessions"].size(), 0u);
+  // Naming none, an npfkct session gets the server's default model (the shipped filter.pt).
+  Reply by_default = Post(
+      "/v1/sessions", {{"world", world},
+                       {"planner", {{"name", "npfkct"}, {"options", {{"filter.explore", 0.5}}}}}});
+  ASSERT_EQ(by_default.status, 200) << by_default.raw;
+  EXPECT_EQ(by_default.body["planner"]["model"], "filter.pt");
+  Reply uniform =
+      Post("/v1/sessions", {{"world", world}, {"planner", {{"name", "npfkct"}, {"model", ""}}}});
+  ASSERT_EQ(uniform.status, 200) << uniform.raw;
+  EXPECT_EQ(uniform.body["planner"]["model"], "");
+  for (const Reply* r : {&by_default, &uniform}) {
+    EXPECT_EQ(Delete("/v1/sessions/" + r->body["id"].get<std::string>()).status, 200);
+  }
   // The model by name: the plan's candidate statistics show the filter at work.
   const std::string id = Create({{"planner",
                                   {{"name", "npfkct"},
