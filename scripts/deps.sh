@@ -35,7 +35,7 @@ NPFKCT_STORE_PACKAGES=(libpq-dev)
 NPFKCT_STORE_RUNTIME_PACKAGES=(libpq5)
 # What the fleet and deployment tests run besides (tests/test_fleet.py, tests/test_deploy.py): a
 # throwaway PostgreSQL cluster, nginx, docker-compose to check deploy/compose.yaml; Node.js and
-# npm for the Kubernetes manifests' validator (tests/k8s).
+# npm for the Kubernetes manifests' validator (tests/k8s) and the OpenAPI checks (tests/js).
 NPFKCT_FLEET_TEST_PACKAGES=(postgresql postgresql-client nginx docker-compose)
 
 # Installs the packages given that are not installed yet.

@@ -135,6 +135,8 @@ def test_the_runtime_packages_bring_no_compiler_and_every_linked_library(path):
         pytest.skip("apt-cache and readelf are needed (Debian's apt and binutils)")
     runtime = stage(path, "runtime")
     packages = [p for w, a in runtime if w == "RUN" for p in installed_packages(a)]
+    if subprocess.run(["apt-cache", "show", packages[0]], capture_output=True).returncode != 0:
+        pytest.skip("apt's package lists are empty here (apt-get update fills them)")
     brought = closure(packages)
     assert [p for p in brought if FORBIDDEN.match(p)] == []
     needed = re.findall(r"\(NEEDED\)\s+Shared library: \[([^\]]+)\]",
