@@ -4,14 +4,14 @@
 #   cmake --install build [--prefix DIR]
 #
 #   bin/      npfkct-server npfkct-drive npfkct-bench npfkct-train npfkct-sim-robot
-#             npfkct-scenegen, npfkct (the Python client's CLI)
+#             npfkct-scenegen, npfkct-client (the Python client's CLI)
 #   lib/      libnpfkct_solver.a libnpfkct_object_search.a libnpfkct_client.a
 #   lib/cmake/npfkct/   npfkctConfig.cmake, npfkctConfigVersion.cmake, npfkctTargets.cmake
 #   include/npfkct/{solver,object_search,client}/
 #   share/npfkct/models/      the shipped filter model (npfkct-server's default --model-dir)
 #   share/npfkct/scenarios/   the scenario files (npfkct-drive --scenario)
 #   share/npfkct/schemas/     JSON Schemas and openapi.yaml
-#   share/npfkct/python/      the Python client package (bin/npfkct runs it)
+#   share/npfkct/python/      the Python client package (bin/npfkct-client runs it)
 include(CMakePackageConfigHelpers)
 
 set(NPFKCT_INSTALL_CMAKEDIR ${CMAKE_INSTALL_LIBDIR}/cmake/npfkct)
@@ -50,11 +50,11 @@ install(DIRECTORY scenarios/data/ DESTINATION ${NPFKCT_INSTALL_DATADIR}/scenario
   FILES_MATCHING PATTERN "*.json")
 install(DIRECTORY schemas/ DESTINATION ${NPFKCT_INSTALL_DATADIR}/schemas)
 
-# The Python client: its package, and bin/npfkct that runs its CLI from there (pip install
+# The Python client: its package, and bin/npfkct-client that runs its CLI from there (pip install
 # ./clients/python installs the same package into a Python environment instead).
 install(DIRECTORY clients/python/npfkct_client DESTINATION ${NPFKCT_INSTALL_DATADIR}/python
   FILES_MATCHING PATTERN "*.py")
 file(RELATIVE_PATH NPFKCT_PYTHON_FROM_BIN ${CMAKE_INSTALL_FULL_BINDIR}
      ${CMAKE_INSTALL_FULL_DATADIR}/npfkct/python)
-configure_file(cmake/npfkct_cli.in ${CMAKE_CURRENT_BINARY_DIR}/npfkct @ONLY)
-install(PROGRAMS ${CMAKE_CURRENT_BINARY_DIR}/npfkct DESTINATION ${CMAKE_INSTALL_BINDIR})
+configure_file(cmake/npfkct_cli.in ${CMAKE_CURRENT_BINARY_DIR}/npfkct-client @ONLY)
+install(PROGRAMS ${CMAKE_CURRENT_BINARY_DIR}/npfkct-client DESTINATION ${CMAKE_INSTALL_BINDIR})

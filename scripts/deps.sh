@@ -2,12 +2,28 @@
 # Installs the Debian 12 packages npfkct needs, if any are missing. Sourced by the other scripts.
 set -euo pipefail
 
-NPFKCT_PACKAGES=(
-  build-essential cmake pkg-config ccache curl jq
-  libeigen3-dev libgtest-dev libgmock-dev libcli11-dev
+# What building npfkct-server needs and nothing else (the Docker images' build stage).
+NPFKCT_BUILD_PACKAGES=(
+  build-essential cmake pkg-config
+  libeigen3-dev libcli11-dev
   nlohmann-json3-dev libcpp-httplib-dev libspdlog-dev libvalijson-dev zlib1g-dev
   libopencv-dev libpcl-dev libtorch-dev libopenblas0-pthread
+)
+# What a built npfkct-server needs to run: the shared libraries it links (readelf -d) and curl
+# for the health check (the Docker images' runtime stage: no compiler, no -dev package, no ROS,
+# no test tool; tests/test_docker.py checks the list). Keep in step with NPFKCT_BUILD_PACKAGES.
+NPFKCT_RUNTIME_PACKAGES=(
+  libspdlog1.10 libfmt9 libcpp-httplib0.11 zlib1g libopenblas0-pthread libtorch1.13
+  libopencv-core406 libopencv-imgproc406 libopencv-imgcodecs406 libopencv-features2d406
+  libopencv-calib3d406
+  libpcl-common1.13 libpcl-kdtree1.13 libpcl-search1.13 libpcl-filters1.13 libpcl-features1.13
+  libpcl-segmentation1.13
+  curl ca-certificates
+)
+NPFKCT_PACKAGES=(
+  "${NPFKCT_BUILD_PACKAGES[@]}" ccache curl jq libgtest-dev libgmock-dev
   python3 python3-requests python3-pytest python3-jsonschema python3-yaml
+  python3-venv python3-setuptools python3-wheel
   ros-core-dev python3-rospy python3-rosgraph python3-roslaunch
   python3-std-msgs python3-sensor-msgs python3-geometry-msgs
 )
@@ -15,9 +31,11 @@ NPFKCT_PACKAGES=(
 # Fleet mode (--store postgresql://...): the PostgreSQL client library the store is built with.
 # Not needed by a single-machine server, which builds without it.
 NPFKCT_STORE_PACKAGES=(libpq-dev)
+# ... and what a server built with it needs to run (deploy/Dockerfile.replica's runtime stage).
+NPFKCT_STORE_RUNTIME_PACKAGES=(libpq5)
 # What the fleet and deployment tests run besides (tests/test_fleet.py, tests/test_deploy.py): a
 # throwaway PostgreSQL cluster, nginx, docker-compose to check deploy/compose.yaml; Node.js and
-# npm for the Kubernetes manifests' validator (tests/k8s).
+# npm for the Kubernetes manifests' validator (tests/k8s) and the OpenAPI checks (tests/js).
 NPFKCT_FLEET_TEST_PACKAGES=(postgresql postgresql-client nginx docker-compose)
 # The web console's browser test (tests/test_console.py): Debian's Chromium, headless.
 NPFKCT_BROWSER_TEST_PACKAGES=(chromium)

@@ -51,10 +51,13 @@ int main(int argc, char** argv) {
                  "most sessions the store may hold (fleet mode)");
   app.add_option("--evict-idle", o.evict_idle_seconds,
                  "seconds unused before a session is dropped from memory (fleet mode)");
-  app.add_option("--api-key", o.api_key, "require 'Authorization: Bearer KEY' on /v1")
+  app.add_option("--api-key", o.api_key,
+                 "require 'Authorization: Bearer KEY' on /v1; needed on a --host other than "
+                 "loopback unless --insecure")
       ->envname("NPFKCT_API_KEY");
-  app.add_flag("--insecure", o.insecure, "allow serving a non-loopback --host without an API key")
-      ->envname("NPFKCT_INSECURE");
+  app.add_flag("--insecure", o.insecure,
+               "allow a --host other than loopback without --api-key: anyone who reaches the "
+               "port may use the API");
   app.add_option("--session-ttl", o.session_ttl_seconds, "idle seconds before a session expires");
   app.add_option("--max-sessions", o.max_sessions, "most sessions held at once");
   app.add_option("--threads", o.threads, "request threads (health and metrics have their own)");

@@ -13,7 +13,7 @@ import subprocess
 import pytest
 import yaml
 
-from conftest import BUILD, ROOT, SERVER_BIN
+from conftest import ROOT, SERVER_BIN, npm_tool
 
 DEPLOY = os.path.join(ROOT, "deploy")
 K8S_TOOL = os.path.join(ROOT, "tests", "k8s")
@@ -29,24 +29,9 @@ def manifests():
 
 @pytest.fixture(scope="module")
 def validator():
-    """validate.mjs with its node_modules, installed from package-lock.json (npm ci) into the
-    build directory once per lock file."""
-    for tool in ("node", "npm"):
-        if not shutil.which(tool):
-            pytest.fail(f"{tool} is not installed (scripts/deps.sh installs nodejs and npm)")
-    work = os.path.join(BUILD, "k8s-validate")
-    os.makedirs(work, exist_ok=True)
-    with open(os.path.join(K8S_TOOL, "package-lock.json"), encoding="utf-8") as f:
-        lock = f.read()
-    stamp = os.path.join(work, "node_modules", ".npfkct-lock")
-    if not os.path.exists(stamp) or open(stamp, encoding="utf-8").read() != lock:
-        for name in ("package.json", "package-lock.json"):
-            shutil.copy(os.path.join(K8S_TOOL, name), work)
-        subprocess.run(["npm", "ci", "--no-audit", "--no-fund", "--loglevel=error"], cwd=work,
-                       check=True, capture_output=True, timeout=600)
-        with open(stamp, "w", encoding="utf-8") as f:
-            f.write(lock)
-    shutil.copy(os.path.join(K8S_TOOL, "validate.mjs"), work)
+    """validate.mjs with its node_modules (npm ci into the build directory once per lock
+    file)."""
+    work = npm_tool(K8S_TOOL, "k8s-validate")
 
     def validate(objects):
         out = subprocess.run(["node", os.path.join(work, "validate.mjs")],
@@ -61,7 +46,7 @@ def test_kubernetes_manifests_are_valid(validator):
     objects = manifests()
     kinds = sorted(o["kind"] for o in objects)
     assert kinds == ["ConfigMap", "Deployment", "Deployment", "Namespace", "PodDisruptionBudget",
-                     "Secret", "Service", "Service"]
+                     "Secret", "Secret", "Service", "Service"]
     results = validator(objects)
     assert [r for r in results if r["error"]] == []
     assert len(results) == len(objects)
@@ -93,6 +78,9 @@ def test_manifests_fit_together():
     secret_ref = next(e for e in env if e["name"] == "NPFKCT_STORE")["valueFrom"]["secretKeyRef"]
     assert secret_ref["name"] == "npfkct-store"
     assert secret_ref["key"] in by[("Secret", "npfkct-store")]["stringData"]
+    # The replicas listen on 0.0.0.0: without a key they would refuse to start.
+    key_ref = next(e for e in env if e["name"] == "NPFKCT_API_KEY")["valueFrom"]["secretKeyRef"]
+    assert key_ref["key"] in by[("Secret", key_ref["name"])]["stringData"]
     assert router["spec"]["template"]["spec"]["volumes"][0]["configMap"]["name"] == "npfkct-nginx"
 
 
@@ -121,20 +109,32 @@ def test_kubernetes_router_routes_like_the_compose_one():
 def test_compose_file_is_valid():
     if not shutil.which("docker-compose"):
         pytest.fail("docker-compose is not installed (scripts/deps.sh installs it)")
-    env = dict(os.environ, NPFKCT_DB_PASSWORD="test-password")
-    out = subprocess.run(["docker-compose", "-f", os.path.join(DEPLOY, "compose.yaml"), "config"],
-                         capture_output=True, text=True, env=env, timeout=60)
+    base = {k: v for k, v in os.environ.items() if k not in ("NPFKCT_DB_PASSWORD", "NPFKCT_AUTH")}
+
+    def config(**env):
+        return subprocess.run(["docker-compose", "-f", os.path.join(DEPLOY, "compose.yaml"),
+                               "config"], capture_output=True, text=True, env=dict(base, **env),
+                              timeout=60)
+
+    out = config(NPFKCT_DB_PASSWORD="test-password", NPFKCT_AUTH="--api-key=test-key")
     assert out.returncode == 0, out.stderr
-    config = yaml.safe_load(out.stdout)
-    assert sorted(config["services"]) == ["nginx", "postgres", "replica1", "replica2", "replica3"]
+    rendered = yaml.safe_load(out.stdout)
+    assert sorted(rendered["services"]) == ["nginx", "postgres", "replica1", "replica2", "replica3"]
     for name in ("replica1", "replica2", "replica3"):
-        assert config["services"][name]["environment"]["NPFKCT_STORE"].startswith(
+        assert rendered["services"][name]["environment"]["NPFKCT_STORE"].startswith(
             "postgresql://npfkct:test-password@postgres:5432/")
+        assert rendered["services"][name]["command"][-1] == "--api-key=test-key"
     # Without a password the file refuses to start rather than run a database without one.
-    env.pop("NPFKCT_DB_PASSWORD")
-    out = subprocess.run(["docker-compose", "-f", os.path.join(DEPLOY, "compose.yaml"), "config"],
-                         capture_output=True, text=True, env=env, timeout=60)
+    out = config(NPFKCT_AUTH="--api-key=test-key")
     assert out.returncode != 0 and "NPFKCT_DB_PASSWORD" in out.stderr
+    # Without NPFKCT_AUTH (or with it empty) it refuses to start rather than serve the API on
+    # 0.0.0.0 to anyone; --insecure must be asked for.
+    for auth in ({}, {"NPFKCT_AUTH": ""}):
+        out = config(NPFKCT_DB_PASSWORD="test-password", **auth)
+        assert out.returncode != 0 and "NPFKCT_AUTH" in out.stderr and "--insecure" in out.stderr
+    out = config(NPFKCT_DB_PASSWORD="test-password", NPFKCT_AUTH="--insecure")
+    assert out.returncode == 0, out.stderr
+    assert yaml.safe_load(out.stdout)["services"]["replica1"]["command"][-1] == "--insecure"
 
 
 def test_compose_upstreams_are_the_compose_replicas():
@@ -159,6 +159,8 @@ def test_every_flag_in_deploy_is_a_server_flag():
                      if a.startswith("--")}
     with open(os.path.join(DEPLOY, "Dockerfile.replica"), encoding="utf-8") as f:
         used |= set(re.findall(r'"(--[a-z][a-z0-9-]*)"', f.read()))
+    with open(os.path.join(DEPLOY, "compose.yaml"), encoding="utf-8") as f:
+        used |= set(re.findall(r"NPFKCT_AUTH=(--[a-z][a-z0-9-]*)", f.read()))
     assert used and used <= known, used - known
     # The store URL comes from the environment in both (never in a file, which holds a password).
     assert "NPFKCT_STORE" in helptext

@@ -1,9 +1,15 @@
 """Full episodes through the Python client against the real server."""
 
+import base64
+import json
+import os
+import shutil
+import subprocess
+import sys
+
 import pytest
 
-from conftest import SimRobot, world_of
-import base64
+from conftest import ROOT, SCENARIOS, SimRobot, world_of
 
 from npfkct_client import (ApiError, Box, Detection, Face, NpfkctClient, PointCloud,
                            RobotConfig)
@@ -113,3 +119,38 @@ def test_typed_calls_and_errors(server):
     assert e.value.status == "NOT_FOUND"
     client.delete_session(session.id)
     assert client.list_sessions() == []
+
+
+def test_the_client_installs_with_pip_and_runs_as_a_command(server, tmp_path):
+    """clients/python installs into a virtual environment with pip, offline (Debian's
+    python3-venv, python3-setuptools, python3-wheel and python3-requests: no package index), and
+    its console script and `python3 -m npfkct_client` talk to the real server."""
+    source = tmp_path / "src"  # a copy: setuptools writes build/ and *.egg-info beside it
+    shutil.copytree(os.path.join(ROOT, "clients", "python"), source,
+                    ignore=shutil.ignore_patterns("build", "*.egg-info", "__pycache__"))
+    venv = tmp_path / "venv"
+    subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", str(venv)],
+                   check=True, timeout=120)
+    pip = subprocess.run([str(venv / "bin" / "pip"), "install", "--no-build-isolation",
+                          "--no-deps", "--no-index", "--disable-pip-version-check", str(source)],
+                         capture_output=True, text=True, timeout=300)
+    assert pip.returncode == 0, pip.stdout + pip.stderr
+    command = str(venv / "bin" / "npfkct-client")
+    helptext = subprocess.run([command, "--help"], capture_output=True, text=True, check=True,
+                              timeout=60, cwd=tmp_path).stdout
+    assert "create" in helptext and "--server" in helptext
+    version = subprocess.run([command, "--version"], capture_output=True, text=True, check=True,
+                             timeout=60, cwd=tmp_path).stdout
+    assert version.strip() == "npfkct-client 0.1.0"
+    created = subprocess.run([command, "--server", server.url, "create", "--scenario",
+                              os.path.join(SCENARIOS, "hidden1.json"), "--seed", "4"],
+                             capture_output=True, text=True, timeout=60, cwd=tmp_path)
+    assert created.returncode == 0, created.stderr
+    session = json.loads(created.stdout)
+    # The module runs without PYTHONPATH from anywhere once installed.
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    got = subprocess.run([str(venv / "bin" / "python"), "-m", "npfkct_client", "--server",
+                          server.url, "get", session["id"]], capture_output=True, text=True,
+                         timeout=60, cwd=tmp_path, env=env)
+    assert got.returncode == 0, got.stderr
+    assert json.loads(got.stdout)["id"] == session["id"]

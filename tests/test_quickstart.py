@@ -65,7 +65,7 @@ def test_installed_programs_answer_help(home):
         subprocess.run(["cmake", "--install", BUILD, "--prefix", str(home / ".local")],
                        check=True, capture_output=True)
     for program in ("npfkct-server", "npfkct-drive", "npfkct-bench", "npfkct-train",
-                    "npfkct-sim-robot", "npfkct"):
+                    "npfkct-sim-robot", "npfkct-client"):
         out = subprocess.run([str(bin_dir / program), "--help"], capture_output=True, text=True,
                              timeout=60)
         assert out.returncode == 0, (program, out.stderr)

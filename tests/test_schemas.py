@@ -12,7 +12,9 @@ import yaml
 from conftest import ROOT, SimRobot, world_of
 
 SCHEMAS = os.path.join(ROOT, "schemas")
-BASE = "https://npfkct.dev/schemas/"
+# The schemas' $ids are relative (their file names): a reference resolves to the file beside the
+# referring one, wherever the folder is served or read from.
+BASE = "file://" + SCHEMAS + "/"
 
 
 def load(name):
@@ -26,7 +28,8 @@ def store():
 
 def validator(message):
     schema = load(message + ".schema.json")
-    resolver = jsonschema.RefResolver(base_uri=schema["$id"], referrer=schema, store=store())
+    resolver = jsonschema.RefResolver(base_uri=BASE + schema["$id"], referrer=schema,
+                                      store=store())
     cls = jsonschema.validators.validator_for(schema)
     cls.check_schema(schema)
     return cls(schema, resolver=resolver, format_checker=jsonschema.FormatChecker())
@@ -37,6 +40,7 @@ def test_every_schema_is_valid_draft_2020_12():
         if name.endswith(".schema.json"):
             schema = load(name)
             assert schema["$schema"] == "https://json-schema.org/draft/2020-12/schema"
+            assert schema["$id"] == name  # relative: no host that would have to answer
             jsonschema.Draft202012Validator.check_schema(schema)
 
 

@@ -1,5 +1,8 @@
 #include "options.h"
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+
 #include <algorithm>
 #include <string>
 #include <thread>
@@ -8,6 +11,20 @@
 #include "registry.h"
 
 namespace npfkct::server {
+namespace {
+
+// Whether `host` only accepts connections from this machine: "localhost", an IPv4 address in
+// 127.0.0.0/8 or the IPv6 loopback. Anything else (0.0.0.0, ::, a name, an interface address)
+// may be reached from the network.
+bool IsLoopbackHost(const std::string& host) {
+  if (host == "localhost") return true;
+  in_addr v4{};
+  if (inet_pton(AF_INET, host.c_str(), &v4) == 1) return (ntohl(v4.s_addr) >> 24) == 127;
+  in6_addr v6{};
+  return inet_pton(AF_INET6, host.c_str(), &v6) == 1 && IN6_IS_ADDR_LOOPBACK(&v6);
+}
+
+}  // namespace
 
 ServerOptions Resolved(ServerOptions o) {
   const int cores = std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
@@ -32,13 +49,6 @@ HttpFrontOptions FrontOptions(const ServerOptions& o) {
 
 Status ServerOptions::Validate() const {
   if (port < 0 || port > 65535) return InvalidFieldError("port", "must be in [0, 65535]");
-  const bool loopback = host == "localhost" || host == "::1" || host.rfind("127.", 0) == 0;
-  if (api_key.empty() && !insecure && !loopback) {
-    return InvalidFieldError("api-key", "serving " + host +
-                                            " without --api-key would let anyone who reaches it "
-                                            "plan and delete sessions; set --api-key (or the "
-                                            "NPFKCT_API_KEY variable), or pass --insecure");
-  }
   if (!default_model.empty() && !api::IsModelName(default_model)) {
     return InvalidFieldError("default-model", "must be a file name of --model-dir");
   }
@@ -59,6 +69,12 @@ Status ServerOptions::Validate() const {
     if (!(t > 0.0 && t <= 3600.0)) return InvalidFieldError("timeouts", "must be in (0, 3600] s");
   }
   if (max_models < 1) return InvalidFieldError("max-models", "must be >= 1");
+  if (api_key.empty() && !insecure && !IsLoopbackHost(host)) {
+    return InvalidFieldError(
+        "api-key", "listening on " + host +
+                       " (not a loopback address) needs --api-key KEY (or NPFKCT_API_KEY); "
+                       "--insecure serves without authentication");
+  }
   if (!store_url.empty()) {
     if (!state_dir.empty()) {
       return InvalidFieldError("store", "--store and --state-dir exclude each other");

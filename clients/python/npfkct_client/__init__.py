@@ -1,5 +1,8 @@
 """Typed client for the npfkct planning server (see schemas/openapi.yaml)."""
 
+# The package's version (pyproject.toml reads it from here).
+__version__ = "0.1.0"
+
 from npfkct_client.client import (
     Action,
     ApiError,
@@ -15,6 +18,7 @@ from npfkct_client.client import (
 )
 
 __all__ = [
+    "__version__",
     "Action",
     "ApiError",
     "Box",

@@ -1,15 +1,16 @@
-"""npfkct: command-line client of the npfkct planning server.
+"""npfkct-client: the command-line client of the npfkct planning server (python3 -m npfkct_client).
 
-  npfkct --server URL create --scenario FILE [--planner NAME] [--model NAME] [--seed N]
-  npfkct --server URL plan ID [--time-ms MS] [--cpu-ms MS] [--simulations N]
-  npfkct --server URL observe ID --action-id A --body FILE   (an :observe body as JSON)
-  npfkct --server URL get ID | belief ID [--png OUT] | list | delete ID | health
+  npfkct-client --server URL create --scenario FILE [--planner NAME] [--model NAME] [--seed N]
+  npfkct-client --server URL plan ID [--time-ms MS] [--cpu-ms MS] [--simulations N]
+  npfkct-client --server URL observe ID --action-id A --body FILE   (an :observe body as JSON)
+  npfkct-client --server URL get ID | belief ID [--png OUT] | list | delete ID | health
 """
 
 import argparse
 import json
 import sys
 
+from npfkct_client import __version__
 from npfkct_client.client import ApiError, NpfkctClient
 
 WORLD_KEYS = ("robot", "room", "mapResolution", "furniture", "baseRegions", "discretePoses",
@@ -24,10 +25,11 @@ def world_of_scenario(path: str):
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="npfkct", description=__doc__,
+    parser = argparse.ArgumentParser(prog="npfkct-client", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     parser.add_argument("--server", default="http://127.0.0.1:8080")
-    parser.add_argument("--api-key")
+    parser.add_argument("--api-key", help="bearer key of a server run with --api-key")
     sub = parser.add_subparsers(dest="command", required=True)
     create = sub.add_parser("create", help="create a session from a scenario's prior map")
     create.add_argument("--scenario", required=True)

@@ -29,7 +29,9 @@ struct ServerOptions {
   double evict_idle_seconds = 300.0;
   /// Bearer token clients must send on /v1; empty: no authentication.
   std::string api_key;
-  /// Serve a non-loopback address without an API key (refused otherwise).
+  /// Serve without authentication on a non-loopback `host`. Without it, an empty `api_key` is
+  /// only accepted on a loopback address (127.0.0.0/8, ::1, localhost): Validate() refuses to
+  /// open the API to the network with nobody asked for a key.
   bool insecure = false;
   /// Sessions idle for longer than this are deleted (a session may ask for less).
   double session_ttl_seconds = 3600.0;

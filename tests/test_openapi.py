@@ -1,0 +1,74 @@
+"""schemas/openapi.yaml through the two tools API users run on it: swagger-parser's validate
+(every $ref dereferenced, the result checked against the OpenAPI 3.1 schema) and Redocly CLI's
+lint with the recommended rules (redocly.yaml). Both come from npm (tests/js, pinned by its
+package-lock.json) and run on Node.js; scripts/test.sh installs nodejs and npm."""
+
+import json
+import os
+import shutil
+import subprocess
+
+import pytest
+
+from conftest import ROOT, npm_tool
+
+JS_TOOL = os.path.join(ROOT, "tests", "js")
+OPENAPI = os.path.join(ROOT, "schemas", "openapi.yaml")
+# Redocly CLI would send usage data and ask the npm registry for a newer version: neither here.
+NODE_ENV = dict(os.environ, REDOCLY_TELEMETRY="off", REDOCLY_SUPPRESS_UPDATE_NOTICE="true")
+
+
+@pytest.fixture(scope="module")
+def tools():
+    """tests/js with its node_modules (npm ci into the build directory once per lock file)."""
+    return npm_tool(JS_TOOL, "js-tools")
+
+
+def swagger_parser_validate(work, path):
+    return subprocess.run(["node", os.path.join(work, "validate_openapi.mjs"), path],
+                          capture_output=True, text=True, timeout=120, env=NODE_ENV)
+
+
+def redocly_lint(work, path):
+    """Redocly's totals ({errors, warnings, ignored}) and problems for the document at `path`."""
+    out = subprocess.run([os.path.join(work, "node_modules", ".bin", "redocly"), "lint",
+                          "--config", os.path.join(ROOT, "redocly.yaml"), "--format=json", path],
+                         capture_output=True, text=True, timeout=120, env=NODE_ENV, cwd=ROOT)
+    report = json.loads(out.stdout)
+    return report["totals"], report["problems"]
+
+
+def test_swagger_parser_validates_the_document(tools):
+    out = swagger_parser_validate(tools, OPENAPI)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.startswith("ok: npfkct planning server"), out.stdout
+
+
+def test_redocly_lint_has_no_errors(tools):
+    totals, problems = redocly_lint(tools, OPENAPI)
+    errors = [p for p in problems if p["severity"] == "error"]
+    assert totals["errors"] == 0 and errors == [], json.dumps(errors, indent=1)
+    # What is left are warnings, each known: /healthz and /metrics answer no 4XX of their own,
+    # and Redocly's example check cannot follow a schema's relative $id to the file beside it
+    # (tests/test_schemas.py validates every example with jsonschema instead).
+    rules = sorted(p["ruleId"] for p in problems)
+    assert set(rules) <= {"operation-4xx-response", "no-invalid-media-type-examples"}, rules
+    assert rules.count("operation-4xx-response") <= 2, rules
+
+
+def test_the_tools_refuse_what_the_issue_found(tools, tmp_path):
+    """The faults the document had (a top-level $ref with siblings, an operation without a
+    summary) fail the tools: the checks above are not vacuous."""
+    broken = tmp_path / "schemas"
+    shutil.copytree(os.path.join(ROOT, "schemas"), broken)
+    session = json.loads((broken / "session.schema.json").read_text())
+    session["$ref"] = session.pop("allOf")[0]["$ref"]
+    (broken / "session.schema.json").write_text(json.dumps(session))
+    assert swagger_parser_validate(tools, str(broken / "openapi.yaml")).returncode != 0
+    text = (broken / "openapi.yaml").read_text()
+    summary = "      summary: Get a session (its state, step, pending action and planner).\n"
+    assert summary in text
+    (broken / "openapi.yaml").write_text(text.replace(summary, ""))
+    totals, problems = redocly_lint(tools, str(broken / "openapi.yaml"))
+    assert totals["errors"] >= 1
+    assert "operation-summary" in {p["ruleId"] for p in problems}
