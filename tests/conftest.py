@@ -124,19 +124,23 @@ def npm_tool(source_dir, name):
     for tool in ("node", "npm"):
         if not shutil.which(tool):
             pytest.fail(f"{tool} is not installed (scripts/deps.sh installs nodejs and npm)")
+    import fcntl
     work = os.path.join(BUILD, name)
     os.makedirs(work, exist_ok=True)
     with open(os.path.join(source_dir, "package-lock.json"), encoding="utf-8") as f:
         lock = f.read()
     stamp = os.path.join(work, "node_modules", ".npfkct-lock")
-    if not os.path.exists(stamp) or open(stamp, encoding="utf-8").read() != lock:
-        for file in ("package.json", "package-lock.json"):
-            shutil.copy(os.path.join(source_dir, file), work)
-        subprocess.run(["npm", "ci", "--no-audit", "--no-fund", "--loglevel=error"], cwd=work,
-                       check=True, capture_output=True, timeout=900)
-        with open(stamp, "w", encoding="utf-8") as f:
-            f.write(lock)
-    for file in os.listdir(source_dir):
-        if file.endswith((".mjs", ".js", ".yaml")):
-            shutil.copy(os.path.join(source_dir, file), work)
+    # ctest runs test files in parallel: one installs while the others wait for it.
+    with open(work + ".lock", "w", encoding="utf-8") as guard:
+        fcntl.flock(guard, fcntl.LOCK_EX)
+        if not os.path.exists(stamp) or open(stamp, encoding="utf-8").read() != lock:
+            for file in ("package.json", "package-lock.json"):
+                shutil.copy(os.path.join(source_dir, file), work)
+            subprocess.run(["npm", "ci", "--no-audit", "--no-fund", "--loglevel=error"],
+                           cwd=work, check=True, capture_output=True, timeout=900)
+            with open(stamp, "w", encoding="utf-8") as f:
+                f.write(lock)
+        for file in os.listdir(source_dir):
+            if file.endswith((".mjs", ".js", ".yaml")):
+                shutil.copy(os.path.join(source_dir, file), work)
     return work
