@@ -68,7 +68,7 @@ class FindObjectServer:
             "target_description": p("~target_description", ""),
             "target_photos": list(p("~target_photos", [])),
         }
-        self.stale_tolerance = float(p("~stale_tolerance", 0.05))
+        self.stale_tolerance = float(p("~stale_tolerance", 0.0))
         self.pose_timeout = float(p("~pose_timeout", 5.0))
         self.action_timeout = float(p("~action_timeout", 60.0))
         self.tf_timeout = float(p("~tf_timeout", 10.0))
