@@ -58,6 +58,7 @@ def roscore(tmp_path_factory):
     env = dict(os.environ, ROS_MASTER_URI=f"http://127.0.0.1:{port}", ROS_HOSTNAME="127.0.0.1",
                ROS_LOG_DIR=str(tmp_path / "roslog"), ROS_HOME=str(tmp_path / "roshome"),
                ROS_PACKAGE_PATH=os.path.dirname(PACKAGE),
+               ROSCONSOLE_STDOUT_LINE_BUFFERED="1",
                PATH=SYSTEM + ":" + os.environ.get("PATH", ""),
                PYTHONPATH=DIST + os.pathsep + os.environ.get("PYTHONPATH", ""))
     proc = subprocess.Popen(["roscore", "-p", str(port)], env=env, stdout=subprocess.DEVNULL,
@@ -76,6 +77,7 @@ class Launch:
     """`roslaunch npfkct_ros sim.launch` with its arguments; its output kept for messages."""
 
     def __init__(self, env, server, **args):
+        self.server = server
         defaults = {"server": server.url, "robot_bin": ROBOT_BIN,
                     "scenario": scenario_path("loose1"), "seed": 2, "budget_ms": 250}
         argv = [f"{k}:={v}" for k, v in dict(defaults, **args).items()]
@@ -87,13 +89,23 @@ class Launch:
                          daemon=True).start()
         self.client = actionlib.SimpleActionClient("/find_object", FindObjectAction)
         assert self.client.wait_for_server(rospy.Duration(60)), self.log()
+        # This process's action subscriptions outlive a test's node: wait_for_server may have
+        # counted a connection to the previous one, and feedback sent before the new node's
+        # connection exists is lost. Wait for connections to this node.
+        import rosgraph
+        uri = rosgraph.Master(rospy.get_name()).lookupNode("/npfkct")
+        action = self.client.action_client
+        assert wait_for(lambda: all(
+            any(c.endpoint_id == uri for c in sub.impl.connections)
+            for sub in (action.status_sub, action.feedback_sub, action.result_sub)),
+            timeout=30), self.log()
         self.truth = []
         self.truth_sub = rospy.Subscriber("/sim/robot_state", RobotConfig, self.truth.append)
         assert wait_for(lambda: self.truth_sub.get_num_connections() > 0, timeout=30), self.log()
         self.feedback = []
 
     def log(self):
-        return "".join(self.output[-80:])
+        return "".join(self.output[-40:]) + "server: " + "".join(self.server.output[-20:])
 
     def send(self, **goal):
         self.client.send_goal(FindObjectGoal(**goal), feedback_cb=self.feedback.append)

@@ -163,7 +163,9 @@ class FindObjectServer:
             self.check_preempt()
             action_id, action, value = self.plan(session.id, budget_ms)
             sent = rospy.Time.now()
+            rospy.logdebug("npfkct: step %d: %s sent to the robot", step + 1, action["type"])
             succeeded, asked = self.send_to_robot(action, sent)
+            rospy.logdebug("npfkct: step %d: robot done (%s)", step + 1, succeeded)
             detections = self.wait_detections(sent)
             state, stamp = self.robot_state_at(detections.header.stamp)
             if action["type"] == "MOVE" and succeeded:

@@ -212,6 +212,8 @@ class SimRobotBridge:
             result.error_string = f"expected joints {self.joints}, got {names}"
             self.trajectory.set_aborted(result, result.error_string)
             return
+        rospy.logdebug("sim_robot: trajectory goal stamped %.3f",
+                       goal.trajectory.header.stamp.to_sec())
         base = self.base_goal_for(goal.trajectory.header.stamp)
         if base is None or base.header.frame_id != self.map_frame:
             result.error_code = FollowJointTrajectoryResult.INVALID_GOAL
@@ -228,6 +230,7 @@ class SimRobotBridge:
                   "lift": end[names.index(self.joints[0])],
                   "pan": end[names.index(self.joints[1])],
                   "tilt": end[names.index(self.joints[2])]}
+        rospy.logdebug("sim_robot: MOVE to %s", config)
         reply = self.execute({"type": "MOVE", "configuration": config})
         self.publish(reply)
         if reply["outcome"]["illegal"]:
