@@ -26,6 +26,11 @@ NPFKCT_PACKAGES=(
   python3-venv python3-setuptools python3-wheel
   ros-core-dev python3-rospy python3-rosgraph python3-roslaunch
   python3-std-msgs python3-sensor-msgs python3-geometry-msgs
+  # clients/ros/npfkct_ros: catkin and genmsg/genpy generate its messages and actions (from
+  # std/geometry/trajectory/actionlib msgs); actionlib and tf2_ros run it.
+  catkin ros-message-generation ros-message-runtime python3-genpy
+  ros-trajectory-msgs ros-actionlib-msgs python3-trajectory-msgs python3-actionlib-msgs
+  python3-actionlib python3-tf2-ros
 )
 
 # Fleet mode (--store postgresql://...): the PostgreSQL client library the store is built with.

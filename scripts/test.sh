@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Builds npfkct and runs every test: unit tests, integration tests (real server on loopback,
-# Python client, curl, ROS node with roscore, schemas, restart, the hostile suite, a fleet of
+# Python client, curl, the ROS package with roscore, schemas, restart, the hostile suite, a fleet of
 # replicas with PostgreSQL and nginx, the deploy/ files), then the
 # hostile-request tests again against an AddressSanitizer/UBSan build of the server (the
 # memory-bomb test runs the Release server under an address-space cap, which ASan cannot run

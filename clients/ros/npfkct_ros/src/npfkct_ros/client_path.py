@@ -1,0 +1,16 @@
+"""The npfkct Python client (clients/python): importable as installed, or from npfkct's source
+tree next to this package (clients/ros/npfkct_ros/src/npfkct_ros -> clients/python)."""
+
+import os
+import sys
+
+__all__ = ["ApiError", "NpfkctClient", "world_of_scenario"]
+
+try:
+    from npfkct_client import ApiError, NpfkctClient
+    from npfkct_client.cli import world_of_scenario
+except ImportError:
+    sys.path.insert(0, os.path.normpath(os.path.join(
+        os.path.dirname(os.path.abspath(__file__)), "..", "..", "..", "..", "python")))
+    from npfkct_client import ApiError, NpfkctClient
+    from npfkct_client.cli import world_of_scenario

@@ -1,0 +1,459 @@
+"""The FindObject action server: one npfkct session per goal, driven step by step.
+
+Each step: plan on the server; send the action to the robot (MOVE: a PoseStamped base goal in
+the map frame on `base_goal` and a FollowJointTrajectory goal for the lift and head joints;
+DECLARE_* / REMOVE: an ObjectCommand goal); wait for the first Detection3DArray stamped after
+the action was sent; pair it with the robot's state at the detections' stamp (tf map -> base,
+joint_states), refusing a pose or joints older than the detections by more than
+~stale_tolerance; move the detections into the map frame through tf; observe; publish feedback.
+A cancelled (preempted) goal deletes its session, and so does shutting the node down."""
+
+import math
+import threading
+from collections import deque
+
+import actionlib
+import rospy
+import tf2_ros
+from actionlib_msgs.msg import GoalStatus
+from geometry_msgs.msg import PoseStamped
+from sensor_msgs.msg import JointState
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+from npfkct_ros import retry
+from npfkct_ros.client_path import ApiError, NpfkctClient, world_of_scenario
+from npfkct_ros.geometry import Rigid, quat_from_rpy
+from npfkct_ros.msg import (Detection3DArray, FindObjectAction, FindObjectFeedback,
+                            FindObjectResult, FollowJointTrajectoryAction,
+                            FollowJointTrajectoryGoal, ObjectCommandAction, ObjectCommandGoal,
+                            RobotConfig)
+
+OBJECT_COMMANDS = {"DECLARE_TARGET": ObjectCommandGoal.DECLARE_TARGET,
+                   "DECLARE_OBSTACLE": ObjectCommandGoal.DECLARE_OBSTACLE,
+                   "REMOVE": ObjectCommandGoal.REMOVE}
+
+
+class GoalError(Exception):
+    """Ends a goal as aborted, with this message in the result."""
+
+
+class Preempted(Exception):
+    """The goal was cancelled (or replaced) or the node is shutting down."""
+
+
+def angle_diff(a, b):
+    """a - b wrapped into (-pi, pi]."""
+    return math.atan2(math.sin(a - b), math.cos(a - b))
+
+
+class FindObjectServer:
+    """The node: parameters, tf, the robot's action clients and the find_object server."""
+
+    def __init__(self):
+        p = rospy.get_param
+        self.client = NpfkctClient(p("~server", "http://127.0.0.1:8080"),
+                                   api_key=str(p("~api_key", "")) or None,
+                                   timeout=float(p("~http_timeout", 60.0)))
+        self.policy = retry.RetryPolicy(int(p("~retries", 5)), float(p("~retry_base_s", 0.2)),
+                                        float(p("~retry_max_s", 5.0)))
+        self.map_frame = p("~map_frame", "map")
+        self.base_frame = p("~base_frame", "base_link")
+        self.camera_frame = p("~camera_frame", "head_camera_rgb_optical_frame")
+        self.joints = [p("~lift_joint", "torso_lift_joint"), p("~pan_joint", "head_pan_joint"),
+                       p("~tilt_joint", "head_tilt_joint")]
+        self.defaults = {
+            "scenario": p("~scenario", ""), "planner": p("~planner", "npfkct"),
+            "model": p("~model", ""), "seed": int(p("~seed", 1)),
+            "max_steps": int(p("~max_steps", 50)), "budget_ms": float(p("~budget_ms", 1000.0)),
+            "target_description": p("~target_description", ""),
+            "target_photos": list(p("~target_photos", [])),
+        }
+        self.stale_tolerance = float(p("~stale_tolerance", 0.0))
+        self.pose_timeout = float(p("~pose_timeout", 5.0))
+        self.action_timeout = float(p("~action_timeout", 60.0))
+        self.tf_timeout = float(p("~tf_timeout", 10.0))
+        self.base_tolerance = float(p("~base_tolerance", 0.05))
+        self.yaw_tolerance = float(p("~yaw_tolerance", 0.05))
+
+        self.tf = tf2_ros.Buffer(cache_time=rospy.Duration(60.0))
+        self.tf_listener = tf2_ros.TransformListener(self.tf)
+        self.cond = threading.Condition()
+        self.joint_history = deque(maxlen=500)  # (stamp, {name: position}), by arrival
+        self.detections = None  # the newest Detection3DArray
+        self.session_id = None  # the session of the running goal
+        self.session_lock = threading.Lock()
+
+        self.base_pub = rospy.Publisher("base_goal", PoseStamped, queue_size=1, latch=True)
+        self.trajectory = actionlib.SimpleActionClient("follow_joint_trajectory",
+                                                       FollowJointTrajectoryAction)
+        self.object_command = actionlib.SimpleActionClient("object_command", ObjectCommandAction)
+        rospy.Subscriber("joint_states", JointState, self.on_joints, queue_size=50)
+        rospy.Subscriber("detections", Detection3DArray, self.on_detections, queue_size=10)
+        self.server = actionlib.SimpleActionServer("find_object", FindObjectAction,
+                                                   execute_cb=self.execute, auto_start=False)
+        rospy.on_shutdown(self.on_shutdown)
+        self.server.start()
+        rospy.loginfo("npfkct: find_object ready (server %s)", self.client.base_url)
+
+    # -- subscriptions --
+
+    def on_joints(self, msg):
+        """Keeps the joint states, stamped, for pairing with detections."""
+        positions = dict(zip(msg.name, msg.position))
+        with self.cond:
+            self.joint_history.append((msg.header.stamp, positions))
+            self.cond.notify_all()
+
+    def on_detections(self, msg):
+        """Keeps the newest detections."""
+        with self.cond:
+            self.detections = msg
+            self.cond.notify_all()
+
+    # -- the goal --
+
+    def execute(self, goal):
+        """SimpleActionServer's callback: runs one episode; ends the goal."""
+        result = FindObjectResult()
+        try:
+            self.run_episode(goal, result)
+        except Preempted:
+            self.delete_session("goal cancelled")
+            result.message = "cancelled: session deleted"
+            self.server.set_preempted(result, result.message)
+            return
+        except (GoalError, ApiError, OSError, ValueError, tf2_ros.TransformException) as e:
+            result.message = str(e)
+            rospy.logerr("npfkct: goal aborted: %s", e)
+            with self.session_lock:
+                self.session_id = None  # kept on the server for inspection (its TTL ends it)
+            self.server.set_aborted(result, result.message)
+            return
+        with self.session_lock:
+            self.session_id = None
+        if result.success:
+            self.server.set_succeeded(result, result.message)
+        else:
+            self.server.set_aborted(result, result.message)
+
+    def run_episode(self, goal, result):
+        """Creates the session and loops plan -> execute -> observe; fills `result`."""
+        d = self.defaults
+        scenario = goal.scenario or d["scenario"]
+        if not scenario:
+            raise GoalError("no scenario: set the goal's scenario or the ~scenario parameter")
+        max_steps = goal.max_steps or d["max_steps"]
+        budget_ms = goal.budget_ms or d["budget_ms"]
+        self.check_frames()
+        photos = []
+        for path in list(goal.target_photos) or d["target_photos"]:
+            with open(path, "rb") as f:
+                photos.append(f.read())
+        session = self.http(lambda: self.client.create_session(
+            world_of_scenario(scenario), planner=goal.planner or d["planner"],
+            seed=goal.seed or d["seed"], model=d["model"] or None,
+            target_description=goal.target_description or d["target_description"] or None,
+            target_photos=photos or None))
+        with self.session_lock:
+            self.session_id = session.id
+        result.session_id = session.id
+        rospy.loginfo("npfkct: session %s", session.id)
+        step = 0
+        while step < max_steps:
+            self.check_preempt()
+            action_id, action, value = self.plan(session.id, budget_ms)
+            sent = rospy.Time.now()
+            rospy.logdebug("npfkct: step %d: %s sent to the robot", step + 1, action["type"])
+            succeeded, asked = self.send_to_robot(action, sent)
+            rospy.logdebug("npfkct: step %d: robot done (%s)", step + 1, succeeded)
+            detections = self.wait_detections(sent)
+            state, stamp = self.robot_state_at(detections.header.stamp)
+            if action["type"] == "MOVE" and succeeded:
+                succeeded = self.reached(asked, state)
+            body = {"succeeded": succeeded, "robotState": state,
+                    "detections": self.detections_in_map(detections)}
+            done, reward, session = self.observe(session.id, action_id, body)
+            step += 1
+            result.steps = session.step
+            result.reward += reward
+            feedback = FindObjectFeedback(
+                step=step, session_id=session.id, action_id=action_id,
+                action_type=action["type"], object_id=action.get("objectId", ""),
+                expected_value=value, succeeded=succeeded, observed=RobotConfig(**state),
+                detections=len(body["detections"]), reward=reward, done=done)
+            if action["type"] == "MOVE":
+                feedback.configuration = RobotConfig(**action["configuration"])
+            self.server.publish_feedback(feedback)
+            rospy.loginfo("npfkct: step %d %s succeeded=%s reward=%g (pose at %.3f)", step,
+                          action["type"], succeeded, reward, stamp.to_sec())
+            if done:
+                result.success = True
+                result.message = f"target removed after {step} steps"
+                return
+        result.message = f"target not removed within {max_steps} steps"
+
+    # -- HTTP --
+
+    def http(self, fn):
+        """fn() with retries and backoff; stops retrying when the goal is cancelled."""
+        value, _ = retry.call(fn, self.policy, sleep=self.sleep,
+                              log=lambda m: rospy.logwarn("npfkct: %s", m),
+                              stop=lambda: self.server.is_preempt_requested() or
+                              rospy.is_shutdown())
+        return value
+
+    def sleep(self, seconds):
+        """rospy.sleep that ends early when the node shuts down."""
+        try:
+            rospy.sleep(seconds)
+        except rospy.ROSInterruptException:
+            pass
+
+    def plan(self, session_id, budget_ms):
+        """(actionId, action JSON, expected value). A retried :plan whose first try reached the
+        server finds the action pending (FAILED_PRECONDITION): it is taken from the session."""
+        tries = [0]
+
+        def once():
+            tries[0] += 1
+            return self.client.plan(session_id, time_ms=budget_ms)
+
+        try:
+            plan = self.http(once)
+        except ApiError as e:
+            if e.status != "FAILED_PRECONDITION" or tries[0] < 2:
+                raise
+            pending = self.http(lambda: self.client.get_session(session_id)).raw.get(
+                "pendingAction")
+            if not pending:
+                raise
+            rospy.logwarn("npfkct: a retried plan found action %s pending; executing it",
+                          pending["actionId"])
+            return pending["actionId"], pending["action"], float("nan")
+        return plan.action_id, plan.action.to_json(), plan.expected_value
+
+    def observe(self, session_id, action_id, body):
+        """(done, reward, session). A retried :observe whose first try reached the server is
+        refused (FAILED_PRECONDITION): the session then shows the step taken; its reward is lost
+        and counted as 0."""
+        tries = [0]
+
+        def once():
+            tries[0] += 1
+            return self.client.observe(session_id, action_id, body=body)
+
+        try:
+            observed = self.http(once)
+        except ApiError as e:
+            if e.status != "FAILED_PRECONDITION" or tries[0] < 2:
+                raise
+            session = self.http(lambda: self.client.get_session(session_id))
+            if session.pending_action_id == action_id:
+                raise
+            rospy.logwarn("npfkct: a retried observe had reached the server; reward unknown")
+            return session.state == "DONE", 0.0, session
+        return observed.done, observed.reward, observed.session
+
+    def delete_session(self, why):
+        """Deletes the running goal's session (one try each way: shutdown cannot wait long)."""
+        with self.session_lock:
+            session_id, self.session_id = self.session_id, None
+        if session_id is None:
+            return
+        try:
+            self.client.delete_session(session_id)
+            rospy.loginfo("npfkct: %s: session %s deleted", why, session_id)
+        except (ApiError, OSError) as e:
+            rospy.logerr("npfkct: %s: deleting session %s failed: %s", why, session_id, e)
+
+    def on_shutdown(self):
+        """rospy's shutdown hook."""
+        self.delete_session("shutdown")
+
+    def check_preempt(self):
+        """Raises Preempted when the goal was cancelled or the node is going down."""
+        if self.server.is_preempt_requested() or rospy.is_shutdown():
+            raise Preempted()
+
+    # -- tf --
+
+    def check_frames(self):
+        """The map -> base and base -> camera transforms exist (else the goal is refused)."""
+        for target, source, what in ((self.map_frame, self.base_frame, "the robot's pose"),
+                                     (self.base_frame, self.camera_frame,
+                                      "the camera's extrinsics")):
+            try:
+                self.tf.lookup_transform(target, source, rospy.Time(0),
+                                         rospy.Duration(self.tf_timeout))
+            except tf2_ros.TransformException as e:
+                raise GoalError(f"no tf {target} -> {source} ({what}) within "
+                                f"{self.tf_timeout:g} s: {e}") from None
+
+    def transform_at(self, target, source, stamp):
+        """The transform target <- source at `stamp`: exact when tf has data at or after it;
+        tf's newest one when that is at most ~stale_tolerance older than `stamp`; else waits up
+        to ~pose_timeout for tf to catch up, and refuses (GoalError) an older pose."""
+        try:
+            return self.tf.lookup_transform(target, source, stamp)
+        except tf2_ros.ExtrapolationException:
+            pass
+        except tf2_ros.TransformException as e:
+            raise GoalError(f"no tf {target} -> {source}: {e}") from None
+        latest = self.tf.lookup_transform(target, source, rospy.Time(0))
+        if (stamp - latest.header.stamp).to_sec() <= self.stale_tolerance:
+            return latest
+        deadline = rospy.Time.now() + rospy.Duration(self.pose_timeout)
+        while rospy.Time.now() < deadline:
+            self.check_preempt()
+            try:
+                return self.tf.lookup_transform(target, source, stamp, rospy.Duration(0.1))
+            except tf2_ros.TransformException:
+                pass
+        latest = self.tf.lookup_transform(target, source, rospy.Time(0))
+        raise GoalError(
+            f"refusing to observe: the newest tf {target} -> {source} "
+            f"({latest.header.stamp.to_sec():.3f}) is "
+            f"{(stamp - latest.header.stamp).to_sec():.3f} s older than the detections "
+            f"({stamp.to_sec():.3f}; tolerance {self.stale_tolerance:g} s) and none newer "
+            f"came within {self.pose_timeout:g} s")
+
+    def joints_at(self, stamp):
+        """Lift, pan and tilt from the first joint state stamped at or after `stamp` (or the
+        newest, when at most ~stale_tolerance older); waits up to ~pose_timeout, then refuses."""
+        deadline = rospy.Time.now() + rospy.Duration(self.pose_timeout)
+        with self.cond:
+            while True:
+                newest = None
+                for joint_stamp, positions in self.joint_history:
+                    if all(name in positions for name in self.joints):
+                        if joint_stamp >= stamp:
+                            return [positions[name] for name in self.joints]
+                        newest = (joint_stamp, positions)
+                if newest and (stamp - newest[0]).to_sec() <= self.stale_tolerance:
+                    return [newest[1][name] for name in self.joints]
+                self.check_preempt()
+                if rospy.Time.now() >= deadline:
+                    age = "none" if newest is None else f"{(stamp - newest[0]).to_sec():.3f} s"
+                    raise GoalError(
+                        f"refusing to observe: no joint state of {', '.join(self.joints)} "
+                        f"stamped at or after the detections (newest older by {age}; "
+                        f"tolerance {self.stale_tolerance:g} s) within {self.pose_timeout:g} s")
+                self.cond.wait(0.1)
+
+    def robot_state_at(self, stamp):
+        """The API's robotState at `stamp` (tf map -> base, joint states) and the pose's stamp."""
+        base = self.transform_at(self.map_frame, self.base_frame, stamp)
+        lift, pan, tilt = self.joints_at(stamp)
+        pose = Rigid.of_transform(base.transform)
+        return ({"x": pose.t[0], "y": pose.t[1], "yaw": pose.yaw(), "lift": lift, "pan": pan,
+                 "tilt": tilt}, base.header.stamp)
+
+    def detections_in_map(self, msg):
+        """The API's detections: each box moved into the map frame through tf at its stamp.
+        A frame that is neither the camera's nor the map's nor known to tf is refused."""
+        out = []
+        for det in msg.detections:
+            frame = det.header.frame_id or msg.header.frame_id
+            stamp = det.header.stamp if det.header.frame_id else msg.header.stamp
+            if not frame:
+                raise GoalError("detections without a frame_id (expected the camera frame "
+                                f"'{self.camera_frame}' or the map frame '{self.map_frame}')")
+            if frame == self.map_frame:
+                to_map = Rigid()
+            else:
+                if frame != self.camera_frame and not self.tf.can_transform(
+                        self.map_frame, frame, rospy.Time(0), rospy.Duration(1.0)):
+                    raise GoalError(
+                        f"detections in frame '{frame}': not the camera frame "
+                        f"'{self.camera_frame}' nor the map frame '{self.map_frame}', and tf "
+                        f"has no transform from '{frame}' to '{self.map_frame}'")
+                to_map = Rigid.of_transform(
+                    self.transform_at(self.map_frame, frame, stamp).transform)
+            box = to_map * Rigid.of_pose(det.bbox.center)
+            size = det.bbox.size
+            out.append({
+                "id": det.id,
+                "box": {"center": list(box.t), "yaw": box.yaw(),
+                        "size": [size.x, size.y, size.z]},
+                "moveability": min(max(float(det.moveability), 0.0), 1.0),
+                "faces": [{"corner": int(f.corner), "score": min(max(float(f.score), 0.0), 1.0)}
+                          for f in det.faces],
+            })
+        return out
+
+    # -- the robot --
+
+    def send_to_robot(self, action, stamp):
+        """Sends the action; waits for the robot. (executed as asked, MOVE configuration)."""
+        if action["type"] == "MOVE":
+            c = action["configuration"]
+            pose = PoseStamped()
+            pose.header.stamp, pose.header.frame_id = stamp, self.map_frame
+            pose.pose.position.x, pose.pose.position.y = c["x"], c["y"]
+            q = quat_from_rpy(0.0, 0.0, c["yaw"])
+            (pose.pose.orientation.x, pose.pose.orientation.y, pose.pose.orientation.z,
+             pose.pose.orientation.w) = q
+            self.base_pub.publish(pose)
+            goal = FollowJointTrajectoryGoal()
+            goal.trajectory = JointTrajectory()
+            goal.trajectory.header.stamp = stamp
+            goal.trajectory.joint_names = list(self.joints)
+            goal.trajectory.points = [JointTrajectoryPoint(
+                positions=[c["lift"], c["pan"], c["tilt"]], time_from_start=rospy.Duration(1.0))]
+            result = self.run_robot_action(self.trajectory, goal, "follow_joint_trajectory")
+            ok = result is not None and result.error_code == 0
+            if not ok:
+                rospy.logwarn("npfkct: trajectory not executed: %s",
+                              "no result" if result is None else result.error_string)
+            return ok, c
+        goal = ObjectCommandGoal(command=OBJECT_COMMANDS[action["type"]],
+                                 object_id=action["objectId"])
+        goal.header.stamp, goal.header.frame_id = stamp, self.map_frame
+        box = action.get("objectBox")
+        if box:
+            pose = Rigid(box["center"], quat_from_rpy(0.0, 0.0, box.get("yaw", 0.0)))
+            pose.to_pose(goal.bbox.center)
+            goal.bbox.size.x, goal.bbox.size.y, goal.bbox.size.z = box["size"]
+        result = self.run_robot_action(self.object_command, goal, "object_command")
+        return result is not None and result.succeeded, None
+
+    def run_robot_action(self, client, goal, name):
+        """Sends a goal to one of the robot's action servers and waits for its result, polling
+        for cancellation; None when the robot ended it without success."""
+        if not client.wait_for_server(rospy.Duration(self.action_timeout)):
+            raise GoalError(f"the robot's {name} action server did not answer")
+        client.send_goal(goal)
+        deadline = rospy.Time.now() + rospy.Duration(self.action_timeout)
+        while not client.wait_for_result(rospy.Duration(0.1)):
+            if self.server.is_preempt_requested() or rospy.is_shutdown():
+                client.cancel_goal()
+                raise Preempted()
+            if rospy.Time.now() > deadline:
+                client.cancel_goal()
+                raise GoalError(f"the robot's {name} did not finish within "
+                                f"{self.action_timeout:g} s")
+        if client.get_state() not in (GoalStatus.SUCCEEDED, GoalStatus.ABORTED):
+            return None
+        return client.get_result()
+
+    def wait_detections(self, sent):
+        """The first detections stamped at or after `sent` (the action's send time)."""
+        deadline = rospy.Time.now() + rospy.Duration(self.action_timeout)
+        with self.cond:
+            while self.detections is None or self.detections.header.stamp < sent:
+                self.check_preempt()
+                if rospy.Time.now() > deadline:
+                    raise GoalError(f"no detections stamped after the action within "
+                                    f"{self.action_timeout:g} s")
+                self.cond.wait(0.1)
+            return self.detections
+
+    def reached(self, asked, state):
+        """Whether the base reached the asked pose (lift and head are the trajectory's)."""
+        ok = (math.hypot(state["x"] - asked["x"], state["y"] - asked["y"]) <= self.base_tolerance
+              and abs(angle_diff(state["yaw"], asked["yaw"])) <= self.yaw_tolerance)
+        if not ok:
+            rospy.logwarn("npfkct: base at (%.3f, %.3f, %.3f), asked (%.3f, %.3f, %.3f)",
+                          state["x"], state["y"], state["yaw"], asked["x"], asked["y"],
+                          asked["yaw"])
+        return ok
