@@ -39,7 +39,8 @@ def generate_messages():
 generate_messages()
 from npfkct_ros import retry  # noqa: E402
 from npfkct_ros.client_path import ApiError, NpfkctClient  # noqa: E402
-from npfkct_ros.msg import FindObjectAction, FindObjectGoal, RobotConfig  # noqa: E402
+from npfkct_ros.msg import (FindObjectAction, FindObjectActionFeedback, FindObjectGoal,  # noqa: E402,E501
+                            RobotConfig)
 
 
 def free_port():
@@ -88,6 +89,12 @@ class Launch:
         threading.Thread(target=lambda: self.output.extend(self.proc.stdout),
                          daemon=True).start()
         self.client = actionlib.SimpleActionClient("/find_object", FindObjectAction)
+        # The feedback straight from its topic: actionlib's client drops feedback that arrives
+        # after the goal's result (they travel on different connections), so a last step's
+        # feedback could go missing from feedback_cb although the node sent it.
+        self.feedback = []
+        self.feedback_sub = rospy.Subscriber("/find_object/feedback", FindObjectActionFeedback,
+                                             lambda m: self.feedback.append(m.feedback))
         assert self.client.wait_for_server(rospy.Duration(60)), self.log()
         # This process's action subscriptions outlive a test's node: wait_for_server may have
         # counted a connection to the previous one, and feedback sent before the new node's
@@ -97,18 +104,18 @@ class Launch:
         action = self.client.action_client
         assert wait_for(lambda: all(
             any(c.endpoint_id == uri for c in sub.impl.connections)
-            for sub in (action.status_sub, action.feedback_sub, action.result_sub)),
+            for sub in (action.status_sub, action.feedback_sub, action.result_sub,
+                        self.feedback_sub)),
             timeout=30), self.log()
         self.truth = []
         self.truth_sub = rospy.Subscriber("/sim/robot_state", RobotConfig, self.truth.append)
         assert wait_for(lambda: self.truth_sub.get_num_connections() > 0, timeout=30), self.log()
-        self.feedback = []
 
     def log(self):
         return "".join(self.output[-40:]) + "server: " + "".join(self.server.output[-20:])
 
     def send(self, **goal):
-        self.client.send_goal(FindObjectGoal(**goal), feedback_cb=self.feedback.append)
+        self.client.send_goal(FindObjectGoal(**goal))
 
     def wait(self, timeout=150):
         """The goal's end state and result, once the feedback of every step it counts arrived
@@ -122,6 +129,7 @@ class Launch:
     def stop(self):
         """SIGINT, as Ctrl-C: roslaunch shuts its nodes down in order."""
         self.truth_sub.unregister()
+        self.feedback_sub.unregister()
         if self.proc.poll() is None:
             self.proc.send_signal(signal.SIGINT)
             try:

@@ -6,6 +6,7 @@
 #include <iostream>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <sstream>
 #include <string>
 
@@ -21,7 +22,7 @@ struct Options {
   std::string server = "http://127.0.0.1:8080";
   std::string scenario;
   std::string planner = "npfkct";
-  std::string model;
+  std::optional<std::string> model;  // absent: the server's default; "": none
   std::string api_key;
   double budget_ms = 1000;
   int64_t simulations = 0;
@@ -58,7 +59,8 @@ int main(int argc, char** argv) {
   app.add_option("--planner", o.planner, "planner of the session");
   app.add_option("--model", o.model,
                  "neural filter model of the server for npfkct (planner.model, a file name in "
-                 "the server's --model-dir, e.g. filter.pt)");
+                 "the server's --model-dir, e.g. filter.pt; \"\" for none; default: the "
+                 "server's default model)");
   app.add_option("--api-key", o.api_key, "bearer token");
   app.add_option("--budget-ms", o.budget_ms, "planning time per step");
   app.add_option("--simulations", o.simulations, "simulations per step (0: time only)");
@@ -88,13 +90,18 @@ int main(int argc, char** argv) {
                  {"world", npfkct::sim::WorldJsonOf(scenario_json)},
                  {"planner", {{"name", o.planner}}},
                  {"seed", o.seed}};
-  if (!o.model.empty()) create["planner"]["model"] = o.model;
+  if (o.model) create["planner"]["model"] = *o.model;
   if (o.raw) create["target"] = {{"photos", robot.TargetPhotosJson()}};
   auto session = api.CreateSession(create);
   if (!session.ok()) return Fail("creating the session", session.status());
   const std::string id = (*session)["id"];
   if (!o.quiet) {
-    std::printf("session %s (%s) on %s\n", id.c_str(), o.planner.c_str(), scenario->name.c_str());
+    const std::string model = (*session)["planner"].value("model", "");
+    std::printf("session %s (%s%s) on %s\n", id.c_str(), o.planner.c_str(),
+                o.planner != "npfkct" ? ""
+                : model.empty()       ? ", uniform candidates"
+                                      : (", model " + model).c_str(),
+                scenario->name.c_str());
   }
 
   double discounted = 0.0, discount = 1.0;
@@ -114,7 +121,7 @@ int main(int argc, char** argv) {
     auto observed = api.Observe(id, observation);
     if (!observed.ok()) return Fail("observing", observed.status());
     if (!o.quiet) {
-      std::printf("step %2d: %-62s %-34s sims %8lld  value %9.1f\n", t + 1,
+      std::printf("step %2d: %-62s %-38s sims %8lld  value %9.1f\n", t + 1,
                   Describe(action).c_str(), outcome.detail.c_str(),
                   static_cast<long long>(plan["stats"]["simulations"].get<int64_t>()),
                   plan["expectedValue"].get<double>());

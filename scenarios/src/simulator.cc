@@ -211,16 +211,16 @@ ExecutionOutcome Simulator::ExecuteOnObject(int offset, const std::string& key, 
   const SceneObject& o = objects_[scene];
   switch (offset) {
     case object_search::kDeclareTargetOffset:
-      if (!o.target) return illegal("declared " + key + " the target wrongly");
+      if (!o.target) return illegal("declared object '" + key + "' the target, which it is not");
       out.reward = RewardOf(p, ActionOutcome::kDeclaredTarget);
       out.success = true;
-      out.detail = "declared " + key + " the target";
+      out.detail = "declared object '" + key + "' the target";
       return out;
     case object_search::kDeclareObstacleOffset:
-      if (o.target) return illegal("declared the target " + key + " an obstacle");
+      if (o.target) return illegal("declared the target (object '" + key + "') an obstacle");
       out.reward = RewardOf(p, ActionOutcome::kDeclaredObstacle);
       out.success = true;
-      out.detail = "declared " + key + " an obstacle";
+      out.detail = "declared object '" + key + "' an obstacle";
       return out;
     default:
       if (!o.moveable) return illegal(key + " cannot be moved");
@@ -229,14 +229,14 @@ ExecutionOutcome Simulator::ExecuteOnObject(int offset, const std::string& key, 
         out.reward = RewardOf(p, ActionOutcome::kRemovedTarget);
         out.terminal = true;
         out.success = true;
-        out.detail = "removed the target " + key;
+        out.detail = "removed the target (object '" + key + "')";
         return out;
       }
       if (status == kDeclaredObstacle && !o.target) {
         removed_[scene] = true;
         out.reward = RewardOf(p, ActionOutcome::kRemovedObstacle);
         out.success = true;
-        out.detail = "removed obstacle " + key;
+        out.detail = "removed obstacle '" + key + "'";
         return out;
       }
       return illegal("removing undeclared " + key);
