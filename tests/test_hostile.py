@@ -549,7 +549,7 @@ def test_model_names_never_reach_the_filesystem(hostile_server):
     answers = set()
     for name in ["/etc/passwd", "../../../../etc/passwd", "filter.pt/../../x", "%2e%2e/x.pt",
                  "x" * 5000, "filter.pt\u0000.txt", "/dev/zero", "/proc/self/environ",
-                 "..", ".", "", " filter.pt", "nonexistent.pt", "/tmp"]:
+                 "..", ".", " filter.pt", "nonexistent.pt", "/tmp"]:
         r = http("POST", url + "/v1/sessions", rec,
                  json={"world": base, "planner": {"name": "npfkct", "model": name}})
         assert r.status_code == 400 and field_of(r) == "planner.model", (name, r.text)
@@ -567,6 +567,10 @@ def test_model_names_never_reach_the_filesystem(hostile_server):
     assert http("POST", url + "/v1/sessions", rec,
                 json={"world": base, "planner": {"name": "npfkct", "model": "filter.pt"}}
                 ).status_code == 200
+    # "" names no model: uniform candidates, nothing looked up.
+    none = http("POST", url + "/v1/sessions", rec,
+                json={"world": base, "planner": {"name": "npfkct", "model": ""}})
+    assert none.status_code == 200 and none.json()["planner"]["model"] == "", none.text
     rec.check()
 
 

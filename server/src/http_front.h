@@ -77,6 +77,8 @@ class HttpFront : public httplib::Server {
   static Connection* Current();
   /// Whether the client of the current connection closed or reset it (false outside a handler).
   static bool ClientGone();
+  /// Connections accepted and not closed yet (those refused at the limit never count).
+  int open_connections() const { return open_connections_.load(); }
 
   struct Conn;  // a connection and its buffered bytes (http_front.cc)
 

@@ -238,10 +238,19 @@ TEST_F(HttpFrontTest, BytesInFlightAndConnectionsAreBounded) {
   Send(a, std::string(10'000, 'a'));
   EXPECT_NE(Read(a, "100000:").find("100000:aaaa"), std::string::npos);
   ::close(a);
-  // Past the connection limit: 429 and closed at once.
+  // Past the connection limit: 429 and closed at once. First the reactor must have seen a and b
+  // close (under load it may lag, and the limit would then count them).
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  while (front_->open_connections() > 0 && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  ASSERT_EQ(front_->open_connections(), 0);
   std::vector<int> many;
   for (int i = 0; i < 8; ++i) many.push_back(Connect());
-  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  while (front_->open_connections() < 8 && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  ASSERT_EQ(front_->open_connections(), 8);
   const int extra = Connect();
   EXPECT_EQ(Read(extra).rfind("HTTP/1.1 429", 0), 0u);
   ::close(extra);
