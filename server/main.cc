@@ -1,6 +1,7 @@
 // npfkct-server: the planning server (see README.md, "The server and its API", and
 // schemas/openapi.yaml).
 #include <malloc.h>
+#include <pthread.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
@@ -25,6 +26,11 @@ std::string DefaultModelDir() {
   }
   return NPFKCT_MODEL_DIR;
 }
+
+pthread_t main_thread;
+
+// SIGINT/SIGTERM that reached a thread other than main's (async-signal-safe: pthread_kill only).
+extern "C" void ForwardToMainThread(int sig) { pthread_kill(main_thread, sig); }
 
 }  // namespace
 
@@ -95,12 +101,21 @@ int main(int argc, char** argv) {
   // the server's address space small enough to run under a cap (prlimit --as).
   if (std::getenv("MALLOC_ARENA_MAX") == nullptr) mallopt(M_ARENA_MAX, 4);
 
-  // Signals are taken by sigwait in this thread, not by handlers.
+  // Signals are taken by sigwait in this thread. Threads that libraries start before main
+  // (OpenBLAS's pool) do not block them, and the kernel delivers a process signal to a thread
+  // that does not: there the handler passes it on to this thread, where it stays pending until
+  // sigwait takes it (without it, SIGTERM killed the process at once when it landed there).
+  main_thread = pthread_self();
   sigset_t signals;
   sigemptyset(&signals);
   sigaddset(&signals, SIGINT);
   sigaddset(&signals, SIGTERM);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+  struct sigaction forward {};
+  forward.sa_handler = ForwardToMainThread;
+  sigemptyset(&forward.sa_mask);
+  sigaction(SIGINT, &forward, nullptr);
+  sigaction(SIGTERM, &forward, nullptr);
   signal(SIGPIPE, SIG_IGN);
 
   npfkct::server::Server server(o);

@@ -29,10 +29,11 @@ def test_sigkill_mid_episode_loses_no_acknowledged_observation(tmp_path):
 
     for _ in range(3):
         step(url)
-    # An acknowledged observation, then a plan whose action is pending, then kill -9.
-    belief = requests.get(url + f"/v1/sessions/{sid}/belief").json()
+    # An acknowledged observation, then a plan whose action is pending (the belief shows it as
+    # the next view), then kill -9.
     pending = requests.post(url + f"/v1/sessions/{sid}:plan",
                             json={"budget": {"timeMs": 200}}).json()
+    belief = requests.get(url + f"/v1/sessions/{sid}/belief").json()
     server.kill()
 
     server = ServerProcess("--state-dir", state)
