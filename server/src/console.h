@@ -1,5 +1,5 @@
 // The web console (GET /ui): static files from server/console/, compiled into the server at
-// build time (embed_console.cmake), so that an installed server carries its console and the
+// build time (cmake/npfkct_embed.cmake), so that an installed server carries its console and the
 // page can never drift from the server it talks to. The files are public: the page asks for the
 // API key and sends it with its own requests.
 #pragma once
