@@ -13,15 +13,38 @@
 #   visits       + the most visited root sphere is executed
 #   w2-rule      + w2 by appendix J's rule from this step's initial radii (= the kct planner)
 #   filter       + the neural filter (= the npfkct planner)
-# Usage: scripts/bench_ablation.sh [--run NAME] [--cpu-ms MS] [--trials N] [--commit]
-#        env: SCENES, ROWS (default: all, in order), BUILD_DIR
+# With --generated the rows run on the 30 held-out generated scenes of scripts/bench_generated.sh
+# at its protocol (0.25 s of CPU per step, 5 trials, run name "generated"), with an oracle row, and
+# the table gives each row's share of the oracle's reward and its change against the row above,
+# paired over the scenes (results_table.py ablation).
+# Usage: scripts/bench_ablation.sh [--generated] [--run NAME] [--cpu-ms MS] [--trials N] [--commit]
+#        env: SCENES (paper scenes) or SEEDS (with --generated), ROWS (default: all, in order),
+#        BUILD_DIR
 set -euo pipefail
 NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 source "$NPFKCT_ROOT/scripts/deps.sh"
-npfkct_bench_args 1000 20 19 "$@"
-npfkct_prepare npfkct-bench
-SCENES="${SCENES:-loose1 loose2 hidden1 covered1 complex1 fig16}"
-ROWS="${ROWS:-paper aimed candidates sibling visits w2-rule filter}"
+ROW_NAMES="paper aimed candidates sibling visits w2-rule filter"
+if [ "${1:-}" = --generated ]; then
+  shift
+  npfkct_bench_args 250 5 22 --run generated "$@"
+  npfkct_prepare npfkct-bench npfkct-scenegen
+  GENERATED_DIR="$BUILD_DIR/generated-scenes"
+  mkdir -p "$GENERATED_DIR"
+  SCENE_FILES=()
+  for seed in ${SEEDS:-$(seq 900001 900030)}; do
+    "$BUILD_DIR/scenarios/npfkct-scenegen" --seed "$seed" >"$GENERATED_DIR/gen-$seed.json"
+    SCENE_FILES+=("$GENERATED_DIR/gen-$seed.json")
+  done
+  ROW_NAMES="oracle $ROW_NAMES"
+else
+  npfkct_bench_args 1000 20 22 "$@"
+  npfkct_prepare npfkct-bench
+  SCENE_FILES=()
+  for scene in ${SCENES:-loose1 loose2 hidden1 covered1 complex1 fig16}; do
+    SCENE_FILES+=("$NPFKCT_ROOT/scenarios/data/$scene.json")
+  done
+fi
+ROWS="${ROWS:-$ROW_NAMES}"
 PAPER="proposals.aimed=0 sample_candidates=0 final_choice=0 normalization=1 w2=0.5"
 row_args() {
   local opts planner=kct
@@ -33,6 +56,7 @@ row_args() {
     visits) opts="proposals.aimed=1 sample_candidates=1 final_choice=1 normalization=2 w2=0.5" ;;
     w2-rule) opts="" ;;
     filter) opts="" planner=npfkct ;;
+    oracle) opts="" planner=oracle ;;
     *) echo "bench_ablation.sh: unknown row $1" >&2; exit 2 ;;
   esac
   ARGS=(--planner "$planner")
@@ -41,9 +65,9 @@ row_args() {
 OUT="$NPFKCT_ROOT/bench/results/ablation/$RUN"
 for row in $ROWS; do
   row_args "$row"
-  for scene in $SCENES; do
-    npfkct_bench_cell "$OUT/$row/$scene.jsonl" "$TRIALS" \
-      --scenario "$NPFKCT_ROOT/scenarios/data/$scene.json" "${ARGS[@]}" \
+  for file in "${SCENE_FILES[@]}"; do
+    scene="$(basename "$file" .json)"
+    npfkct_bench_cell "$OUT/$row/${scene#gen-}.jsonl" "$TRIALS" --scenario "$file" "${ARGS[@]}" \
       --trials "$TRIALS" --cpu-ms "$CPU_MS" --threads "$(nproc)" --seed 1
   done
 done

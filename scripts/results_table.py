@@ -10,7 +10,9 @@
                                    and mean steps over every trial.
   results_table.py ablation DIR    The ablation (scripts/bench_ablation.sh): rows from
                                    DIR/ROW/SCENE.jsonl in the script's order, a column per scene
-                                   and the mean reward over the scenes.
+                                   and the mean reward over the scenes; with an oracle row (the
+                                   generated scenes) each row's share of the oracle's reward and
+                                   its change against the row above, paired over the scenes.
   results_table.py compare A B     Whether two runs of the same cells agree: each mean inside the
                                    other run's 95% interval.
   results_table.py flat FILE       A table from one file of JSON lines (rows planners, columns
@@ -144,31 +146,43 @@ def table1(root):
         print(row)
 
 
-def generated(root):
-    cells = load_cells(root)
-    scenes = sorted({s for s, _ in cells})
-    planners = order({p for _, p in cells}, PLANNER_ORDER)
-    budget = {(r["cpu_ms"], r["trials"]) for r in cells.values()}
-    print(f"{len(scenes)} held-out generated scenes; budgets and trials (cpu_ms, trials): "
-          f"{sorted(budget)}. Share of the oracle: per scene the planner's mean reward over the "
-          f"oracle's, then the mean over scenes ± 95% t interval over scenes.\n")
-    print("| Planner | Share of the oracle's reward | Success | Steps | Scenes |")
-    print("|---|---|---|---|---|")
-    for p in planners:
-        shares, successes, steps, n = [], [], [], 0
+def oracle_summary(cells, groups, scenes):
+    """Per group (planner or ablation row): the mean over scenes of its share of the oracle's reward
+    (t interval over scenes), success rate and mean steps over every trial, and the per-scene shares.
+    `cells` is keyed (group, scene) and holds the oracle as the group "oracle"."""
+    out = {}
+    for g in groups:
+        shares, successes, steps, n = {}, [], [], 0
         for s in scenes:
-            r, o = cells.get((s, p)), cells.get((s, "oracle"))
+            r, o = cells.get((g, s)), cells.get(("oracle", s))
             if r is None:
                 continue
             n += 1
             successes += r.get("successes", [])
             steps += r.get("steps", [])
             if o is not None and o["mean_discounted_reward"] > 0:
-                shares.append(r["mean_discounted_reward"] / o["mean_discounted_reward"])
-        m, ci = mean_ci(shares)
+                shares[s] = r["mean_discounted_reward"] / o["mean_discounted_reward"]
+        m, ci = mean_ci(list(shares.values()))
         sm, sci = mean_ci(steps)
         succ = 100 * sum(successes) / len(successes) if successes else float("nan")
-        print(f"| {p} | {100 * m:.1f}% ± {100 * ci:.1f} | {succ:.1f}% | {sm:.1f} ± {sci:.1f} | {n} |")
+        out[g] = {"share": m, "share_ci": ci, "success": succ, "steps": sm, "steps_ci": sci,
+                  "scenes": n, "shares": shares}
+    return out
+
+
+def generated(root):
+    cells = {(p, s): r for (s, p), r in load_cells(root).items()}
+    scenes = sorted({s for _, s in cells})
+    planners = order({p for p, _ in cells}, PLANNER_ORDER)
+    budget = {(r["cpu_ms"], r["trials"]) for r in cells.values()}
+    print(f"{len(scenes)} held-out generated scenes; budgets and trials (cpu_ms, trials): "
+          f"{sorted(budget)}. Share of the oracle: per scene the planner's mean reward over the "
+          f"oracle's, then the mean over scenes ± 95% t interval over scenes.\n")
+    print("| Planner | Share of the oracle's reward | Success | Steps | Scenes |")
+    print("|---|---|---|---|---|")
+    for p, x in oracle_summary(cells, planners, scenes).items():
+        print(f"| {p} | {100 * x['share']:.1f}% ± {100 * x['share_ci']:.1f} | "
+              f"{x['success']:.1f}% | {x['steps']:.1f} ± {x['steps_ci']:.1f} | {x['scenes']} |")
 
 
 ABLATION_ROWS = ["paper", "aimed", "candidates", "sibling", "visits", "w2-rule", "filter"]
@@ -178,14 +192,15 @@ def ablation(root):
     # Keyed (row, scene): the row is the record's folder.
     cells = load_cells(root, key=lambda path, r: (os.path.basename(os.path.dirname(path)),
                                                   r["scenario"]))
-    rows = order({row for row, _ in cells}, ABLATION_ROWS)
+    rows = order({row for row, _ in cells}, ["oracle"] + ABLATION_ROWS)
     scenes = order({s for _, s in cells}, PAPER_SCENES)
+    if "oracle" in rows:
+        ablation_shares(cells, rows, scenes)
+        return
     print("| Row | Planner and options |" + "".join(f" {s} |" for s in scenes) + " Mean |")
     print("|---|---|" + "---|" * (len(scenes) + 1))
     for row in rows:
-        first = next(r for (rw, _), r in cells.items() if rw == row)
-        opts = " ".join(first.get("options", []))
-        line = f"| {row} | `{first['planner']}{' ' + opts if opts else ''}` |"
+        line = f"| {row} | {row_planner(cells, row)} |"
         means = []
         for s in scenes:
             r = cells.get((row, s))
@@ -196,6 +211,42 @@ def ablation(root):
                 means.append(r["mean_discounted_reward"])
         line += f" {sum(means) / len(means):.1f} |" if len(means) == len(scenes) else " – |"
         print(line)
+
+
+def row_planner(cells, row):
+    first = next(r for (rw, _), r in cells.items() if rw == row)
+    opts = " ".join(first.get("options", []))
+    return f"`{first['planner']}{' ' + opts if opts else ''}`"
+
+
+def ablation_shares(cells, rows, scenes):
+    """The ablation over many scenes (with an oracle row): each row's mean share of the oracle's
+    reward, and the change against the row above as a paired difference over the scenes both
+    rows have (mean ± 95% t interval)."""
+    summary = oracle_summary(cells, rows, scenes)
+    budget = {(r["cpu_ms"], r["trials"]) for r in cells.values()}
+    print(f"{len(scenes)} scenes; budgets and trials (cpu_ms, trials): {sorted(budget)}. Change: "
+          f"per scene the row's share minus the share of the row above, mean ± 95% t interval "
+          f"over the scenes.\n")
+    print("| Row | Planner and options | Share of the oracle's reward | Change | Success | Steps "
+          "| Scenes |")
+    print("|---|---|---|---|---|---|---|")
+    previous = None
+    for row in rows:
+        if row == "oracle":
+            continue
+        x = summary[row]
+        change = "–"
+        if previous is not None:
+            a, b = summary[previous]["shares"], x["shares"]
+            diffs = [b[s] - a[s] for s in scenes if s in a and s in b]
+            m, ci = mean_ci(diffs)
+            if diffs:
+                change = f"{100 * m:+.1f} ± {100 * ci:.1f}"
+        print(f"| {row} | {row_planner(cells, row)} | {100 * x['share']:.1f}% ± "
+              f"{100 * x['share_ci']:.1f} | {change} | {x['success']:.1f}% | "
+              f"{x['steps']:.1f} ± {x['steps_ci']:.1f} | {x['scenes']} |")
+        previous = row
 
 
 def compare(a_root, b_root):
