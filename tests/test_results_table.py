@@ -1,0 +1,61 @@
+"""scripts/results_table.py, which makes the README's benchmark tables: Student's t quantiles, the
+share of the oracle's reward and the ablation's paired change, on cells with known answers."""
+
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+SCRIPTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts")
+sys.path.insert(0, SCRIPTS)
+import results_table  # noqa: E402
+
+
+def test_t_quantiles_match_the_tables():
+    # Two-sided 95%: t(0.975, df) from any statistics table.
+    for df, t in [(1, 12.706), (4, 2.776), (19, 2.093), (29, 2.045), (1000, 1.962)]:
+        assert results_table.t_quantile(0.975, df) == pytest.approx(t, abs=1e-3)
+
+
+def test_mean_ci_uses_student_t():
+    m, ci = results_table.mean_ci([1.0, 2.0, 3.0, 4.0, 5.0])
+    assert m == 3.0
+    # sd = sqrt(2.5); t(0.975, 4) = 2.7764
+    assert ci == pytest.approx(2.7764 * (2.5 ** 0.5) / 5 ** 0.5, rel=1e-3)
+
+
+def write_cell(root, row, scene, reward, steps=(5, 5), successes=(1, 1)):
+    os.makedirs(os.path.join(root, row), exist_ok=True)
+    record = {"scenario": scene, "planner": "kct" if row != "oracle" else "oracle",
+              "options": [], "cpu_ms": 250, "trials": len(steps),
+              "mean_discounted_reward": reward, "ci95": 0.0, "mean_steps": sum(steps) / 2,
+              "ci95_steps": 0.0, "success_rate": sum(successes) / len(successes),
+              "steps": list(steps), "successes": list(successes)}
+    with open(os.path.join(root, row, scene + ".jsonl"), "w", encoding="utf-8") as f:
+        f.write(json.dumps(record) + "\n")
+
+
+def test_ablation_with_an_oracle_gives_shares_and_paired_changes(tmp_path):
+    root = str(tmp_path)
+    # Oracle 100 in scene a, 200 in scene b. Row "paper": shares 0.5 and 0.5. Row "aimed": 0.6 and
+    # 0.8, so the paired change is +0.1 and +0.3: mean +20 points, t interval
+    # t(0.975, 1) * sd / sqrt(2) = 12.706 * 0.1414 / 1.414 = 1.2706 -> 127.1 points.
+    write_cell(root, "oracle", "a", 100.0)
+    write_cell(root, "oracle", "b", 200.0)
+    write_cell(root, "paper", "a", 50.0, successes=(1, 0))
+    write_cell(root, "paper", "b", 100.0)
+    write_cell(root, "aimed", "a", 60.0)
+    write_cell(root, "aimed", "b", 160.0)
+    out = subprocess.run([sys.executable, os.path.join(SCRIPTS, "results_table.py"), "ablation",
+                          root], check=True, capture_output=True, text=True).stdout
+    rows = {line.split("|")[1].strip(): [c.strip() for c in line.split("|")[2:-1]]
+            for line in out.splitlines() if line.startswith("| ") and "---" not in line}
+    assert "oracle" not in rows
+    assert rows["paper"][1] == "50.0% ± 0.0"
+    assert rows["paper"][2] == "–"
+    assert rows["paper"][3] == "75.0%"  # 3 of 4 trials
+    assert rows["aimed"][1].startswith("70.0% ± ")
+    assert rows["aimed"][2] == "+20.0 ± 127.1"
+    assert rows["aimed"][3] == "100.0%"
