@@ -4,6 +4,7 @@ import base64
 import json
 import os
 import signal
+import socket
 import subprocess
 import sys
 import threading
@@ -17,6 +18,26 @@ SERVER_BIN = os.environ.get("NPFKCT_SERVER_BIN", os.path.join(BUILD, "server", "
 ROBOT_BIN = os.path.join(BUILD, "scenarios", "npfkct-sim-robot")
 SCENARIOS = os.path.join(ROOT, "scenarios", "data")
 sys.path.insert(0, os.path.join(ROOT, "clients", "python"))
+
+
+def free_port():
+    """A loopback port that was free a moment ago."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def stop_process(proc, sig, timeout):
+    """Sends `sig` to a running `proc`, waits up to `timeout` seconds, then kills it; returns the
+    exit status."""
+    if proc.poll() is None:
+        proc.send_signal(sig)
+        try:
+            proc.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+    return proc.returncode
 
 
 def scenario_path(name):
@@ -62,14 +83,7 @@ class ServerProcess:
     def stop(self):
         """SIGTERM, then the exit status (0 for an orderly shutdown; under the sanitizers, not 0
         when they found something, leaks included)."""
-        if self.alive():
-            self.proc.send_signal(signal.SIGTERM)
-            try:
-                self.proc.wait(timeout=30)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
-        return self.proc.returncode
+        return stop_process(self.proc, signal.SIGTERM, 30)
 
     def kill(self):
         self.proc.kill()

@@ -13,15 +13,9 @@ import time
 
 import requests
 
-from conftest import ROOT, ServerProcess
+from conftest import ROOT, ServerProcess, free_port, stop_process
 
 NGINX_CONF = os.path.join(ROOT, "deploy", "nginx", "npfkct.conf")
-
-
-def free_port():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def _as_postgres():
@@ -211,13 +205,7 @@ http {{
             return ""
 
     def stop(self):
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGQUIT)
-            try:
-                self.proc.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
+        stop_process(self.proc, signal.SIGQUIT, 10)
         shutil.rmtree(self.dir, ignore_errors=True)
 
 

@@ -6,12 +6,11 @@ find_package(npfkct) (tests/consumer)."""
 import json
 import os
 import re
-import socket
 import subprocess
 
 import pytest
 
-from conftest import BUILD, ROOT, ServerProcess
+from conftest import BUILD, ROOT, ServerProcess, free_port
 
 
 def readme_block():
@@ -21,12 +20,6 @@ def readme_block():
     m = re.search(r"<!-- quickstart -->\n```sh\n(.*?)\n```", text, re.S)
     assert m, "README.md has no quick start block"
     return m.group(1)
-
-
-def free_port():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 @pytest.fixture(scope="module")

@@ -14,7 +14,7 @@ import threading
 
 import pytest
 
-from conftest import BUILD, ROBOT_BIN, ROOT, scenario_path, wait_for
+from conftest import BUILD, ROBOT_BIN, ROOT, free_port, scenario_path, stop_process, wait_for
 
 rospy = pytest.importorskip("rospy")
 actionlib = pytest.importorskip("actionlib")
@@ -41,13 +41,6 @@ from npfkct_ros import retry  # noqa: E402
 from npfkct_ros.client_path import ApiError, NpfkctClient  # noqa: E402
 from npfkct_ros.msg import (FindObjectAction, FindObjectActionFeedback, FindObjectGoal,  # noqa: E402,E501
                             RobotConfig)
-
-
-def free_port():
-    import socket
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 @pytest.fixture(scope="module")
@@ -130,13 +123,7 @@ class Launch:
         """SIGINT, as Ctrl-C: roslaunch shuts its nodes down in order."""
         self.truth_sub.unregister()
         self.feedback_sub.unregister()
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGINT)
-            try:
-                self.proc.wait(timeout=30)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
+        stop_process(self.proc, signal.SIGINT, 30)
 
 
 @pytest.fixture
