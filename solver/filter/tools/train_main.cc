@@ -82,6 +82,10 @@ int main(int argc, char** argv) {
   tr->add_option("--batch", train.batch, "snapshots per step");
   tr->add_option("--lr", train.learning_rate, "Adam learning rate");
   tr->add_option("--weight-decay", train.weight_decay, "Adam L2 penalty");
+  tr->add_option("--lr-decay", train.lr_decay,
+                 "factor on the learning rate every --lr-decay-every");
+  tr->add_option("--lr-decay-every", train.lr_decay_every, "epochs between learning-rate decays");
+  tr->add_option("--patience", train.patience, "epochs without a better validation loss to stop");
   tr->add_option("--seed", train.seed, "random seed");
   tr->add_option("--threads", threads, "libtorch threads");
 

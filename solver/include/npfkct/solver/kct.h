@@ -11,8 +11,8 @@
 // uniform in it), and backs up by Monte Carlo or Bellman (algorithm 6). norm() maps Qhat onto
 // [0, 1] by the range of its siblings' values (or of the returns seen in this search, or divides
 // by the model's reward range); w2 follows appendix J's rule from the radii of this step's initial
-// spheres unless set. The executed action comes from the most visited root sphere (or the one of
-// highest Qhat, the paper's rule). With search.threads > 1, that many
+// spheres unless set. The executed action comes from the root sphere of highest Qhat (the paper's
+// rule; or the most visited one). With search.threads > 1, that many
 // independent trees search the same belief from the same initial spheres (root parallelism) and
 // the root statistics of spheres descending from the same initial sphere are merged.
 #pragma once
@@ -89,7 +89,7 @@ struct KctOptions {
     kMaxValue,     ///< The highest Qhat among visited spheres (paper, algorithm 1 line 12).
     kMostVisited,  ///< The most visited sphere (robust to spheres visited a handful of times).
   };
-  FinalChoice final_choice = FinalChoice::kMostVisited;
+  FinalChoice final_choice = FinalChoice::kMaxValue;
   /// How the executed action is drawn from the chosen root sphere.
   enum class FinalAction {
     kUniformInSphere,  ///< Uniform in the sphere, rejecting infeasible points (paper).
