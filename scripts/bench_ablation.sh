@@ -10,20 +10,22 @@
 #   aimed        + candidates aimed at what is left to see (object_search/proposals.h)
 #   candidates   + Action_sam draws among the candidates a sphere covers
 #   sibling      + Qhat normalised over the node's siblings
-#   visits       + the most visited root sphere is executed
 #   w2-rule      + w2 by appendix J's rule from this step's initial radii (= the kct planner)
 #   filter       + the neural filter (= the npfkct planner)
+# and a change measured and not kept (run only when named in ROWS; results_table.py gives its
+# change against the kept row it modifies):
+#   visits       sibling with the most visited root sphere executed (instead of the highest Qhat)
 # With --generated the rows run on the 30 held-out generated scenes of scripts/bench_generated.sh
 # at its protocol (0.25 s of CPU per step, 5 trials, run name "generated"), with an oracle row, and
 # the table gives each row's share of the oracle's reward and its change against the row above,
 # paired over the scenes (results_table.py ablation).
 # Usage: scripts/bench_ablation.sh [--generated] [--run NAME] [--cpu-ms MS] [--trials N] [--commit]
-#        env: SCENES (paper scenes) or SEEDS (with --generated), ROWS (default: all, in order),
+#        env: SCENES (paper scenes) or SEEDS (with --generated), ROWS (default: the kept rows),
 #        BUILD_DIR
 set -euo pipefail
 NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 source "$NPFKCT_ROOT/scripts/deps.sh"
-ROW_NAMES="paper aimed candidates sibling visits w2-rule filter"
+ROW_NAMES="paper aimed candidates sibling w2-rule filter"
 if [ "${1:-}" = --generated ]; then
   shift
   npfkct_bench_args 250 5 22 --run generated "$@"

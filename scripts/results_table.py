@@ -185,14 +185,16 @@ def generated(root):
               f"{x['success']:.1f}% | {x['steps']:.1f} ± {x['steps_ci']:.1f} | {x['scenes']} |")
 
 
-ABLATION_ROWS = ["paper", "aimed", "candidates", "sibling", "visits", "w2-rule", "filter"]
+ABLATION_ROWS = ["paper", "aimed", "candidates", "sibling", "w2-rule", "filter"]
+# Changes measured and not kept: each row and the kept row it changes (scripts/bench_ablation.sh).
+REJECTED_ROWS = {"visits": "sibling"}
 
 
 def ablation(root):
     # Keyed (row, scene): the row is the record's folder.
     cells = load_cells(root, key=lambda path, r: (os.path.basename(os.path.dirname(path)),
                                                   r["scenario"]))
-    rows = order({row for row, _ in cells}, ["oracle"] + ABLATION_ROWS)
+    rows = order({row for row, _ in cells}, ["oracle"] + ABLATION_ROWS + list(REJECTED_ROWS))
     scenes = order({s for _, s in cells}, PAPER_SCENES)
     if "oracle" in rows:
         ablation_shares(cells, rows, scenes)
@@ -228,25 +230,36 @@ def ablation_shares(cells, rows, scenes):
     print(f"{len(scenes)} scenes; budgets and trials (cpu_ms, trials): {sorted(budget)}. Change: "
           f"per scene the row's share minus the share of the row above, mean ± 95% t interval "
           f"over the scenes.\n")
-    print("| Row | Planner and options | Share of the oracle's reward | Change | Success | Steps "
-          "| Scenes |")
-    print("|---|---|---|---|---|---|---|")
-    previous = None
-    for row in rows:
-        if row == "oracle":
-            continue
+    header = ("| Row | Planner and options | Share of the oracle's reward | Change | Success | "
+              "Steps | Scenes |\n|---|---|---|---|---|---|---|")
+
+    def print_row(row, base, label):
         x = summary[row]
         change = "–"
-        if previous is not None:
-            a, b = summary[previous]["shares"], x["shares"]
+        if base is not None:
+            a, b = summary[base]["shares"], x["shares"]
             diffs = [b[s] - a[s] for s in scenes if s in a and s in b]
             m, ci = mean_ci(diffs)
             if diffs:
                 change = f"{100 * m:+.1f} ± {100 * ci:.1f}"
-        print(f"| {row} | {row_planner(cells, row)} | {100 * x['share']:.1f}% ± "
+        print(f"| {label} | {row_planner(cells, row)} | {100 * x['share']:.1f}% ± "
               f"{100 * x['share_ci']:.1f} | {change} | {x['success']:.1f}% | "
               f"{x['steps']:.1f} ± {x['steps_ci']:.1f} | {x['scenes']} |")
+
+    print(header)
+    previous = None
+    for row in rows:
+        if row == "oracle" or row in REJECTED_ROWS:
+            continue
+        print_row(row, previous, row)
         previous = row
+    rejected = [row for row in rows if row in REJECTED_ROWS]
+    if rejected:
+        print("\nTried and not kept (change: against the kept row it modifies):\n")
+        print(header)
+        for row in rejected:
+            base = REJECTED_ROWS[row] if REJECTED_ROWS[row] in summary else None
+            print_row(row, base, f"{row} (against {REJECTED_ROWS[row]})")
 
 
 def compare(a_root, b_root):

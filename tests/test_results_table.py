@@ -59,3 +59,24 @@ def test_ablation_with_an_oracle_gives_shares_and_paired_changes(tmp_path):
     assert rows["aimed"][1].startswith("70.0% ± ")
     assert rows["aimed"][2] == "+20.0 ± 127.1"
     assert rows["aimed"][3] == "100.0%"
+
+
+def test_a_rejected_ablation_row_is_compared_with_the_row_it_modifies(tmp_path):
+    root = str(tmp_path)
+    # Kept rows paper (0.5, 0.5), aimed (0.6, 0.8), sibling (0.9, 0.9); "visits" changes sibling
+    # and scores (0.8, 0.7): its change is against sibling (-0.1, -0.2 -> -15 points), not
+    # against the row printed above it, and it is left out of the kept chain.
+    for row, (a, b) in {"oracle": (100.0, 200.0), "paper": (50.0, 100.0),
+                        "aimed": (60.0, 160.0), "sibling": (90.0, 180.0),
+                        "visits": (80.0, 140.0)}.items():
+        write_cell(root, row, "a", a)
+        write_cell(root, row, "b", b)
+    out = subprocess.run([sys.executable, os.path.join(SCRIPTS, "results_table.py"), "ablation",
+                          root], check=True, capture_output=True, text=True).stdout
+    kept = out.split("Tried and not kept")[0]
+    rows = {line.split("|")[1].strip(): [c.strip() for c in line.split("|")[2:-1]]
+            for line in out.splitlines() if line.startswith("| ") and "---" not in line}
+    assert "visits" not in kept
+    assert rows["sibling"][2].startswith("+20.0 ± ")  # against aimed: +0.3, +0.1
+    assert rows["visits (against sibling)"][1].startswith("75.0% ± ")
+    assert rows["visits (against sibling)"][2].startswith("-15.0 ± ")
