@@ -1,6 +1,7 @@
 #include "npfkct/filter/filter.h"
 
 #include <gtest/gtest.h>
+#include <xmmintrin.h>
 
 #include <cmath>
 #include <filesystem>
@@ -383,8 +384,13 @@ TEST(FilterTest, NetSamReturnsBetterCandidatesThanUniform) {
               static_cast<float>(TargetScore(model, s, candidate, context.configs[i], placements)));
   }
   const ScoredConfigs proposals = ScoreConfigs(model, s, placements, probe, 500, rng);
+  // The network runs with denormals flushed; the caller's floating-point mode is restored after.
+  const unsigned mode = _mm_getcsr();
   const Prediction p =
       (*filter)->Predict(scene, context.queries, context.scores, proposals.queries);
+  EXPECT_EQ(_mm_getcsr(), mode);
+  volatile double tiny = 1e-310;  // a denormal double: the planner's arithmetic keeps it
+  EXPECT_GT(tiny * 1.0, 0.0);
   std::vector<int> order(500);
   std::iota(order.begin(), order.end(), 0);
   std::sort(order.begin(), order.end(), [&](int a, int b) { return p.mu[a] > p.mu[b]; });
