@@ -31,12 +31,11 @@ namespace {
 
 using object_search::kMoveKind;
 
-// Inference runs on the calling thread: one libtorch intra-op thread, one OpenBLAS thread.
 // Flushes denormal floats to zero on this thread while the network runs, and restores the
 // thread's floating-point mode after: trained weights and activations near zero become
-// denormals, which SSE/AVX kernels process many times slower (the same 1,000 candidates took
-// twice the time with one trained model as with another). The planner's own arithmetic around
-// the call keeps the caller's mode.
+// denormals, which the BLAS kernels process many times slower (on a machine whose OpenBLAS falls
+// back to its generic kernel, 1,000 candidates took 30 ms without this and 4 ms with it). The
+// planner's own arithmetic around the call keeps the caller's mode.
 class FlushDenormals {
  public:
   FlushDenormals() : saved_(_mm_getcsr()) { _mm_setcsr(saved_ | kFlushToZero | kDenormalsAreZero); }
@@ -50,6 +49,7 @@ class FlushDenormals {
   unsigned saved_;
 };
 
+// Inference runs on the calling thread: one libtorch intra-op thread, one OpenBLAS thread.
 void SingleThreaded() {
   static std::once_flag once;
   std::call_once(once, [] { SetComputeThreads(1); });
