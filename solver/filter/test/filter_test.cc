@@ -410,6 +410,22 @@ TEST(FilterTest, NetSamReturnsBetterCandidatesThanUniform) {
   EXPECT_FALSE(MakeNetSam(*filter, model, bad).ok());
 }
 
+TEST(TrainTest, ScheduleOptionsNameTheBadField) {
+  // The learning-rate schedule npfkct-train sets with --lr-decay, --lr-decay-every, --patience.
+  EXPECT_TRUE(TrainOptions().Validate().ok());
+  TrainOptions o;
+  o.lr_decay = 0.0;
+  EXPECT_NE(o.Validate().message().find("lr_decay"), std::string::npos);
+  o.lr_decay = 1.5;
+  EXPECT_NE(o.Validate().message().find("lr_decay"), std::string::npos);
+  o = TrainOptions();
+  o.lr_decay_every = 0;
+  EXPECT_NE(o.Validate().message().find("lr_decay_every"), std::string::npos);
+  o = TrainOptions();
+  o.patience = 0;
+  EXPECT_NE(o.Validate().message().find("patience"), std::string::npos);
+}
+
 TEST(TrainTest, TrainsSavesTheBestEpochAndReloads) {
   auto train = GenerateDataset(SmallGeneration(24, 21));
   auto val = GenerateDataset(SmallGeneration(8, 22));
