@@ -52,13 +52,25 @@ def test_the_console_shows_a_live_episode():
     stop, errors = threading.Event(), []
     player = threading.Thread(target=play, args=(client, session.id, robot, 30, stop, errors))
     try:
-        # The page first asks for the key; the robot starts once the browser is up.
+        # The page first asks for the key; the robot starts once the page has opened the session
+        # (the check prints "watching"), so that the page sees the episode's steps arrive: a
+        # robot started with the browser finished Loose1 before a slow first Chromium start
+        # showed the page (it saw step 4 first and no later one).
         browser = subprocess.Popen(
             ["node", os.path.join(tool, "console_check.mjs"), server.url, KEY, SHOTS, "3"],
             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
             env={**os.environ, "CHROMIUM": chromium()})
+        watchdog = threading.Timer(180, browser.kill)
+        watchdog.start()
+        head = []
+        for line in browser.stdout:
+            head.append(line)
+            if line.strip() == "watching":
+                break
+        watchdog.cancel()
         player.start()
         out, err = browser.communicate(timeout=400)
+        out = "".join(head) + out
         assert browser.returncode == 0, err[-3000:]
         seen = json.loads(out.strip().splitlines()[-1])
     finally:

@@ -6,8 +6,9 @@
 // Checks what a person would: the page asks for the API key, lists the session, and for it shows
 // the belief map (heat map cells, the colour bar, every object of the belief labelled with its id,
 // the robot, the planned next view), the step table (one row per step, growing while the robot
-// plays), the search statistics and a best guess of where the target is. Prints one JSON line
-// with what it saw; exits non-zero on the first check that fails.
+// plays), the search statistics and a best guess of where the target is. Prints 'watching' once
+// the session is open (the robot starts then), and last one JSON line with what it saw; exits
+// non-zero on the first check that fails.
 import {chromium} from 'playwright-core';
 
 const [url, apiKey, shots, minStepsArg] = process.argv.slice(2);
@@ -62,6 +63,8 @@ try {
   const sessionId = await item.getAttribute('data-id');
   check(sessionId && sessionId.length > 8, 'the session list shows the session id');
   await item.click();
+  // The test starts the robot on this line, so that the page sees the episode from its start.
+  console.log('watching');
 
   // The step table grows while the robot plays: wait for a first step, then for later ones.
   await page.waitForFunction(() => Number(document.body.dataset.step || 0) >= 1, null,
