@@ -15,6 +15,8 @@
 # and a change measured and not kept (run only when named in ROWS; results_table.py gives its
 # change against the kept row it modifies):
 #   visits       sibling with the most visited root sphere executed (instead of the highest Qhat)
+#   lcb          filter with the root sphere of the highest lower confidence bound executed,
+#                Qhat - 1 standard error of its returns (final_choice=2 final_lcb=1)
 # With --generated the rows run on the 30 held-out generated scenes of scripts/bench_generated.sh
 # at its protocol (0.25 s of CPU per step, 5 trials, run name "generated"), with an oracle row, and
 # the table gives each row's share of the oracle's reward and its change against the row above,
@@ -58,6 +60,7 @@ row_args() {
     visits) opts="proposals.aimed=1 sample_candidates=1 final_choice=1 normalization=2 w2=0.5" ;;
     w2-rule) opts="" ;;
     filter) opts="" planner=npfkct ;;
+    lcb) opts="final_choice=2 final_lcb=1" planner=npfkct ;;
     oracle) opts="" planner=oracle ;;
     *) echo "bench_ablation.sh: unknown row $1" >&2; exit 2 ;;
   esac

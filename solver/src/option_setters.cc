@@ -143,6 +143,7 @@ const std::map<std::string, Setter<KctOptions>, std::less<>>& KctTable() {
         {"d_lim", Real(&KctOptions::d_lim)},
         {"w1_bar", Real(&KctOptions::w1_bar)},
         {"w2_bar", Real(&KctOptions::w2_bar)},
+        {"final_lcb", Real(&KctOptions::final_lcb)},
         {"num_candidates", Int(&KctOptions::num_candidates)},
         {"max_initial_clusters", Int(&KctOptions::max_initial_clusters)},
         {"max_feasibility_tries", Int(&KctOptions::max_feasibility_tries)},
@@ -162,13 +163,16 @@ const std::map<std::string, Setter<KctOptions>, std::less<>>& KctTable() {
          }},
         {"final_choice",
          [](KctOptions* o, double v) {
-           if (v != 0.0 && v != 1.0) {
-             return InvalidArgumentError("0 (highest value) or 1 (most visited)");
+           if (v != 0.0 && v != 1.0 && v != 2.0) {
+             return InvalidArgumentError(
+                 "0 (highest value), 1 (most visited) or 2 (lower confidence bound)");
            }
-           o->final_choice = v == 0.0 ? KctOptions::FinalChoice::kMaxValue
-                                      : KctOptions::FinalChoice::kMostVisited;
+           o->final_choice = v == 0.0   ? KctOptions::FinalChoice::kMaxValue
+                             : v == 1.0 ? KctOptions::FinalChoice::kMostVisited
+                                        : KctOptions::FinalChoice::kLowerBound;
            return OkStatus();
          }},
+
         {"normalization",
          [](KctOptions* o, double v) {
            if (v != 0.0 && v != 1.0 && v != 2.0) {

@@ -43,6 +43,9 @@ TEST(KctOptionsTest, ValidateNamesTheOption) {
   o = {};
   o.value_scale = 0.0;
   EXPECT_NE(o.Validate().message().find("value_scale"), std::string::npos);
+  o = {};
+  o.final_lcb = -1.0;
+  EXPECT_NE(o.Validate().message().find("final_lcb"), std::string::npos);
 }
 
 TEST(KctTest, FLimClampsToTheRefinementRate) {
@@ -86,6 +89,32 @@ TEST(KctTest, BellmanBackupAlsoFindsThePeak) {
   ASSERT_EQ(d.action.kind, 0);
   EXPECT_LT((d.action.x - model.Peak(0)).norm(), 0.15);
   EXPECT_TRUE(planner.CheckInvariants().ok());
+}
+
+TEST(KctTest, LowerBoundFinalChoiceWeighsTheSpreadOfTheReturns) {
+  // A probe at the likelier peak earns about 0.9 in expectation but 0 or 1 by the hidden state;
+  // stopping earns 0.2 every time. The lower bound with one standard error still probes the peak;
+  // with a hundred it prefers the sure 0.2, which the highest Qhat never does.
+  PeakSearch model;
+  auto run = [&](KctOptions::FinalChoice choice, double lcb) {
+    Rng rng(4);
+    KctOptions o = PeakOptions();
+    o.final_choice = choice;
+    o.final_lcb = lcb;
+    KCenterTree<PeakSearch> planner(model, o);
+    planner.Reset(rng);
+    auto d = planner.Plan(Budget::Simulations(2000), rng);
+    EXPECT_TRUE(d.status.ok()) << d.status.ToString();
+    EXPECT_TRUE(planner.CheckInvariants().ok());
+    return d;
+  };
+  auto max_value = run(KctOptions::FinalChoice::kMaxValue, 1.0);
+  auto one = run(KctOptions::FinalChoice::kLowerBound, 1.0);
+  auto hundred = run(KctOptions::FinalChoice::kLowerBound, 100.0);
+  ASSERT_EQ(max_value.action.kind, 0);
+  ASSERT_EQ(one.action.kind, 0);
+  EXPECT_LT((one.action.x - model.Peak(0)).norm(), 0.15);
+  EXPECT_EQ(hundred.action.kind, 1);
 }
 
 TEST(KctTest, ExecutedActionsPassTheReasonabilityCheck) {

@@ -14,11 +14,16 @@ TEST(OptionSettersTest, SetsNestedAndBareKeys) {
   ASSERT_TRUE(SetOption(&o, "num_particles", 300).ok());  // bare leaf of search.num_particles
   ASSERT_TRUE(SetOptionFromString(&o, "observations.enabled=false").ok());
   ASSERT_TRUE(SetOptionFromString(&o, "backup=1").ok());
+  ASSERT_TRUE(SetOptionFromString(&o, "final_choice=2").ok());
+  ASSERT_TRUE(SetOptionFromString(&o, "final_lcb=1.5").ok());
+  EXPECT_FALSE(SetOptionFromString(&o, "final_choice=3").ok());
   EXPECT_EQ(o.k, 4);
   EXPECT_EQ(o.search.max_depth, 12);
   EXPECT_EQ(o.search.num_particles, 300);
   EXPECT_FALSE(o.observations.enabled);
   EXPECT_EQ(o.backup, KctOptions::Backup::kBellman);
+  EXPECT_EQ(o.final_choice, KctOptions::FinalChoice::kLowerBound);
+  EXPECT_EQ(o.final_lcb, 1.5);
 }
 
 TEST(OptionSettersTest, RejectsUnknownKeysAndBadValues) {

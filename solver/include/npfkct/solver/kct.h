@@ -88,8 +88,11 @@ struct KctOptions {
   enum class FinalChoice {
     kMaxValue,     ///< The highest Qhat among visited spheres (paper, algorithm 1 line 12).
     kMostVisited,  ///< The most visited sphere (robust to spheres visited a handful of times).
+    kLowerBound,   ///< The highest Qhat - final_lcb * sd / sqrt(N) (sd of the sphere's returns).
   };
   FinalChoice final_choice = FinalChoice::kMaxValue;
+  /// Standard errors subtracted from Qhat by the kLowerBound final choice.
+  double final_lcb = 1.0;
   /// How the executed action is drawn from the chosen root sphere.
   enum class FinalAction {
     kUniformInSphere,  ///< Uniform in the sphere, rejecting infeasible points (paper).
@@ -132,6 +135,9 @@ struct KctOptions {
     if (!(d_lim > 0.0) || !std::isfinite(d_lim)) return InvalidArgumentError("d_lim must be > 0");
     if (!(w2_bar >= 0.0 && w2_bar < w1_bar && w1_bar <= 1.0)) {
       return InvalidArgumentError("w1_bar and w2_bar must satisfy 0 <= w2_bar < w1_bar <= 1");
+    }
+    if (!(final_lcb >= 0.0 && final_lcb <= 100.0)) {
+      return InvalidArgumentError("final_lcb must be in [0, 100]");
     }
     if (num_candidates < 1 || num_candidates > 100000) {
       return InvalidArgumentError("num_candidates must be in [1, 100000]");
@@ -931,6 +937,17 @@ class KCenterTree {
     struct Group {
       int64_t n = 0;
       double q_sum = 0.0;
+      double r_sum = 0.0;   // sum of the recorded returns
+      double r_sq = 0.0;    // sum of their squares
+      int64_t records = 0;  // returns recorded
+    };
+    const auto final_choice = options_.final_choice;
+    // Qhat less final_lcb standard errors of the recorded returns (no spread known: Qhat).
+    const auto lower_bound = [this](double q, int64_t records, double r_sum, double r_sq) {
+      if (records < 2) return q;
+      const double m = r_sum / static_cast<double>(records);
+      const double var = std::max(0.0, (r_sq - m * r_sum) / static_cast<double>(records - 1));
+      return q - options_.final_lcb * std::sqrt(var / static_cast<double>(records));
     };
     std::map<int64_t, Group> groups;
     for (int t = 0; t < static_cast<int>(workers_.size()); ++t) {
@@ -942,17 +959,25 @@ class KCenterTree {
         Group& g = groups[an.data.origin];
         g.n += an.n;
         g.q_sum += an.q * static_cast<double>(an.n);
+        for (double r : an.data.returns) {
+          g.r_sum += r;
+          g.r_sq += r * r;
+        }
+        g.records += static_cast<int64_t>(an.data.returns.size());
       }
     }
     if (groups.empty()) return false;
-    const bool by_visits = options_.final_choice == KctOptions::FinalChoice::kMostVisited;
     int64_t best_origin = groups.begin()->first;
     double best_key = -std::numeric_limits<double>::infinity();
     int64_t best_n = -1;
     for (const auto& [origin, g] : groups) {
       if (g.n == 0) continue;
       const double q = g.q_sum / static_cast<double>(g.n);
-      const double key = by_visits ? static_cast<double>(g.n) : q;
+      const double key = final_choice == KctOptions::FinalChoice::kMostVisited
+                             ? static_cast<double>(g.n)
+                         : final_choice == KctOptions::FinalChoice::kLowerBound
+                             ? lower_bound(q, g.records, g.r_sum, g.r_sq)
+                             : q;
       if (key > best_key || (key == best_key && g.n > best_n)) {
         best_key = key;
         best_n = g.n;
@@ -969,11 +994,21 @@ class KCenterTree {
       for (int ai : w.tree.obs[w.tree.root].actions) {
         const auto& an = w.tree.act[ai];
         if (an.data.origin != best_origin || excluded.count({t, ai})) continue;
-        const bool better = by_visits ? (an.n > most || (an.n == most && an.q > most_q))
-                                      : (an.n > 0 && (an.q > most_q || *entry < 0));
+        double key = an.q;
+        if (final_choice == KctOptions::FinalChoice::kLowerBound) {
+          double r_sum = 0.0, r_sq = 0.0;
+          for (double r : an.data.returns) {
+            r_sum += r;
+            r_sq += r * r;
+          }
+          key = lower_bound(an.q, static_cast<int64_t>(an.data.returns.size()), r_sum, r_sq);
+        }
+        const bool better = final_choice == KctOptions::FinalChoice::kMostVisited
+                                ? (an.n > most || (an.n == most && an.q > most_q))
+                                : (an.n > 0 && (key > most_q || *entry < 0));
         if (*entry < 0 || better) {
           most = an.n;
-          most_q = an.q;
+          most_q = final_choice == KctOptions::FinalChoice::kMostVisited ? an.q : key;
           *worker = t;
           *entry = ai;
         }
