@@ -13,6 +13,9 @@
                                    and the mean reward over the scenes; with an oracle row (the
                                    generated scenes) each row's share of the oracle's reward and
                                    its change against the row above, paired over the scenes.
+  results_table.py sensitivity DIR The sensitivity of the defaults (scripts/bench_sensitivity.sh):
+                                   per row of DIR/ROW/SEED.jsonl its share of the oracle's reward
+                                   and its change against the row "defaults", paired over scenes.
   results_table.py compare A B     Whether two runs of the same cells agree: each mean inside the
                                    other run's 95% interval.
   results_table.py flat FILE       A table from one file of JSON lines (rows planners, columns
@@ -221,6 +224,26 @@ def row_planner(cells, row):
     return f"`{first['planner']}{' ' + opts if opts else ''}`"
 
 
+SHARE_HEADER = ("| Row | Planner and options | Share of the oracle's reward | Change | Success | "
+                "Steps | Scenes |\n|---|---|---|---|---|---|---|")
+
+
+def print_share_row(cells, summary, scenes, row, base, label):
+    """One row of a table over many scenes: its mean share of the oracle's reward and its change
+    against the row `base` as a paired difference over the scenes both rows have."""
+    x = summary[row]
+    change = "–"
+    if base is not None:
+        a, b = summary[base]["shares"], x["shares"]
+        diffs = [b[s] - a[s] for s in scenes if s in a and s in b]
+        m, ci = mean_ci(diffs)
+        if diffs:
+            change = f"{100 * m:+.1f} ± {100 * ci:.1f}"
+    print(f"| {label} | {row_planner(cells, row)} | {100 * x['share']:.1f}% ± "
+          f"{100 * x['share_ci']:.1f} | {change} | {x['success']:.1f}% | "
+          f"{x['steps']:.1f} ± {x['steps_ci']:.1f} | {x['scenes']} |")
+
+
 def ablation_shares(cells, rows, scenes):
     """The ablation over many scenes (with an oracle row): each row's mean share of the oracle's
     reward, and the change against the row above as a paired difference over the scenes both
@@ -230,36 +253,40 @@ def ablation_shares(cells, rows, scenes):
     print(f"{len(scenes)} scenes; budgets and trials (cpu_ms, trials): {sorted(budget)}. Change: "
           f"per scene the row's share minus the share of the row above, mean ± 95% t interval "
           f"over the scenes.\n")
-    header = ("| Row | Planner and options | Share of the oracle's reward | Change | Success | "
-              "Steps | Scenes |\n|---|---|---|---|---|---|---|")
-
-    def print_row(row, base, label):
-        x = summary[row]
-        change = "–"
-        if base is not None:
-            a, b = summary[base]["shares"], x["shares"]
-            diffs = [b[s] - a[s] for s in scenes if s in a and s in b]
-            m, ci = mean_ci(diffs)
-            if diffs:
-                change = f"{100 * m:+.1f} ± {100 * ci:.1f}"
-        print(f"| {label} | {row_planner(cells, row)} | {100 * x['share']:.1f}% ± "
-              f"{100 * x['share_ci']:.1f} | {change} | {x['success']:.1f}% | "
-              f"{x['steps']:.1f} ± {x['steps_ci']:.1f} | {x['scenes']} |")
-
-    print(header)
+    print(SHARE_HEADER)
     previous = None
     for row in rows:
         if row == "oracle" or row in REJECTED_ROWS:
             continue
-        print_row(row, previous, row)
+        print_share_row(cells, summary, scenes, row, previous, row)
         previous = row
     rejected = [row for row in rows if row in REJECTED_ROWS]
     if rejected:
         print("\nTried and not kept (change: against the kept row it modifies):\n")
-        print(header)
+        print(SHARE_HEADER)
         for row in rejected:
             base = REJECTED_ROWS[row] if REJECTED_ROWS[row] in summary else None
-            print_row(row, base, f"{row} (against {REJECTED_ROWS[row]})")
+            label = f"{row} (against {REJECTED_ROWS[row]})"
+            print_share_row(cells, summary, scenes, row, base, label)
+
+
+def sensitivity(root):
+    """The sensitivity of the defaults (scripts/bench_sensitivity.sh): rows from DIR/ROW/SEED.jsonl,
+    each row's share of the oracle's reward and its change against the row "defaults"."""
+    cells = load_cells(root, key=lambda path, r: (os.path.basename(os.path.dirname(path)),
+                                                  r["scenario"]))
+    rows = order({row for row, _ in cells}, ["oracle", "defaults"])
+    scenes = sorted({s for _, s in cells})
+    summary = oracle_summary(cells, rows, scenes)
+    budget = {(r["cpu_ms"], r["trials"]) for r in cells.values()}
+    print(f"{len(scenes)} tuning scenes; budgets and trials (cpu_ms, trials): {sorted(budget)}. "
+          f"Change: per scene the row's share minus the share of the defaults, mean ± 95% t "
+          f"interval over the scenes.\n")
+    print(SHARE_HEADER)
+    base = "defaults" if "defaults" in summary else None
+    for row in rows:
+        if row != "oracle":
+            print_share_row(cells, summary, scenes, row, None if row == base else base, row)
 
 
 def compare(a_root, b_root):
@@ -304,8 +331,8 @@ def flat(path):
 
 
 def main():
-    if len(sys.argv) < 3 or sys.argv[1] not in ("table1", "generated", "ablation", "compare",
-                                                 "flat"):
+    if len(sys.argv) < 3 or sys.argv[1] not in ("table1", "generated", "ablation", "sensitivity",
+                                                 "compare", "flat"):
         print(__doc__)
         sys.exit(2)
     if sys.argv[1] == "table1":
@@ -314,6 +341,8 @@ def main():
         generated(sys.argv[2])
     elif sys.argv[1] == "ablation":
         ablation(sys.argv[2])
+    elif sys.argv[1] == "sensitivity":
+        sensitivity(sys.argv[2])
     elif sys.argv[1] == "compare":
         compare(sys.argv[2], sys.argv[3])
     else:

@@ -80,3 +80,22 @@ def test_a_rejected_ablation_row_is_compared_with_the_row_it_modifies(tmp_path):
     assert rows["sibling"][2].startswith("+20.0 ± ")  # against aimed: +0.3, +0.1
     assert rows["visits (against sibling)"][1].startswith("75.0% ± ")
     assert rows["visits (against sibling)"][2].startswith("-15.0 ± ")
+
+
+def test_sensitivity_compares_every_row_with_the_defaults(tmp_path):
+    root = str(tmp_path)
+    # Defaults (0.5, 0.5); "w1=1" (0.6, 0.8) and "k=4" (0.4, 0.3), each against the defaults, not
+    # against the row printed above it: +20 and -15 points.
+    for row, (a, b) in {"oracle": (100.0, 200.0), "defaults": (50.0, 100.0),
+                        "w1=1": (60.0, 160.0), "k=4": (40.0, 60.0)}.items():
+        write_cell(root, row, "a", a)
+        write_cell(root, row, "b", b)
+    out = subprocess.run([sys.executable, os.path.join(SCRIPTS, "results_table.py"),
+                          "sensitivity", root], check=True, capture_output=True, text=True).stdout
+    rows = {line.split("|")[1].strip(): [c.strip() for c in line.split("|")[2:-1]]
+            for line in out.splitlines() if line.startswith("| ") and "---" not in line}
+    assert "oracle" not in rows
+    assert rows["defaults"][1] == "50.0% ± 0.0"
+    assert rows["defaults"][2] == "–"
+    assert rows["w1=1"][2].startswith("+20.0 ± ")
+    assert rows["k=4"][2].startswith("-15.0 ± ")

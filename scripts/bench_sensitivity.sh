@@ -1,0 +1,39 @@
+#!/usr/bin/env bash
+# Sensitivity of NPF-kCT's defaults: npfkct with its defaults and with one option changed per row,
+# on 20 tuning scenes that no figure of record uses: npfkct-scenegen seeds 910001-910020 (the filter
+# trains on 30001-830000 and validates on 20001-22000; the held-out benchmark uses 900001-900030),
+# at the generated scenes' protocol (0.25 s of the planning thread's CPU time per step, 5 trials,
+# success within 50 steps), with an oracle row for the shares. The table gives each row's share of
+# the oracle's reward and its change against the defaults, paired over the scenes (mean ± 95% t
+# interval over the scenes).
+# Resumable: one file per row and scene, bench/results/sensitivity/RUN/ROW/SEED.jsonl; finished
+# cells are skipped; --commit commits each. About 1 CPU-hour with the default rows.
+# Usage: scripts/bench_sensitivity.sh [--run NAME] [--cpu-ms MS] [--trials N] [--commit]
+#        env: SEEDS (default: 910001 ... 910020), ROWS (default: oracle, defaults and the options
+#        below; a row is "defaults", "oracle" or one npfkct option key=value), BUILD_DIR
+set -euo pipefail
+NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+source "$NPFKCT_ROOT/scripts/deps.sh"
+npfkct_bench_args 250 5 14 "$@"
+npfkct_prepare npfkct-bench npfkct-scenegen
+SEEDS="${SEEDS:-$(seq 910001 910020)}"
+ROWS="${ROWS:-oracle defaults w1=1 w1=2 k=4 c_r=0.1 num_candidates=512}"
+OUT="$NPFKCT_ROOT/bench/results/sensitivity/$RUN"
+SCENES="$BUILD_DIR/tuning-scenes"
+mkdir -p "$SCENES"
+for seed in $SEEDS; do
+  "$BUILD_DIR/scenarios/npfkct-scenegen" --seed "$seed" >"$SCENES/gen-$seed.json"
+done
+for row in $ROWS; do
+  case "$row" in
+    oracle) ARGS=(--planner oracle) ;;
+    defaults) ARGS=(--planner npfkct) ;;
+    *=*) ARGS=(--planner npfkct --opt "$row") ;;
+    *) echo "bench_sensitivity.sh: a row is defaults, oracle or key=value, not $row" >&2; exit 2 ;;
+  esac
+  for seed in $SEEDS; do
+    npfkct_bench_cell "$OUT/$row/$seed.jsonl" "$TRIALS" --scenario "$SCENES/gen-$seed.json" \
+      "${ARGS[@]}" --trials "$TRIALS" --cpu-ms "$CPU_MS" --threads "$(nproc)" --seed 1
+  done
+done
+python3 "$NPFKCT_ROOT/scripts/results_table.py" sensitivity "$OUT" | tee "$OUT/sensitivity.md"
