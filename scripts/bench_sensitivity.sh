@@ -7,7 +7,7 @@
 # the oracle's reward and its change against the defaults, paired over the scenes (mean ± 95% t
 # interval over the scenes).
 # Resumable: one file per row and scene, bench/results/sensitivity/RUN/ROW/SEED.jsonl; finished
-# cells are skipped; --commit commits each. About 1 CPU-hour with the default rows.
+# cells are skipped; --commit commits each. About 1.5 CPU-hours with the default rows.
 # Usage: scripts/bench_sensitivity.sh [--run NAME] [--cpu-ms MS] [--trials N] [--commit]
 #        env: SEEDS (default: 910001 ... 910020), ROWS (default: oracle, defaults and the options
 #        below; a row is "defaults", "oracle" or one npfkct option key=value), BUILD_DIR
@@ -17,7 +17,9 @@ source "$NPFKCT_ROOT/scripts/deps.sh"
 npfkct_bench_args 250 5 14 "$@"
 npfkct_prepare npfkct-bench npfkct-scenegen
 SEEDS="${SEEDS:-$(seq 910001 910020)}"
-ROWS="${ROWS:-oracle defaults w1=1 w1=2 k=4 c_r=0.1 num_candidates=512}"
+DEFAULT_ROWS="oracle defaults w1=1 w1=2 k=2 k=4 c_r=0.02 c_r=0.1 num_candidates=128"
+DEFAULT_ROWS="$DEFAULT_ROWS num_candidates=512 w2_ratio=1 max_initial_clusters=16"
+ROWS="${ROWS:-$DEFAULT_ROWS}"
 OUT="$NPFKCT_ROOT/bench/results/sensitivity/$RUN"
 SCENES="$BUILD_DIR/tuning-scenes"
 mkdir -p "$SCENES"
