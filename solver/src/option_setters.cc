@@ -172,7 +172,6 @@ const std::map<std::string, Setter<KctOptions>, std::less<>>& KctTable() {
                                         : KctOptions::FinalChoice::kLowerBound;
            return OkStatus();
          }},
-
         {"normalization",
          [](KctOptions* o, double v) {
            if (v != 0.0 && v != 1.0 && v != 2.0) {
