@@ -934,20 +934,32 @@ class KCenterTree {
   // chosen by the final-choice rule, then its most visited entry.
   bool ChooseRootEntry(const std::set<std::pair<int, int>>& excluded, int* worker,
                        int* entry) const {
+    // Sum and sum of squares of recorded returns, for the lower bound's standard error.
+    struct Moments {
+      int64_t n = 0;
+      double sum = 0.0;
+      double sq = 0.0;
+      void Add(const std::vector<double>& returns) {
+        for (double r : returns) {
+          sum += r;
+          sq += r * r;
+        }
+        n += static_cast<int64_t>(returns.size());
+      }
+    };
     struct Group {
       int64_t n = 0;
       double q_sum = 0.0;
-      double r_sum = 0.0;   // sum of the recorded returns
-      double r_sq = 0.0;    // sum of their squares
-      int64_t records = 0;  // returns recorded
+      Moments returns;  // filled for kLowerBound only
     };
     const auto final_choice = options_.final_choice;
+    const bool by_bound = final_choice == KctOptions::FinalChoice::kLowerBound;
     // Qhat less final_lcb standard errors of the recorded returns (no spread known: Qhat).
-    const auto lower_bound = [this](double q, int64_t records, double r_sum, double r_sq) {
-      if (records < 2) return q;
-      const double m = r_sum / static_cast<double>(records);
-      const double var = std::max(0.0, (r_sq - m * r_sum) / static_cast<double>(records - 1));
-      return q - options_.final_lcb * std::sqrt(var / static_cast<double>(records));
+    const auto lower_bound = [this](double q, const Moments& m) {
+      if (m.n < 2) return q;
+      const double mean = m.sum / static_cast<double>(m.n);
+      const double var = std::max(0.0, (m.sq - mean * m.sum) / static_cast<double>(m.n - 1));
+      return q - options_.final_lcb * std::sqrt(var / static_cast<double>(m.n));
     };
     std::map<int64_t, Group> groups;
     for (int t = 0; t < static_cast<int>(workers_.size()); ++t) {
@@ -959,11 +971,7 @@ class KCenterTree {
         Group& g = groups[an.data.origin];
         g.n += an.n;
         g.q_sum += an.q * static_cast<double>(an.n);
-        for (double r : an.data.returns) {
-          g.r_sum += r;
-          g.r_sq += r * r;
-        }
-        g.records += static_cast<int64_t>(an.data.returns.size());
+        if (by_bound) g.returns.Add(an.data.returns);
       }
     }
     if (groups.empty()) return false;
@@ -975,9 +983,8 @@ class KCenterTree {
       const double q = g.q_sum / static_cast<double>(g.n);
       const double key = final_choice == KctOptions::FinalChoice::kMostVisited
                              ? static_cast<double>(g.n)
-                         : final_choice == KctOptions::FinalChoice::kLowerBound
-                             ? lower_bound(q, g.records, g.r_sum, g.r_sq)
-                             : q;
+                         : by_bound ? lower_bound(q, g.returns)
+                                    : q;
       if (key > best_key || (key == best_key && g.n > best_n)) {
         best_key = key;
         best_n = g.n;
@@ -995,13 +1002,10 @@ class KCenterTree {
         const auto& an = w.tree.act[ai];
         if (an.data.origin != best_origin || excluded.count({t, ai})) continue;
         double key = an.q;
-        if (final_choice == KctOptions::FinalChoice::kLowerBound) {
-          double r_sum = 0.0, r_sq = 0.0;
-          for (double r : an.data.returns) {
-            r_sum += r;
-            r_sq += r * r;
-          }
-          key = lower_bound(an.q, static_cast<int64_t>(an.data.returns.size()), r_sum, r_sq);
+        if (by_bound) {
+          Moments m;
+          m.Add(an.data.returns);
+          key = lower_bound(an.q, m);
         }
         const bool better = final_choice == KctOptions::FinalChoice::kMostVisited
                                 ? (an.n > most || (an.n == most && an.q > most_q))
