@@ -32,13 +32,8 @@ if [ "${1:-}" = --generated ]; then
   shift
   npfkct_bench_args 250 5 22 --run generated "$@"
   npfkct_prepare npfkct-bench npfkct-scenegen
-  GENERATED_DIR="$BUILD_DIR/generated-scenes"
-  mkdir -p "$GENERATED_DIR"
-  SCENE_FILES=()
-  for seed in ${SEEDS:-$(seq 900001 900030)}; do
-    "$BUILD_DIR/scenarios/npfkct-scenegen" --seed "$seed" >"$GENERATED_DIR/gen-$seed.json"
-    SCENE_FILES+=("$GENERATED_DIR/gen-$seed.json")
-  done
+  # shellcheck disable=SC2086  # one seed per word
+  npfkct_generate_scenes "$BUILD_DIR/generated-scenes" ${SEEDS:-$(seq 900001 900030)}
   ROW_NAMES="oracle $ROW_NAMES"
 else
   npfkct_bench_args 1000 20 22 "$@"

@@ -18,11 +18,11 @@ npfkct_prepare npfkct-bench npfkct-scenegen
 SEEDS="${SEEDS:-$(seq 900001 900030)}"
 PLANNERS="${PLANNERS:-oracle npfkct kct pomcp-joint gpomcp vomcpow}"
 OUT="$NPFKCT_ROOT/bench/results/generated/$RUN"
-SCENES="$BUILD_DIR/generated-scenes"
-mkdir -p "$SCENES"
-for seed in $SEEDS; do
-  scene="$SCENES/gen-$seed.json"
-  "$BUILD_DIR/scenarios/npfkct-scenegen" --seed "$seed" >"$scene"
+# shellcheck disable=SC2086  # one seed per word
+npfkct_generate_scenes "$BUILD_DIR/generated-scenes" $SEEDS
+for scene in "${SCENE_FILES[@]}"; do
+  seed="$(basename "$scene" .json)"
+  seed="${seed#gen-}"
   for planner in $PLANNERS; do
     npfkct_bench_cell "$OUT/$seed/$planner.jsonl" "$TRIALS" --scenario "$scene" \
       --planner "$planner" --trials "$TRIALS" --cpu-ms "$CPU_MS" --threads "$(nproc)" --seed 1

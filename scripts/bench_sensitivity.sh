@@ -21,11 +21,8 @@ DEFAULT_ROWS="oracle defaults w1=1 w1=2 k=2 k=4 c_r=0.02 c_r=0.1 num_candidates=
 DEFAULT_ROWS="$DEFAULT_ROWS num_candidates=512 w2_ratio=1 max_initial_clusters=16"
 ROWS="${ROWS:-$DEFAULT_ROWS}"
 OUT="$NPFKCT_ROOT/bench/results/sensitivity/$RUN"
-SCENES="$BUILD_DIR/tuning-scenes"
-mkdir -p "$SCENES"
-for seed in $SEEDS; do
-  "$BUILD_DIR/scenarios/npfkct-scenegen" --seed "$seed" >"$SCENES/gen-$seed.json"
-done
+# shellcheck disable=SC2086  # one seed per word
+npfkct_generate_scenes "$BUILD_DIR/tuning-scenes" $SEEDS
 for row in $ROWS; do
   case "$row" in
     oracle) ARGS=(--planner oracle) ;;
@@ -33,9 +30,10 @@ for row in $ROWS; do
     *=*) ARGS=(--planner npfkct --opt "$row") ;;
     *) echo "bench_sensitivity.sh: a row is defaults, oracle or key=value, not $row" >&2; exit 2 ;;
   esac
-  for seed in $SEEDS; do
-    npfkct_bench_cell "$OUT/$row/$seed.jsonl" "$TRIALS" --scenario "$SCENES/gen-$seed.json" \
-      "${ARGS[@]}" --trials "$TRIALS" --cpu-ms "$CPU_MS" --threads "$(nproc)" --seed 1
+  for scene in "${SCENE_FILES[@]}"; do
+    seed="$(basename "$scene" .json)"
+    npfkct_bench_cell "$OUT/$row/${seed#gen-}.jsonl" "$TRIALS" --scenario "$scene" "${ARGS[@]}" \
+      --trials "$TRIALS" --cpu-ms "$CPU_MS" --threads "$(nproc)" --seed 1
   done
 done
 python3 "$NPFKCT_ROOT/scripts/results_table.py" sensitivity "$OUT" | tee "$OUT/sensitivity.md"

@@ -110,6 +110,20 @@ npfkct_prepare() {
   cmake --build "$BUILD_DIR" -j "$(nproc)" "${targets[@]}" >&2
 }
 
+# Writes the npfkct-scenegen scene of each seed to DIR/gen-SEED.json (DIR is created) and lists
+# the files in the array SCENE_FILES, in the seeds' order. Needs BUILD_DIR (npfkct_prepare).
+# Usage: npfkct_generate_scenes DIR SEED...
+npfkct_generate_scenes() {
+  local dir="$1"
+  shift
+  mkdir -p "$dir"
+  SCENE_FILES=()
+  for seed in "$@"; do
+    "$BUILD_DIR/scenarios/npfkct-scenegen" --seed "$seed" >"$dir/gen-$seed.json"
+    SCENE_FILES+=("$dir/gen-$seed.json")
+  done
+}
+
 # The arguments of the resumable benchmark scripts: [--run NAME] [--cpu-ms MS] [--trials N]
 # [--commit]. Sets RUN (default run1), CPU_MS, TRIALS and COMMIT (0; 1 with --commit, which
 # npfkct_bench_cell reads); --help prints lines 2 to HELP_END of the calling script.

@@ -107,6 +107,13 @@ def load_cells(root, key=lambda path, r: (r["scenario"], r["planner"])):
     return cells
 
 
+def load_row_cells(root):
+    """Cells of DIR/ROW/SCENE.jsonl (the ablation and the sensitivity), keyed (row, scenario): the
+    row is the record's folder."""
+    return load_cells(root, key=lambda path, r: (os.path.basename(os.path.dirname(path)),
+                                                 r["scenario"]))
+
+
 def order(names, preferred):
     return [n for n in preferred if n in names] + sorted(n for n in names if n not in preferred)
 
@@ -194,9 +201,7 @@ REJECTED_ROWS = {"visits": "sibling", "lcb": "filter"}
 
 
 def ablation(root):
-    # Keyed (row, scene): the row is the record's folder.
-    cells = load_cells(root, key=lambda path, r: (os.path.basename(os.path.dirname(path)),
-                                                  r["scenario"]))
+    cells = load_row_cells(root)
     rows = order({row for row, _ in cells}, ["oracle"] + ABLATION_ROWS + list(REJECTED_ROWS))
     scenes = order({s for _, s in cells}, PAPER_SCENES)
     if "oracle" in rows:
@@ -273,8 +278,7 @@ def ablation_shares(cells, rows, scenes):
 def sensitivity(root):
     """The sensitivity of the defaults (scripts/bench_sensitivity.sh): rows from DIR/ROW/SEED.jsonl,
     each row's share of the oracle's reward and its change against the row "defaults"."""
-    cells = load_cells(root, key=lambda path, r: (os.path.basename(os.path.dirname(path)),
-                                                  r["scenario"]))
+    cells = load_row_cells(root)
     rows = order({row for row, _ in cells}, ["oracle", "defaults"])
     scenes = sorted({s for _, s in cells})
     summary = oracle_summary(cells, rows, scenes)
