@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <limits>
 #include <thread>
 
 #include "npfkct/solver/models/vdp_tag.h"
@@ -45,6 +46,10 @@ TEST(KctOptionsTest, ValidateNamesTheOption) {
   EXPECT_NE(o.Validate().message().find("value_scale"), std::string::npos);
   o = {};
   o.final_lcb = -1.0;
+  EXPECT_NE(o.Validate().message().find("final_lcb"), std::string::npos);
+  o.final_lcb = 101.0;
+  EXPECT_NE(o.Validate().message().find("final_lcb"), std::string::npos);
+  o.final_lcb = std::numeric_limits<double>::quiet_NaN();
   EXPECT_NE(o.Validate().message().find("final_lcb"), std::string::npos);
 }
 
