@@ -16,6 +16,10 @@
   results_table.py sensitivity DIR The sensitivity of the defaults (scripts/bench_sensitivity.sh):
                                    per row of DIR/ROW/SEED.jsonl its share of the oracle's reward
                                    and its change against the row "defaults", paired over scenes.
+  results_table.py mirror DIR      Hidden1 and its mirror image (scripts/bench_mirror.sh): per
+                                   planner and scene the reward, steps and how many trials' first
+                                   view saw the target (DIR/SCENE/PLANNER.first-views, the step-1
+                                   lines of --trace).
   results_table.py compare A B     Whether two runs of the same cells agree: each mean inside the
                                    other run's 95% interval.
   results_table.py flat FILE       A table from one file of JSON lines (rows planners, columns
@@ -293,6 +297,39 @@ def sensitivity(root):
             print_share_row(cells, summary, scenes, row, None if row == base else base, row)
 
 
+def first_view_hits(path):
+    """(trials whose first view detected the target, trials) from a file of step-1 trace lines,
+    or None without the file. A trace line ends with the known objects after the step."""
+    if not os.path.exists(path):
+        return None
+    lines = [line for line in open(path, encoding="utf-8") if " step  1: " in line]
+    hits = sum(1 for line in lines if " target:" in line.rsplit("|", 1)[-1])
+    return hits, len(lines)
+
+
+def mirror(root):
+    cells = load_cells(root, key=lambda path, r: (os.path.basename(os.path.dirname(path)),
+                                                  r["planner"]))
+    scenes = sorted({s for s, _ in cells})
+    planners = order({p for _, p in cells}, PLANNER_ORDER)
+    print("Cells: discounted reward ± 95% t interval \\| steps ± 95% t interval \\| trials whose "
+          "first view saw the target.\n")
+    print("| Planner |" + "".join(f" {s} |" for s in scenes))
+    print("|---|" + "---|" * len(scenes))
+    for p in planners:
+        row = f"| {p} |"
+        for s in scenes:
+            r = cells.get((s, p))
+            if r is None:
+                row += " – |"
+                continue
+            hits = first_view_hits(os.path.join(root, s, p + ".first-views"))
+            seen = "–" if hits is None else f"{hits[0]}/{hits[1]}"
+            row += (f" {r['mean_discounted_reward']:.1f} ± {r['ci95']:.1f} \\| "
+                    f"{r['mean_steps']:.2f} ± {r['ci95_steps']:.2f} \\| {seen} |")
+        print(row)
+
+
 def compare(a_root, b_root):
     a, b = load_cells(a_root), load_cells(b_root)
     keys = [k for k in a if k in b]
@@ -336,7 +373,7 @@ def flat(path):
 
 def main():
     if len(sys.argv) < 3 or sys.argv[1] not in ("table1", "generated", "ablation", "sensitivity",
-                                                 "compare", "flat"):
+                                                 "mirror", "compare", "flat"):
         print(__doc__)
         sys.exit(2)
     if sys.argv[1] == "table1":
@@ -347,6 +384,8 @@ def main():
         ablation(sys.argv[2])
     elif sys.argv[1] == "sensitivity":
         sensitivity(sys.argv[2])
+    elif sys.argv[1] == "mirror":
+        mirror(sys.argv[2])
     elif sys.argv[1] == "compare":
         compare(sys.argv[2], sys.argv[3])
     else:

@@ -99,3 +99,23 @@ def test_sensitivity_compares_every_row_with_the_defaults(tmp_path):
     assert rows["defaults"][2] == "–"
     assert rows["w1=1"][2].startswith("+20.0 ± ")
     assert rows["k=4"][2].startswith("-15.0 ± ")
+
+
+def test_mirror_counts_the_first_views_that_saw_the_target(tmp_path):
+    root = str(tmp_path)
+    os.makedirs(os.path.join(root, "hidden1"))
+    with open(os.path.join(root, "hidden1", "npfkct.jsonl"), "w", encoding="utf-8") as f:
+        f.write(json.dumps({"scenario": "Hidden1", "planner": "npfkct", "trials": 2,
+                            "mean_discounted_reward": 100.0, "ci95": 0.0, "mean_steps": 5.0,
+                            "ci95_steps": 0.0}) + "\n")
+    # Two trials: the first view of trial 0 detected the target, that of trial 1 did not (the
+    # word "target" in the action part of the line does not count).
+    with open(os.path.join(root, "hidden1", "npfkct.first-views"), "w", encoding="utf-8") as f:
+        f.write("Hidden1 npfkct trial 0 step  1: move x=2.69 moved sims 1 value 2.0 |"
+                " target:3/1 wall-left:0/2\n")
+        f.write("Hidden1 npfkct trial 1 step  1: declare target target sims 1 value 2.0 |"
+                " wall-left:0/4\n")
+    out = subprocess.run([sys.executable, os.path.join(SCRIPTS, "results_table.py"), "mirror",
+                          root], check=True, capture_output=True, text=True).stdout
+    row = [line for line in out.splitlines() if line.startswith("| npfkct")]
+    assert row == ["| npfkct | 100.0 ± 0.0 \\| 5.00 ± 0.00 \\| 1/2 |"]

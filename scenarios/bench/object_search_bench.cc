@@ -394,7 +394,7 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
                          max_steps,
                          config.seed * 1000003ULL + static_cast<uint64_t>(trial),
                          render_prefix,
-                         config.trace && trial == 0,
+                         config.trace,
                          mode == "perception",
                          net};
         return RunTrial(ctx);
