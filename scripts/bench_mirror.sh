@@ -29,6 +29,7 @@ EOF
 for scene in hidden1 hidden1-mirrored; do
   file="$NPFKCT_ROOT/scenarios/data/$scene.json"
   [ "$scene" = hidden1 ] || file="$SCENES_DIR/$scene.json"
+  mkdir -p "$OUT/$scene"
   for planner in ${PLANNERS:-oracle npfkct kct pomcp-joint gpomcp}; do
     # --trace prints every trial's steps; the first view of each trial is summarised below.
     npfkct_bench_cell "$OUT/$scene/$planner.jsonl" "$TRIALS" --scenario "$file" \
