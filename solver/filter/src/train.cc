@@ -138,6 +138,25 @@ StatusOr<TrainReport> TrainFilter(const Dataset& train, const Dataset& val,
   return report;
 }
 
+double RatioHalfWidth95(const std::vector<int64_t>& hits, const std::vector<int64_t>& totals) {
+  const size_t n = std::min(hits.size(), totals.size());
+  double sum_hits = 0.0, sum_totals = 0.0;
+  for (size_t i = 0; i < n; ++i) {
+    sum_hits += static_cast<double>(hits[i]);
+    sum_totals += static_cast<double>(totals[i]);
+  }
+  if (n < 2 || !(sum_totals > 0.0)) return 0.0;
+  const double ratio = sum_hits / sum_totals;
+  double ss = 0.0;  // residuals of the linearised ratio
+  for (size_t i = 0; i < n; ++i) {
+    const double d = static_cast<double>(hits[i]) - ratio * static_cast<double>(totals[i]);
+    ss += d * d;
+  }
+  const double var =
+      static_cast<double>(n) / static_cast<double>(n - 1) * ss / (sum_totals * sum_totals);
+  return 1.959964 * std::sqrt(var);
+}
+
 StatusOr<FilterMetrics> EvaluateFilter(const NeuralFilter& filter, const Dataset& test,
                                        const FilterOptions& options) {
   if (Status s = options.Validate(); !s.ok()) return s;
@@ -147,6 +166,8 @@ StatusOr<FilterMetrics> EvaluateFilter(const NeuralFilter& filter, const Dataset
   FilterMetrics m;
   const double beta = options.Beta();
   int64_t useless = 0, zero = 0, kept = 0, dropped = 0, correct = 0, specific = 0, within = 0;
+  int64_t clear = 0, clear_correct = 0;
+  std::vector<int64_t> sample_correct, sample_efficient;  // per sample, for the interval
   double abs_error = 0.0;
   const size_t c = static_cast<size_t>(options.context);
   for (const Sample& s : test.samples) {
@@ -154,6 +175,7 @@ StatusOr<FilterMetrics> EvaluateFilter(const NeuralFilter& filter, const Dataset
     const std::vector<float> cs(s.scores.begin(), s.scores.begin() + c);
     const std::vector<float> q(s.queries.begin() + c * kQueryDim, s.queries.end());
     const Prediction p = filter.Predict(s.scene, cq, cs, q);
+    const int64_t correct_before = correct, efficient_before = m.efficient;
     for (size_t i = 0; i < p.mu.size(); ++i) {
       const double g = s.scores[c + i], mu = p.mu[i], sigma = p.sigma[i];
       ++m.queries;
@@ -164,6 +186,10 @@ StatusOr<FilterMetrics> EvaluateFilter(const NeuralFilter& filter, const Dataset
         ++m.efficient;
         if (mu >= kEfficientScore) ++correct;
         if (pass) ++kept;
+        if (g > 2 * kEfficientScore) {
+          ++clear;
+          if (mu >= kEfficientScore) ++clear_correct;
+        }
       } else {
         ++useless;
         if (mu < kEfficientScore) ++specific;
@@ -173,9 +199,13 @@ StatusOr<FilterMetrics> EvaluateFilter(const NeuralFilter& filter, const Dataset
         if (!pass) ++dropped;
       }
     }
+    sample_correct.push_back(correct - correct_before);
+    sample_efficient.push_back(m.efficient - efficient_before);
   }
   auto ratio = [](int64_t a, int64_t b) { return b > 0 ? static_cast<double>(a) / b : 0.0; };
   m.accuracy = ratio(correct, m.efficient);
+  m.accuracy_ci95 = RatioHalfWidth95(sample_correct, sample_efficient);
+  m.accuracy_clear = ratio(clear_correct, clear);
   m.specificity = ratio(specific, useless);
   m.kept_efficient = ratio(kept, m.efficient);
   m.dropped_useless = ratio(dropped, zero);

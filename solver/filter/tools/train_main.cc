@@ -169,12 +169,12 @@ int main(int argc, char** argv) {
     if (!m.ok()) return Fail(m.status());
     std::snprintf(line, sizeof(line),
                   "{\"test_set\": \"%s\", \"test_samples\": %zu, \"queries\": %d, \"efficient\": "
-                  "%d, \"accuracy\": %.4f, "
+                  "%d, \"accuracy\": %.4f, \"accuracy_ci95\": %.4f, \"accuracy_clear\": %.4f, "
                   "\"specificity\": %.4f, \"kept_efficient\": %.4f, \"dropped_useless\": %.4f, "
                   "\"mean_abs_error\": %.4f, \"within_2_sigma\": %.4f}",
                   label.c_str(), test->samples.size(), m->queries, m->efficient, m->accuracy,
-                  m->specificity, m->kept_efficient, m->dropped_useless, m->mean_abs_error,
-                  m->within_2_sigma);
+                  m->accuracy_ci95, m->accuracy_clear, m->specificity, m->kept_efficient,
+                  m->dropped_useless, m->mean_abs_error, m->within_2_sigma);
   } else {
     // One core: the filter runs on the planning thread.
     auto sc = sim::LoadScenario(bench_scenario);
