@@ -1,14 +1,15 @@
 #!/usr/bin/env bash
-# Hidden1 and its mirror image: the same scene with every object's position mirrored across the
-# table's short axis (x -> -x on the table), so that the row of tall boxes stands between the
-# target and the *other* side of the table. Before its first step a planner knows only the table,
-# whose four sides look alike, so which side it looks from first is a guess; this measures how
-# much of a planner's Hidden1 result is that guess. Same protocol as Table 1 (1 s of CPU per
+# Paper scenes beside their mirror images: the same scene with every object's position mirrored
+# across the table's short axis (x -> -x on the table), so that in Hidden1 the row of tall boxes
+# stands between the target and the *other* side of the table. Before its first step a planner
+# knows only the table, whose four sides look alike, so which side it looks from first is a
+# guess; this measures how much of a planner's result is that guess and how much is planning. Same protocol as Table 1 (1 s of CPU per
 # step, 20 trials, seed 1). Writes bench/results/mirror/SCENE/PLANNER.jsonl, the first step of
 # every trial (SCENE/PLANNER.first-views, from --trace) and a table of reward, steps and the
 # trials whose first view saw the target (mirror.md).
 # Usage: scripts/bench_mirror.sh [--cpu-ms MS] [--trials N] [--commit]
-#        (env: PLANNERS, default "oracle npfkct kct pomcp-joint gpomcp")
+#        (env: SCENES, default "hidden1 covered1"; PLANNERS, default
+#        "oracle npfkct kct pomcp-joint gpomcp")
 set -euo pipefail
 NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 source "$NPFKCT_ROOT/scripts/deps.sh"
@@ -17,18 +18,23 @@ npfkct_prepare npfkct-bench
 OUT="$NPFKCT_ROOT/bench/results/mirror"
 SCENES_DIR="$BUILD_DIR/mirror-scenes"
 mkdir -p "$OUT" "$SCENES_DIR"
-python3 - "$NPFKCT_ROOT/scenarios/data/hidden1.json" "$SCENES_DIR/hidden1-mirrored.json" <<'EOF'
+SCENES="${SCENES:-hidden1 covered1}"
+for scene in $SCENES; do
+  python3 - "$NPFKCT_ROOT/scenarios/data/$scene.json" "$SCENES_DIR/$scene-mirrored.json" <<'EOF'
 import json, sys
 scene = json.load(open(sys.argv[1]))
-scene["name"] = "Hidden1-mirrored"
-scene["description"] = "Hidden1 with the objects mirrored across the table's short axis"
+scene["description"] = scene["name"] + " with the objects mirrored across the table's short axis"
+scene["name"] += "-mirrored"
 for obj in scene["objects"]:
+    if "on" not in obj:
+        sys.exit(f"{sys.argv[1]}: object {obj['name']} is not on a piece of furniture")
     obj["position"][0] = -obj["position"][0]
 json.dump(scene, open(sys.argv[2], "w"), indent=1)
 EOF
-for scene in hidden1 hidden1-mirrored; do
+done
+for scene in $(for s in $SCENES; do echo "$s $s-mirrored"; done); do
   file="$NPFKCT_ROOT/scenarios/data/$scene.json"
-  [ "$scene" = hidden1 ] || file="$SCENES_DIR/$scene.json"
+  [[ "$scene" != *-mirrored ]] || file="$SCENES_DIR/$scene.json"
   mkdir -p "$OUT/$scene"
   for planner in ${PLANNERS:-oracle npfkct kct pomcp-joint gpomcp}; do
     # --trace prints every trial's steps; the first view of each trial is summarised below.
