@@ -40,9 +40,12 @@ for scene in $(for s in $SCENES; do echo "$s $s-mirrored"; done); do
     # --trace prints every trial's steps; the first view of each trial is summarised below.
     npfkct_bench_cell "$OUT/$scene/$planner.jsonl" "$TRIALS" --scenario "$file" \
       --planner "$planner" --trials "$TRIALS" --cpu-ms "$CPU_MS" --threads "$(nproc)" --seed 1 \
-      --trace 2>"$OUT/$scene/$planner.trace.tmp" &&
-      { [ ! -s "$OUT/$scene/$planner.trace.tmp" ] ||
-        grep ' step  1: ' "$OUT/$scene/$planner.trace.tmp" >"$OUT/$scene/$planner.first-views" || true; }
+      --trace 2>"$OUT/$scene/$planner.trace.tmp"
+    # A cell found done already prints no steps and keeps its first views.
+    if grep -q ' step  1: ' "$OUT/$scene/$planner.trace.tmp"; then
+      grep ' step  1: ' "$OUT/$scene/$planner.trace.tmp" >"$OUT/$scene/$planner.first-views"
+    fi
+    grep -v ' step ' "$OUT/$scene/$planner.trace.tmp" >&2 || true
     rm -f "$OUT/$scene/$planner.trace.tmp"
   done
 done
