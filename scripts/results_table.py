@@ -20,6 +20,9 @@
                                    planner and scene the reward, steps and how many trials' first
                                    view saw the target (DIR/SCENE/PLANNER.first-views, the step-1
                                    lines of --trace).
+  results_table.py trace FILE      What the trials of an npfkct-bench --trace file did, per scene and
+                                   planner: steps, moves, obstacles declared and how many of them
+                                   were removed later, means per trial.
   results_table.py compare A B     Whether two runs of the same cells agree: each mean inside the
                                    other run's 95% interval.
   results_table.py flat FILE       A table from one file of JSON lines (rows planners, columns
@@ -33,6 +36,7 @@ import glob
 import json
 import math
 import os
+import re
 import sys
 
 PAPER_SCENES = ["Loose1", "Loose2", "Hidden1", "Covered1", "Complex1", "Fig16"]
@@ -330,6 +334,31 @@ def mirror(root):
         print(row)
 
 
+TRACE_LINE = re.compile(r"^(\S+) (\S+) trial (\d+) step +(\d+): (move|declare obstacle|"
+                        r"declare target|remove) ?(\S*)")
+
+
+def trace(path):
+    trials = {}  # (scene, planner, trial) -> [(kind, object)]
+    for line in open(path, encoding="utf-8"):
+        m = TRACE_LINE.match(line)
+        if m:
+            trials.setdefault((m[1], m[2], int(m[3])), []).append((m[5], m[6]))
+    groups = {}
+    for (scene, planner, _), actions in trials.items():
+        declared = {o for k, o in actions if k == "declare obstacle"}
+        removed = {o for k, o in actions if k == "remove"}
+        groups.setdefault((scene, planner), []).append((
+            len(actions), sum(k == "move" for k, _ in actions), len(declared),
+            len(declared & removed)))
+    print("| Scene | Planner | Trials | Steps | Moves | Obstacles declared | of them removed |")
+    print("|---|---|---|---|---|---|---|")
+    for (scene, planner), rows in sorted(groups.items()):
+        means = [sum(r[i] for r in rows) / len(rows) for i in range(4)]
+        print(f"| {scene} | {planner} | {len(rows)} | " + " | ".join(f"{m:.2f}" for m in means)
+              + " |")
+
+
 def compare(a_root, b_root):
     a, b = load_cells(a_root), load_cells(b_root)
     keys = [k for k in a if k in b]
@@ -373,7 +402,7 @@ def flat(path):
 
 def main():
     if len(sys.argv) < 3 or sys.argv[1] not in ("table1", "generated", "ablation", "sensitivity",
-                                                 "mirror", "compare", "flat"):
+                                                 "mirror", "trace", "compare", "flat"):
         print(__doc__)
         sys.exit(2)
     if sys.argv[1] == "table1":
@@ -386,6 +415,8 @@ def main():
         sensitivity(sys.argv[2])
     elif sys.argv[1] == "mirror":
         mirror(sys.argv[2])
+    elif sys.argv[1] == "trace":
+        trace(sys.argv[2])
     elif sys.argv[1] == "compare":
         compare(sys.argv[2], sys.argv[3])
     else:

@@ -151,6 +151,26 @@ EpisodeResult RunTrial(const TrialContext& ctx) {
   if (planner) {
     planner->SetBelief(ParticleBelief<object_search::State>::FromInitial(model, particles, rng));
   }
+  // One line per step on stderr: the action, its outcome, the search statistics and, per known
+  // object, the face grids confirmed as the target's (+) and as an obstacle's (-) after the step.
+  const auto trace_step = [&](int t, const Decision<HybridAction>& d, const std::string& detail) {
+    std::string known;
+    for (size_t i = 1; i < world.objects.size(); ++i) {
+      const auto& o = world.objects[i];
+      if (o.status == object_search::kRemoved) continue;
+      int plus = 0, minus = 0;
+      for (float v : o.odds) {
+        plus += v > world.params.declare_threshold;
+        minus += v < -world.params.declare_threshold;
+      }
+      known += " " + o.key + ":" + std::to_string(plus) + "/" + std::to_string(minus);
+    }
+    std::fprintf(stderr, "%s %s trial %llu step %2d: %-62s %-30s sims %7lld value %9.1f |%s\n",
+                 ctx.scenario->name.c_str(), ctx.planner.c_str(),
+                 static_cast<unsigned long long>(ctx.seed % 1000003ULL), t + 1,
+                 Describe(d.action, world).c_str(), detail.c_str(),
+                 static_cast<long long>(d.stats.simulations), d.value, known.c_str());
+  };
   double discount = 1.0;
   for (int t = 0; t < ctx.max_steps; ++t) {
     Decision<HybridAction> d;
@@ -183,6 +203,7 @@ EpisodeResult RunTrial(const TrialContext& ctx) {
       (void)object_search::ApplyDiscreteOutcome(&world, object, offset, true);
     }
     if (outcome.terminal) {
+      if (ctx.trace) trace_step(t, d, outcome.detail);
       result.success = true;
       break;
     }
@@ -214,26 +235,7 @@ EpisodeResult RunTrial(const TrialContext& ctx) {
         planner->AdvanceTo(d.action, key, std::move(belief));
       }
     }
-    if (ctx.trace) {
-      // The knowledge after the step: per known object, the face grids confirmed as the
-      // target's (+) and as an obstacle's (-).
-      std::string known;
-      for (size_t i = 1; i < world.objects.size(); ++i) {
-        const auto& o = world.objects[i];
-        if (o.status == object_search::kRemoved) continue;
-        int plus = 0, minus = 0;
-        for (float v : o.odds) {
-          plus += v > world.params.declare_threshold;
-          minus += v < -world.params.declare_threshold;
-        }
-        known += " " + o.key + ":" + std::to_string(plus) + "/" + std::to_string(minus);
-      }
-      std::fprintf(stderr, "%s %s trial %llu step %2d: %-62s %-30s sims %7lld value %9.1f |%s\n",
-                   ctx.scenario->name.c_str(), ctx.planner.c_str(),
-                   static_cast<unsigned long long>(ctx.seed % 1000003ULL), t + 1,
-                   Describe(d.action, world).c_str(), outcome.detail.c_str(),
-                   static_cast<long long>(d.stats.simulations), d.value, known.c_str());
-    }
+    if (ctx.trace) trace_step(t, d, outcome.detail);
     if (!ctx.render_prefix.empty()) {
       char name[32];
       std::snprintf(name, sizeof name, "-step%02d.png", t + 1);
