@@ -3,17 +3,18 @@
 # across the table's short axis (x -> -x on the table), so that in Hidden1 the row of tall boxes
 # stands between the target and the *other* side of the table. Before its first step a planner
 # knows only the table, whose four sides look alike, so which side it looks from first is a
-# guess; this measures how much of a planner's result is that guess and how much is planning. Same protocol as Table 1 (1 s of CPU per
-# step, 20 trials, seed 1). Writes bench/results/mirror/SCENE/PLANNER.jsonl, the first step of
-# every trial (SCENE/PLANNER.first-views, from --trace) and a table of reward, steps and the
-# trials whose first view saw the target (mirror.md).
+# guess; this measures how much of a planner's result is that guess and how much is planning.
+# Same protocol as Table 1 (1 s of CPU per step, 20 trials, seed 1). Writes
+# bench/results/mirror/SCENE/PLANNER.jsonl, the first step of every trial
+# (SCENE/PLANNER.first-views, from --trace) and a table of reward, steps and the trials whose
+# first view saw the target (mirror.md).
 # Usage: scripts/bench_mirror.sh [--cpu-ms MS] [--trials N] [--commit]
 #        (env: SCENES, default "hidden1 covered1"; PLANNERS, default
 #        "oracle npfkct kct pomcp-joint gpomcp")
 set -euo pipefail
 NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 source "$NPFKCT_ROOT/scripts/deps.sh"
-npfkct_bench_args 1000 20 11 "$@"
+npfkct_bench_args 1000 20 13 "$@"
 npfkct_prepare npfkct-bench
 OUT="$NPFKCT_ROOT/bench/results/mirror"
 SCENES_DIR="$BUILD_DIR/mirror-scenes"

@@ -16,13 +16,13 @@
   results_table.py sensitivity DIR The sensitivity of the defaults (scripts/bench_sensitivity.sh):
                                    per row of DIR/ROW/SEED.jsonl its share of the oracle's reward
                                    and its change against the row "defaults", paired over scenes.
-  results_table.py mirror DIR      Hidden1 and its mirror image (scripts/bench_mirror.sh): per
-                                   planner and scene the reward, steps and how many trials' first
-                                   view saw the target (DIR/SCENE/PLANNER.first-views, the step-1
-                                   lines of --trace).
-  results_table.py trace FILE      What the trials of an npfkct-bench --trace file did, per scene and
-                                   planner: steps, moves, obstacles declared and how many of them
-                                   were removed later, means per trial.
+  results_table.py mirror DIR      Paper scenes beside their mirror images
+                                   (scripts/bench_mirror.sh): per planner and scene the reward,
+                                   steps and how many trials' first view saw the target
+                                   (DIR/SCENE/PLANNER.first-views, the step-1 lines of --trace).
+  results_table.py trace FILE      What the trials of an npfkct-bench --trace file did, per scene
+                                   and planner: steps, moves, obstacles declared and how many of
+                                   them were removed later, means per trial.
   results_table.py compare A B     Whether two runs of the same cells agree: each mean inside the
                                    other run's 95% interval.
   results_table.py flat FILE       A table from one file of JSON lines (rows planners, columns

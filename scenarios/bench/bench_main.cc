@@ -335,7 +335,8 @@ int main(int argc, char** argv) {
                  "scenarios: how the robot observes, geometric (the simulator's shortcut) and/or "
                  "perception (rendered RGB-D frames through the perception pipeline)")
       ->delimiter(',');
-  app.add_flag("--trace", search.trace, "scenarios: print each step of every trial on stderr (each line names its trial)");
+  app.add_flag("--trace", search.trace,
+               "scenarios: print each step of every trial on stderr (each line names its trial)");
   app.add_option("--render", search.render_dir,
                  "scenarios: write per-step PNGs of the first trial into this directory");
   CLI11_PARSE(app, argc, argv);
