@@ -332,6 +332,25 @@ def mirror(root):
             row += (f" {r['mean_discounted_reward']:.1f} ± {r['ci95']:.1f} \\| "
                     f"{r['mean_steps']:.2f} ± {r['ci95_steps']:.2f} \\| {seen} |")
         print(row)
+    # A scene and its mirror image together: the side of the first view no longer favours
+    # one planner's fixed preference.
+    pairs = [s for s in scenes if s + "-mirrored" in scenes]
+    if not pairs:
+        return
+    print("\nA scene and its mirror image together: mean reward ± 95% t interval over the trials "
+          "of both cells.\n")
+    print("| Planner |" + "".join(f" {s} and mirrored |" for s in pairs))
+    print("|---|" + "---|" * len(pairs))
+    for p in planners:
+        row = f"| {p} |"
+        for s in pairs:
+            a, b = cells.get((s, p)), cells.get((s + "-mirrored", p))
+            if a is None or b is None or "rewards" not in a or "rewards" not in b:
+                row += " – |"
+            else:
+                m, ci = mean_ci(a["rewards"] + b["rewards"])
+                row += f" {m:.1f} ± {ci:.1f} |"
+        print(row)
 
 
 TRACE_LINE = re.compile(r"^(\S+) (\S+) trial (\d+) step +(\d+): (move|declare obstacle|"

@@ -139,3 +139,19 @@ def test_trace_counts_moves_and_declared_obstacles_per_trial(tmp_path):
                           str(path)], check=True, capture_output=True, text=True).stdout
     # Trial 0: 6 steps, 1 move, 2 obstacles declared, 1 of them removed; trial 1: 2 moves.
     assert "| S | p | 2 | 4.00 | 1.50 | 1.00 | 0.50 |" in out.splitlines()
+
+
+def test_mirror_pools_a_scene_with_its_mirror_image(tmp_path):
+    root = str(tmp_path)
+    for scene, rewards in {"hidden1": [100.0, 110.0], "hidden1-mirrored": [90.0, 100.0]}.items():
+        os.makedirs(os.path.join(root, scene))
+        with open(os.path.join(root, scene, "npfkct.jsonl"), "w", encoding="utf-8") as f:
+            f.write(json.dumps({"scenario": scene, "planner": "npfkct", "trials": 2,
+                                "mean_discounted_reward": sum(rewards) / 2, "ci95": 0.0,
+                                "mean_steps": 5.0, "ci95_steps": 0.0, "rewards": rewards}) + "\n")
+    out = subprocess.run([sys.executable, os.path.join(SCRIPTS, "results_table.py"), "mirror",
+                          root], check=True, capture_output=True, text=True).stdout
+    # Pooled 100, 110, 90, 100: mean 100, sd sqrt(200 / 3), t(0.975, 3) = 3.182.
+    pooled = [line for line in out.splitlines() if line.startswith("| npfkct |")][-1]
+    half = 3.1824 * (200 / 3) ** 0.5 / 2
+    assert pooled == f"| npfkct | 100.0 ± {half:.1f} |"
