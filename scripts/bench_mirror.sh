@@ -9,7 +9,7 @@
 # (SCENE/PLANNER.first-views, from --trace) and a table of reward, steps and the trials whose
 # first view saw the target (mirror.md).
 # Usage: scripts/bench_mirror.sh [--cpu-ms MS] [--trials N] [--commit]
-#        (env: SCENES, default "hidden1 covered1"; PLANNERS, default
+#        (env: SCENES, default "hidden1 complex1 covered1"; PLANNERS, default
 #        "oracle npfkct kct pomcp-joint gpomcp")
 set -euo pipefail
 NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -19,7 +19,7 @@ npfkct_prepare npfkct-bench
 OUT="$NPFKCT_ROOT/bench/results/mirror"
 SCENES_DIR="$BUILD_DIR/mirror-scenes"
 mkdir -p "$OUT" "$SCENES_DIR"
-SCENES="${SCENES:-hidden1 covered1}"
+SCENES="${SCENES:-hidden1 complex1 covered1}"
 for scene in $SCENES; do
   python3 - "$NPFKCT_ROOT/scenarios/data/$scene.json" "$SCENES_DIR/$scene-mirrored.json" <<'EOF'
 import json, sys
