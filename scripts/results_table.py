@@ -131,6 +131,16 @@ def cell_text(r):
             f"{r['mean_steps']:.1f} ± {r['ci95_steps']:.1f} \\| {100 * r['success_rate']:.0f}%")
 
 
+def planner_table(planners, columns, cell):
+    """Prints a Markdown table with a row per planner and a column per header in COLUMNS;
+    cell(planner, column) is a cell's text, or None for a missing cell (printed "–")."""
+    print("| Planner |" + "".join(f" {c} |" for c in columns))
+    print("|---|" + "---|" * len(columns))
+    for p in planners:
+        texts = (cell(p, c) for c in columns)
+        print(f"| {p} |" + "".join(" – |" if t is None else f" {t} |" for t in texts))
+
+
 def table1(root):
     cells = load_cells(root)
     scenes = order({s for s, _ in cells}, PAPER_SCENES)
@@ -138,30 +148,25 @@ def table1(root):
     budget = {(r["cpu_ms"], r["trials"]) for r in cells.values()}
     print(f"Cells: discounted reward ± 95% t interval \\| steps ± 95% t interval \\| success "
           f"rate; budgets and trials (cpu_ms, trials): {sorted(budget)}.\n")
-    print("| Planner |" + "".join(f" {s} |" for s in scenes) + " sims/CPU-s (Complex1) |")
-    print("|---|" + "---|" * (len(scenes) + 1))
-    for p in planners:
-        row = f"| {p} |"
-        for s in scenes:
-            r = cells.get((s, p))
-            row += " – |" if r is None else f" {cell_text(r)} |"
-        r = cells.get(("Complex1", p))
-        row += " – |" if r is None or p == "oracle" else f" {r['median_sims_per_cpu_second']:.0f} |"
-        print(row)
+    sims = "sims/CPU-s (Complex1)"
+
+    def reward_cell(p, s):
+        if s == sims:
+            r = cells.get(("Complex1", p))
+            return None if r is None or p == "oracle" else f"{r['median_sims_per_cpu_second']:.0f}"
+        r = cells.get((s, p))
+        return None if r is None else cell_text(r)
+
+    planner_table(planners, scenes + [sims], reward_cell)
     print("\nMean reward as a share of the oracle's in the same scene:\n")
-    print("| Planner |" + "".join(f" {s} |" for s in scenes))
-    print("|---|" + "---|" * len(scenes))
-    for p in planners:
-        if p == "oracle":
-            continue
-        row = f"| {p} |"
-        for s in scenes:
-            r, o = cells.get((s, p)), cells.get((s, "oracle"))
-            if r is None or o is None or o["mean_discounted_reward"] <= 0:
-                row += " – |"
-            else:
-                row += f" {100 * r['mean_discounted_reward'] / o['mean_discounted_reward']:.0f}% |"
-        print(row)
+
+    def share_cell(p, s):
+        r, o = cells.get((s, p)), cells.get((s, "oracle"))
+        if r is None or o is None or o["mean_discounted_reward"] <= 0:
+            return None
+        return f"{100 * r['mean_discounted_reward'] / o['mean_discounted_reward']:.0f}%"
+
+    planner_table([p for p in planners if p != "oracle"], scenes, share_cell)
 
 
 def oracle_summary(cells, groups, scenes):
@@ -318,20 +323,17 @@ def mirror(root):
     planners = order({p for _, p in cells}, PLANNER_ORDER)
     print("Cells: discounted reward ± 95% t interval \\| steps ± 95% t interval \\| trials whose "
           "first view saw the target.\n")
-    print("| Planner |" + "".join(f" {s} |" for s in scenes))
-    print("|---|" + "---|" * len(scenes))
-    for p in planners:
-        row = f"| {p} |"
-        for s in scenes:
-            r = cells.get((s, p))
-            if r is None:
-                row += " – |"
-                continue
-            hits = first_view_hits(os.path.join(root, s, p + ".first-views"))
-            seen = "–" if hits is None else f"{hits[0]}/{hits[1]}"
-            row += (f" {r['mean_discounted_reward']:.1f} ± {r['ci95']:.1f} \\| "
-                    f"{r['mean_steps']:.2f} ± {r['ci95_steps']:.2f} \\| {seen} |")
-        print(row)
+
+    def mirror_cell(p, s):
+        r = cells.get((s, p))
+        if r is None:
+            return None
+        hits = first_view_hits(os.path.join(root, s, p + ".first-views"))
+        seen = "–" if hits is None else f"{hits[0]}/{hits[1]}"
+        return (f"{r['mean_discounted_reward']:.1f} ± {r['ci95']:.1f} \\| "
+                f"{r['mean_steps']:.2f} ± {r['ci95_steps']:.2f} \\| {seen}")
+
+    planner_table(planners, scenes, mirror_cell)
     # A scene and its mirror image together: the side of the first view no longer favours
     # one planner's fixed preference.
     pairs = [s for s in scenes if s + "-mirrored" in scenes]
@@ -339,18 +341,16 @@ def mirror(root):
         return
     print("\nA scene and its mirror image together: mean reward ± 95% t interval over the trials "
           "of both cells.\n")
-    print("| Planner |" + "".join(f" {s} and mirrored |" for s in pairs))
-    print("|---|" + "---|" * len(pairs))
-    for p in planners:
-        row = f"| {p} |"
-        for s in pairs:
-            a, b = cells.get((s, p)), cells.get((s + "-mirrored", p))
-            if a is None or b is None or "rewards" not in a or "rewards" not in b:
-                row += " – |"
-            else:
-                m, ci = mean_ci(a["rewards"] + b["rewards"])
-                row += f" {m:.1f} ± {ci:.1f} |"
-        print(row)
+
+    def pooled_cell(p, column):
+        s = column.removesuffix(" and mirrored")
+        a, b = cells.get((s, p)), cells.get((s + "-mirrored", p))
+        if a is None or b is None or "rewards" not in a or "rewards" not in b:
+            return None
+        m, ci = mean_ci(a["rewards"] + b["rewards"])
+        return f"{m:.1f} ± {ci:.1f}"
+
+    planner_table(planners, [s + " and mirrored" for s in pairs], pooled_cell)
 
 
 TRACE_LINE = re.compile(r"^(\S+) (\S+) trial (\d+) step +(\d+): (move|declare obstacle|"
@@ -412,11 +412,8 @@ def flat(path):
         if name not in planners:
             planners.append(name)
         cells[(name, r["scenario"])] = r
-    print("| Planner |" + "".join(f" {s} |" for s in scenes))
-    print("|---|" + "---|" * len(scenes))
-    for p in planners:
-        print(f"| {p} |" + "".join(
-            " – |" if (p, s) not in cells else f" {cell_text(cells[(p, s)])} |" for s in scenes))
+    planner_table(planners, scenes,
+                  lambda p, s: cell_text(cells[(p, s)]) if (p, s) in cells else None)
 
 
 def main():
