@@ -65,10 +65,6 @@ row_args() {
 OUT="$NPFKCT_ROOT/bench/results/ablation/$RUN"
 for row in $ROWS; do
   row_args "$row"
-  for file in "${SCENE_FILES[@]}"; do
-    scene="$(basename "$file" .json)"
-    npfkct_bench_cell "$OUT/$row/${scene#gen-}.jsonl" "$TRIALS" --scenario "$file" "${ARGS[@]}" \
-      --trials "$TRIALS" --cpu-ms "$CPU_MS" --threads "$(nproc)" --seed 1
-  done
+  npfkct_bench_row "$OUT/$row" "${ARGS[@]}"
 done
 python3 "$NPFKCT_ROOT/scripts/results_table.py" ablation "$OUT" | tee "$OUT/ablation.md"

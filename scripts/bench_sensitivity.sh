@@ -30,10 +30,6 @@ for row in $ROWS; do
     *=*) ARGS=(--planner npfkct --opt "$row") ;;
     *) echo "bench_sensitivity.sh: a row is defaults, oracle or key=value, not $row" >&2; exit 2 ;;
   esac
-  for scene in "${SCENE_FILES[@]}"; do
-    seed="$(basename "$scene" .json)"
-    npfkct_bench_cell "$OUT/$row/${seed#gen-}.jsonl" "$TRIALS" --scenario "$scene" "${ARGS[@]}" \
-      --trials "$TRIALS" --cpu-ms "$CPU_MS" --threads "$(nproc)" --seed 1
-  done
+  npfkct_bench_row "$OUT/$row" "${ARGS[@]}"
 done
 python3 "$NPFKCT_ROOT/scripts/results_table.py" sensitivity "$OUT" | tee "$OUT/sensitivity.md"

@@ -147,6 +147,20 @@ npfkct_bench_args() {
   done
 }
 
+# One row of a resumable benchmark table: a cell DIR/SCENE.jsonl for every file in SCENE_FILES
+# (SCENE: the file's name without .json and without a gen- prefix), each npfkct-bench run with
+# the given arguments at TRIALS trials and CPU_MS per step, seed 1. Needs npfkct_bench_args.
+# Usage: npfkct_bench_row DIR npfkct-bench-arguments...
+npfkct_bench_row() {
+  local dir="$1" file scene
+  shift
+  for file in "${SCENE_FILES[@]}"; do
+    scene="$(basename "$file" .json)"
+    npfkct_bench_cell "$dir/${scene#gen-}.jsonl" "$TRIALS" --scenario "$file" "$@" \
+      --trials "$TRIALS" --cpu-ms "$CPU_MS" --threads "$(nproc)" --seed 1
+  done
+}
+
 # One cell of a resumable benchmark table: runs npfkct-bench with the given arguments and stores
 # its JSON line in FILE, unless FILE already holds a finished run of TRIALS trials. The line is
 # written to a temporary file first, so an interrupted run leaves no half cell. With COMMIT=1 the
