@@ -358,22 +358,31 @@ TRACE_LINE = re.compile(r"^(\S+) (\S+) trial (\d+) step +(\d+): (move|declare ob
 
 
 def trace(path):
-    trials = {}  # (scene, planner, trial) -> [(kind, object)]
+    # (scene, planner, trial) -> [(kind, object, the objects that could be declared after it)];
+    # the bench marks an object that can be declared with * after its face counts.
+    trials = {}
     for line in open(path, encoding="utf-8"):
         m = TRACE_LINE.match(line)
         if m:
-            trials.setdefault((m[1], m[2], int(m[3])), []).append((m[5], m[6]))
+            known = line.rsplit("|", 1)[-1].split()
+            ready = {t.rsplit(":", 1)[0] for t in known if t.endswith("*")}
+            trials.setdefault((m[1], m[2], int(m[3])), []).append((m[5], m[6], ready))
     groups = {}
     for (scene, planner, _), actions in trials.items():
-        declared = {o for k, o in actions if k == "declare obstacle"}
-        removed = {o for k, o in actions if k == "remove"}
+        declared = {o for k, o, _ in actions if k == "declare obstacle"}
+        removed = {o for k, o, _ in actions if k == "remove"}
+        # A move made while an object the trial removes later could already be declared (after
+        # the step before the move): the declaration and removal were due, the move was not.
+        idle = sum(k == "move" and bool(actions[i - 1][2] & removed)
+                   for i, (k, _, _) in enumerate(actions) if i)
         groups.setdefault((scene, planner), []).append((
-            len(actions), sum(k == "move" for k, _ in actions), len(declared),
+            len(actions), sum(k == "move" for k, _, _ in actions), idle, len(declared),
             len(declared & removed)))
-    print("| Scene | Planner | Trials | Steps | Moves | Obstacles declared | of them removed |")
-    print("|---|---|---|---|---|---|---|")
+    print("| Scene | Planner | Trials | Steps | Moves | of them while an object removed later "
+          "could be declared | Obstacles declared | of them removed |")
+    print("|---|---|---|---|---|---|---|---|")
     for (scene, planner), rows in sorted(groups.items()):
-        means = [sum(r[i] for r in rows) / len(rows) for i in range(4)]
+        means = [sum(r[i] for r in rows) / len(rows) for i in range(5)]
         print(f"| {scene} | {planner} | {len(rows)} | " + " | ".join(f"{m:.2f}" for m in means)
               + " |")
 

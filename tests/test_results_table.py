@@ -124,21 +124,32 @@ def test_mirror_counts_the_first_views_that_saw_the_target(tmp_path):
 def test_trace_counts_moves_and_declared_obstacles_per_trial(tmp_path):
     path = tmp_path / "t.trace"
     lines = [
-        "S p trial 0 step  1: move x=1 y=2 yaw=0 lift=0 pan=0 tilt=0     moved  sims 1 value 1 |",
-        "S p trial 0 step  2: declare obstacle box-1     declared  sims 1 value 1 | box-1:0/6",
+        "S p trial 0 step  1: move x=1 y=2 yaw=0 lift=0 pan=0 tilt=0  moved  sims 1 value 1 "
+        "| box-1:0/6* box-2:0/6*",
+        "S p trial 0 step  2: declare obstacle box-1     declared  sims 1 value 1 root: move n=3 "
+        "q=1, declare obstacle box-1 n=2 q=2 | box-1:0/6 box-2:0/6*",
         "S p trial 0 step  3: declare obstacle box-2     declared  sims 1 value 1 | box-1:0/6",
         "S p trial 0 step  4: remove box-1               removed   sims 1 value 1 | box-2:0/6",
         "S p trial 0 step  5: declare target target      declared  sims 1 value 1 | target:6/0",
         "S p trial 0 step  6: remove target              removed   sims 1 value 1 |",
-        "S p trial 1 step  1: move x=1 y=2 yaw=0 lift=0 pan=0 tilt=0     moved  sims 1 value 1 |",
-        "S p trial 1 step  2: move x=1 y=2 yaw=0 lift=0 pan=0 tilt=0     moved  sims 1 value 1 |",
+        "S p trial 1 step  1: move x=1 y=2 yaw=0 lift=0 pan=0 tilt=0  moved  sims 1 value 1 "
+        "| box-3:1/6* box-4:0/6*",
+        "S p trial 1 step  2: move x=1 y=2 yaw=0 lift=0 pan=0 tilt=0  moved  sims 1 value 1 "
+        "| box-3:1/6* box-4:0/6*",
+        "S p trial 1 step  3: move x=1 y=2 yaw=0 lift=0 pan=0 tilt=0  moved  sims 1 value 1 "
+        "| box-3:1/6*",
+        "S p trial 1 step  4: declare obstacle box-4     declared  sims 1 value 1 | box-3:1/6*",
+        "S p trial 1 step  5: remove box-4               removed   sims 1 value 1 | box-3:1/6*",
         "npfkct: building every target",
     ]
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
     out = subprocess.run([sys.executable, os.path.join(SCRIPTS, "results_table.py"), "trace",
                           str(path)], check=True, capture_output=True, text=True).stdout
-    # Trial 0: 6 steps, 1 move, 2 obstacles declared, 1 of them removed; trial 1: 2 moves.
-    assert "| S | p | 2 | 4.00 | 1.50 | 1.00 | 0.50 |" in out.splitlines()
+    # Trial 0: 6 steps, 1 move (the first, before anything could be declared), 2 obstacles
+    # declared, 1 of them removed; trial 1: 5 steps, 3 moves, the last two while box-4, which it
+    # removes later, could be declared (box-3, never removed, does not count), 1 obstacle
+    # declared and removed.
+    assert "| S | p | 2 | 5.50 | 2.00 | 1.00 | 1.50 | 1.00 |" in out.splitlines()
 
 
 def test_mirror_pools_a_scene_with_its_mirror_image(tmp_path):

@@ -109,6 +109,32 @@ std::string Describe(const HybridAction& a, const World& w) {
   return std::string(kVerbs[object_search::KindOffset(a.kind)]) + " " + key;
 }
 
+// The root entries the search weighed most: the 3 most visited, then the 3 most visited discrete
+// ones among the rest, each as its action's verb (and object), visits and Qhat.
+std::string RootSummary(const std::vector<RootActionStat<HybridAction>>& root, const World& w) {
+  std::vector<int> order(root.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
+  std::stable_sort(order.begin(), order.end(),
+                   [&](int a, int b) { return root[a].visits > root[b].visits; });
+  std::string out;
+  int shown = 0, discrete = 0;
+  for (int i : order) {
+    const auto& e = root[i];
+    if (e.visits == 0) break;
+    const bool move = e.action.kind == object_search::kMoveKind;
+    if (shown >= 3 && (move || discrete >= 3)) continue;
+    if (shown >= 3) ++discrete;
+    ++shown;
+    char buf[64];
+    std::snprintf(buf, sizeof buf, " n=%lld q=%.0f", static_cast<long long>(e.visits), e.value);
+    if (!out.empty()) out.push_back(',');
+    out.push_back(' ');
+    out.append(move ? std::string("move") : Describe(e.action, w));
+    out.append(buf);
+  }
+  return out;
+}
+
 EpisodeResult RunTrial(const TrialContext& ctx) {
   EpisodeResult result;
   sim::Simulator simulator(*ctx.scenario, ctx.seed);
@@ -151,8 +177,9 @@ EpisodeResult RunTrial(const TrialContext& ctx) {
   if (planner) {
     planner->SetBelief(ParticleBelief<object_search::State>::FromInitial(model, particles, rng));
   }
-  // One line per step on stderr: the action, its outcome, the search statistics and, per known
-  // object, the face grids confirmed as the target's (+) and as an obstacle's (-) after the step.
+  // One line per step on stderr: the action, its outcome, the search statistics, the root entries
+  // the search weighed most and, per known object, the face grids confirmed as the target's (+)
+  // and as an obstacle's (-) after the step, marked * while the object can be declared.
   const auto trace_step = [&](int t, const Decision<HybridAction>& d, const std::string& detail) {
     std::string known;
     for (size_t i = 1; i < world.objects.size(); ++i) {
@@ -163,13 +190,18 @@ EpisodeResult RunTrial(const TrialContext& ctx) {
         plus += v > world.params.declare_threshold;
         minus += v < -world.params.declare_threshold;
       }
-      known += " " + o.key + ":" + std::to_string(plus) + "/" + std::to_string(minus);
+      const bool declarable =
+          o.status == object_search::kUpdating && std::max(plus, minus) >= world.params.n_odds;
+      known += " " + o.key + ":" + std::to_string(plus) + "/" + std::to_string(minus) +
+               (declarable ? "*" : "");
     }
-    std::fprintf(stderr, "%s %s trial %llu step %2d: %-62s %-30s sims %7lld value %9.1f |%s\n",
+    const std::string root = RootSummary(d.root, world);
+    std::fprintf(stderr, "%s %s trial %llu step %2d: %-62s %-30s sims %7lld value %9.1f%s%s |%s\n",
                  ctx.scenario->name.c_str(), ctx.planner.c_str(),
                  static_cast<unsigned long long>(ctx.seed % 1000003ULL), t + 1,
                  Describe(d.action, world).c_str(), detail.c_str(),
-                 static_cast<long long>(d.stats.simulations), d.value, known.c_str());
+                 static_cast<long long>(d.stats.simulations), d.value,
+                 root.empty() ? "" : " root:", root.c_str(), known.c_str());
   };
   double discount = 1.0;
   for (int t = 0; t < ctx.max_steps; ++t) {
