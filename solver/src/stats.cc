@@ -99,4 +99,23 @@ MeanInterval MeanWithInterval(const std::vector<double>& v, double level) {
   return m;
 }
 
+double RatioHalfWidth95(const std::vector<int64_t>& hits, const std::vector<int64_t>& totals) {
+  const size_t n = std::min(hits.size(), totals.size());
+  double sum_hits = 0.0, sum_totals = 0.0;
+  for (size_t i = 0; i < n; ++i) {
+    sum_hits += static_cast<double>(hits[i]);
+    sum_totals += static_cast<double>(totals[i]);
+  }
+  if (n < 2 || !(sum_totals > 0.0)) return 0.0;
+  const double ratio = sum_hits / sum_totals;
+  double ss = 0.0;  // residuals of the linearised ratio
+  for (size_t i = 0; i < n; ++i) {
+    const double d = static_cast<double>(hits[i]) - ratio * static_cast<double>(totals[i]);
+    ss += d * d;
+  }
+  const double var =
+      static_cast<double>(n) / static_cast<double>(n - 1) * ss / (sum_totals * sum_totals);
+  return 1.959964 * std::sqrt(var);
+}
+
 }  // namespace npfkct

@@ -42,5 +42,19 @@ TEST(StatsTest, MeanIntervalUsesStudentsT) {
   EXPECT_EQ(Median({3, 1, 2, 10}), 2.5);
 }
 
+TEST(StatsTest, RatioIntervalIsTheDeltaMethodOverUnits) {
+  // 1 of 2 and 3 of 4: ratio 4/6, residuals -1/3 and +1/3, variance 2/1 * (2/9) / 36.
+  EXPECT_NEAR(RatioHalfWidth95({1, 3}, {2, 4}), 1.959964 * std::sqrt(2.0 * (2.0 / 9.0) / 36.0),
+              1e-9);
+  // Units with the same ratio leave no spread; one unit or no totals give no interval.
+  EXPECT_EQ(RatioHalfWidth95({1, 2}, {2, 4}), 0.0);
+  EXPECT_EQ(RatioHalfWidth95({1}, {2}), 0.0);
+  EXPECT_EQ(RatioHalfWidth95({0, 0}, {0, 0}), 0.0);
+  // More units with the same spread narrow it by about sqrt(n).
+  const double two = RatioHalfWidth95({1, 3}, {2, 4});
+  const double eight = RatioHalfWidth95({1, 3, 1, 3, 1, 3, 1, 3}, {2, 4, 2, 4, 2, 4, 2, 4});
+  EXPECT_NEAR(eight / two, std::sqrt((8.0 / 7.0) / 2.0) / 2.0, 1e-9);
+}
+
 }  // namespace
 }  // namespace npfkct

@@ -5,6 +5,7 @@
 //   std::printf("%.1f ± %.1f (n = %d)", m.mean, m.half_width, m.n);
 #pragma once
 
+#include <cstdint>
 #include <vector>
 
 namespace npfkct {
@@ -32,5 +33,10 @@ struct MeanInterval {
 
 /// The mean of `v` and its `level` (default 95%) Student's t confidence interval.
 MeanInterval MeanWithInterval(const std::vector<double>& v, double level = 0.95);
+
+/// Half-width of the normal 95% interval of the ratio sum(hits) / sum(totals) over independent
+/// units (unit i: hits[i] of totals[i]), by the delta method; 0 with fewer than 2 units or no
+/// totals. Sizes must agree.
+double RatioHalfWidth95(const std::vector<int64_t>& hits, const std::vector<int64_t>& totals);
 
 }  // namespace npfkct

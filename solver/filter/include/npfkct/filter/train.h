@@ -60,9 +60,9 @@ struct FilterMetrics {
   int efficient = 0;  ///< Queries with g > kEfficientScore.
   /// The paper's accuracy: efficient queries not misclassified as useless (mu >= kEfficientScore).
   double accuracy = 0.0;
-  /// Half-width of the accuracy's 95% interval over the test samples (RatioHalfWidth95 of each
-  /// sample's correct and efficient queries); the samples of one scene are not independent, so
-  /// this is a lower bound on the uncertainty.
+  /// Half-width of the accuracy's 95% interval over the test samples (RatioHalfWidth95 of
+  /// solver/stats.h over each sample's correct and efficient queries); the samples of one scene
+  /// are not independent, so this is a lower bound on the uncertainty.
   double accuracy_ci95 = 0.0;
   /// The same accuracy among the queries with g > 2 kEfficientScore: how much of the error is
   /// near the threshold, where g (a share of sampled placements) has sampling noise of its own.
@@ -77,11 +77,6 @@ struct FilterMetrics {
   /// Fraction of queries with |g - mu| <= 2 sigma.
   double within_2_sigma = 0.0;
 };
-
-/// Half-width of the normal 95% interval of the ratio sum(hits) / sum(totals) over independent
-/// units (unit i: hits[i] of totals[i]), by the delta method; 0 with fewer than 2 units or no
-/// totals. Sizes must agree.
-double RatioHalfWidth95(const std::vector<int64_t>& hits, const std::vector<int64_t>& totals);
 
 /// Evaluates `filter` on `test` with Net_sam's rule at `options`.
 StatusOr<FilterMetrics> EvaluateFilter(const NeuralFilter& filter, const Dataset& test,
