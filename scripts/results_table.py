@@ -21,8 +21,10 @@
                                    steps and how many trials' first view saw the target
                                    (DIR/SCENE/PLANNER.first-views, the step-1 lines of --trace).
   results_table.py trace FILE      What the trials of an npfkct-bench --trace file did, per scene
-                                   and planner: steps, moves, obstacles declared and how many of
-                                   them were removed later, means per trial.
+                                   and planner: steps, moves, moves made while an object the
+                                   trial removes later could already be declared, obstacles
+                                   declared and how many of them were removed later, means per
+                                   trial.
   results_table.py compare A B     Whether two runs of the same cells agree: each mean inside the
                                    other run's 95% interval.
   results_table.py flat FILE       A table from one file of JSON lines (rows planners, columns
