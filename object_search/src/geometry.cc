@@ -7,44 +7,66 @@
 
 namespace npfkct::object_search {
 
-std::array<Vec3, 8> Box::Corners() const {
+std::array<Vec3, 8> Box::Corners() const { return BoxFrame(*this).Corners(); }
+
+Vec3 Box::ToLocal(const Vec3& p) const { return BoxFrame(*this).ToLocal(p); }
+
+bool Box::Contains(const Vec3& p, double margin) const {
+  return BoxFrame(*this).Contains(p, margin);
+}
+
+double Box::Intersect(const Vec3& origin, const Vec3& dir, double t_min, double t_max) const {
+  return BoxFrame(*this).Intersect(origin, dir, t_min, t_max);
+}
+
+bool Box::BlocksSegment(const Vec3& a, const Vec3& b, double clearance) const {
+  return BoxFrame(*this).BlocksSegment(a, b, clearance);
+}
+
+BoxFrame::BoxFrame(const Box& box)
+    : center(box.center),
+      cos_yaw(std::cos(box.yaw)),
+      sin_yaw(std::sin(box.yaw)),
+      half(0.5 * box.size.x(), 0.5 * box.size.y(), 0.5 * box.size.z()),
+      radius(half.norm()) {}
+
+std::array<Vec3, 8> BoxFrame::Corners() const {
   std::array<Vec3, 8> corners;
-  const double c = std::cos(yaw), s = std::sin(yaw);
+  const double c = cos_yaw, s = sin_yaw;
   for (int i = 0; i < 8; ++i) {
-    const double lx = ((i & 1) ? 0.5 : -0.5) * size.x();
-    const double ly = ((i & 2) ? 0.5 : -0.5) * size.y();
-    const double lz = ((i & 4) ? 0.5 : -0.5) * size.z();
+    const double lx = (i & 1) ? half.x() : -half.x();
+    const double ly = (i & 2) ? half.y() : -half.y();
+    const double lz = (i & 4) ? half.z() : -half.z();
     corners[i] = center + Vec3(c * lx - s * ly, s * lx + c * ly, lz);
   }
   return corners;
 }
 
-Vec3 Box::ToLocal(const Vec3& p) const {
+Vec3 BoxFrame::ToLocal(const Vec3& p) const {
   const Vec3 d = p - center;
-  const double c = std::cos(yaw), s = std::sin(yaw);
+  const double c = cos_yaw, s = sin_yaw;
   return Vec3(c * d.x() + s * d.y(), -s * d.x() + c * d.y(), d.z());
 }
 
-bool Box::Contains(const Vec3& p, double margin) const {
+bool BoxFrame::Contains(const Vec3& p, double margin) const {
   const Vec3 l = ToLocal(p);
-  return std::abs(l.x()) <= 0.5 * size.x() + margin && std::abs(l.y()) <= 0.5 * size.y() + margin &&
-         std::abs(l.z()) <= 0.5 * size.z() + margin;
+  return std::abs(l.x()) <= half.x() + margin && std::abs(l.y()) <= half.y() + margin &&
+         std::abs(l.z()) <= half.z() + margin;
 }
 
-double Box::Intersect(const Vec3& origin, const Vec3& dir, double t_min, double t_max) const {
-  const double c = std::cos(yaw), s = std::sin(yaw);
+double BoxFrame::Intersect(const Vec3& origin, const Vec3& dir, double t_min, double t_max) const {
+  const double c = cos_yaw, s = sin_yaw;
   const Vec3 d = origin - center;
   const Vec3 o(c * d.x() + s * d.y(), -s * d.x() + c * d.y(), d.z());
   const Vec3 v(c * dir.x() + s * dir.y(), -s * dir.x() + c * dir.y(), dir.z());
   double lo = t_min, hi = t_max;
   for (int i = 0; i < 3; ++i) {
-    const double half = 0.5 * size[i];
     if (std::abs(v[i]) < 1e-15) {
-      if (std::abs(o[i]) > half) return -1.0;
+      if (std::abs(o[i]) > half[i]) return -1.0;
       continue;
     }
-    double t0 = (-half - o[i]) / v[i];
-    double t1 = (half - o[i]) / v[i];
+    double t0 = (-half[i] - o[i]) / v[i];
+    double t1 = (half[i] - o[i]) / v[i];
     if (t0 > t1) std::swap(t0, t1);
     lo = std::max(lo, t0);
     hi = std::min(hi, t1);
@@ -53,11 +75,20 @@ double Box::Intersect(const Vec3& origin, const Vec3& dir, double t_min, double 
   return lo;
 }
 
-bool Box::BlocksSegment(const Vec3& a, const Vec3& b, double clearance) const {
+bool BoxFrame::BlocksSegment(const Vec3& a, const Vec3& b, double clearance) const {
   const Vec3 dir = b - a;
   const double length = dir.norm();
   if (length <= 2 * clearance) return false;
-  const Vec3 unit = dir / length;
+  return BlocksUnitSegment(a, dir / length, length, clearance);
+}
+
+bool BoxFrame::BlocksUnitSegment(const Vec3& a, const Vec3& unit, double length,
+                                 double clearance) const {
+  // A segment passing farther from the center than the bounding sphere (with 1 um to spare for
+  // rounding) misses the box: the exact test below would say so, at several divisions' cost.
+  const Vec3 to_center = center - a;
+  const double along = std::clamp(to_center.dot(unit), 0.0, length);
+  if ((to_center - along * unit).squaredNorm() > (radius + 1e-6) * (radius + 1e-6)) return false;
   return Intersect(a, unit, clearance, length - clearance) >= 0.0;
 }
 
@@ -116,11 +147,16 @@ CameraPose CameraPoseFor(const RobotPreset& robot, const RobotConfig& config) {
 }
 
 bool InFrustum(const CameraModel& camera, const CameraPose& pose, const Vec3& p) {
+  return InFrustum(camera, pose, p, camera.TanHalfHorizontal());
+}
+
+bool InFrustum(const CameraModel& camera, const CameraPose& pose, const Vec3& p,
+               double tan_half_horizontal) {
   const Vec3 q = pose.ToCamera(p);
   const double depth = q.x();
   if (depth < camera.near || depth > camera.far) return false;
-  return std::abs(q.y()) <= depth * camera.TanHalfHorizontal() &&
-         std::abs(q.z()) <= depth * camera.TanHalfVertical();
+  return std::abs(q.y()) <= depth * tan_half_horizontal &&
+         std::abs(q.z()) <= depth * (camera.aspect * tan_half_horizontal);
 }
 
 double WrapAngle(double a) {

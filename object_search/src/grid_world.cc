@@ -121,11 +121,13 @@ int GridWorld::UpdateFromView(const CameraModel& camera, const CameraPose& pose,
                               const std::vector<Box>& occluders, double lift, float free_delta,
                               float min_log_odds, float max_log_odds) {
   int updated = 0;
+  const std::vector<BoxFrame> frames(occluders.begin(), occluders.end());
+  const double tan_half_horizontal = camera.TanHalfHorizontal();
   for (int cell = 0; cell < num_cells(); ++cell) {
     const Vec3 p = CellCenter(cell, lift);
-    if (!InFrustum(camera, pose, p)) continue;
+    if (!InFrustum(camera, pose, p, tan_half_horizontal)) continue;
     bool hidden = false;
-    for (const Box& b : occluders) {
+    for (const BoxFrame& b : frames) {
       if (b.Contains(p) || b.BlocksSegment(pose.position, p)) {
         hidden = true;
         break;

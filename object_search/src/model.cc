@@ -18,6 +18,11 @@ ObjectSearchModel::ObjectSearchModel(std::shared_ptr<const World> world, SearchR
 void ObjectSearchModel::SetWorld(std::shared_ptr<const World> world) {
   world_ = std::move(world);
   const World& w = *world_;
+  tan_half_horizontal_ = w.camera.TanHalfHorizontal();
+  furniture_frames_.clear();
+  for (const Box& f : w.furniture) furniture_frames_.emplace_back(f);
+  object_frames_.clear();
+  for (const auto& object : w.objects) object_frames_.emplace_back(object.box);
   Vec2 lo = Vec2::Constant(1e9), hi = Vec2::Constant(-1e9);
   for (const BaseRegion& r : w.base_regions) {
     lo = lo.cwiseMin(r.min);
@@ -82,24 +87,39 @@ int ObjectSearchModel::CountPast(const std::array<float, 8>& odds, bool positive
   return n;
 }
 
+void ObjectSearchModel::ObjectFrames(const State& s, std::array<BoxFrame, 64>* frames) const {
+  const int n = static_cast<int>(s.objects.size());
+  for (int i = 0; i < n; ++i) {
+    (*frames)[i] = i == 0 ? BoxFrame(ObjectBox(s, 0)) : object_frames_[i];
+  }
+}
+
 bool ObjectSearchModel::Sees(const CameraPose& pose, const State& s,
-                             const std::array<Box, 64>& boxes, int i) const {
+                             const std::array<BoxFrame, 64>& frames, int i) const {
   const World& w = *world_;
   const int n = static_cast<int>(s.objects.size());
   if (s.objects[i].status == kRemoved) return false;
-  const Vec3& c = boxes[i].center;
-  if (!InFrustum(w.camera, pose, c)) return false;
-  for (const Box& f : w.furniture) {
-    if (f.BlocksSegment(pose.position, c)) return false;
+  const Vec3& c = frames[i].center;
+  if (!InFrustum(w.camera, pose, c, tan_half_horizontal_)) return false;
+  // The sight line, tested against every occluder as Box::BlocksSegment would.
+  constexpr double kClearance = 1e-6;
+  const Vec3 sight = c - pose.position;
+  const double length = sight.norm();
+  const bool blockable = length > 2 * kClearance;
+  const Vec3 unit = sight / length;
+  for (const BoxFrame& f : furniture_frames_) {
+    if (blockable && f.BlocksUnitSegment(pose.position, unit, length, kClearance)) return false;
   }
+  const double volume = frames[i].half.prod();
   for (int j = 0; j < n; ++j) {
     if (j == i || s.objects[j].status == kRemoved) continue;
     // A smaller object nested inside object i (a covered target) does not hide it.
-    if (boxes[j].size.prod() < boxes[i].size.prod() && boxes[i].Contains(boxes[j].center)) {
-      continue;
-    }
+    if (frames[j].half.prod() < volume && frames[i].Contains(frames[j].center)) continue;
     // The guessed target hides inside or under a real object it overlaps (covered target).
-    if (boxes[j].Contains(c) || boxes[j].BlocksSegment(pose.position, c)) return false;
+    if (frames[j].Contains(c)) return false;
+    if (blockable && frames[j].BlocksUnitSegment(pose.position, unit, length, kClearance)) {
+      return false;
+    }
   }
   return true;
 }
@@ -107,23 +127,23 @@ bool ObjectSearchModel::Sees(const CameraPose& pose, const State& s,
 bool ObjectSearchModel::SeesObject(const State& s, const RobotConfig& config, int i) const {
   const int n = static_cast<int>(s.objects.size());
   if (i < 0 || i >= n) return false;
-  std::array<Box, 64> boxes;
-  for (int j = 0; j < n; ++j) boxes[j] = ObjectBox(s, j);
-  return Sees(CameraPoseFor(world_->robot, config), s, boxes, i);
+  std::array<BoxFrame, 64> frames;
+  ObjectFrames(s, &frames);
+  return Sees(CameraPoseFor(world_->robot, config), s, frames, i);
 }
 
 uint64_t ObjectSearchModel::VisibleObjects(const State& s, const RobotConfig& config,
                                            std::array<std::array<int, 4>, 64>* nearest) const {
   const CameraPose pose = CameraPoseFor(world_->robot, config);
   const int n = static_cast<int>(s.objects.size());
-  std::array<Box, 64> boxes;
-  for (int i = 0; i < n; ++i) boxes[i] = ObjectBox(s, i);
+  std::array<BoxFrame, 64> frames;
+  ObjectFrames(s, &frames);
   uint64_t visible = 0;
   for (int i = 0; i < n; ++i) {
-    if (!Sees(pose, s, boxes, i)) continue;
+    if (!Sees(pose, s, frames, i)) continue;
     visible |= (uint64_t{1} << i);
     if (nearest != nullptr) {
-      const auto corners = boxes[i].Corners();
+      const auto corners = frames[i].Corners();
       std::array<std::pair<double, int>, 8> d;
       for (int k = 0; k < 8; ++k) d[k] = {(corners[k] - pose.position).squaredNorm(), k};
       std::partial_sort(d.begin(), d.begin() + 4, d.end());

@@ -114,13 +114,14 @@ void OccupancyMap::AddBox(const Box& box, double margin) {
   if (nx_ <= 0 || ny_ <= 0 || !box.center.allFinite()) return;
   const auto [x0, x1] = range(box.center.x(), min_.x(), nx_);
   const auto [y0, y1] = range(box.center.y(), min_.y(), ny_);
+  const BoxFrame frame(box);
   for (int iy = y0; iy <= y1; ++iy) {
     for (int ix = x0; ix <= x1; ++ix) {
       const Vec3 p(min_.x() + (ix + 0.5) * resolution_, min_.y() + (iy + 0.5) * resolution_,
                    box.center.z());
-      const Vec3 l = box.ToLocal(p);
-      if (std::abs(l.x()) <= 0.5 * box.size.x() + margin &&
-          std::abs(l.y()) <= 0.5 * box.size.y() + margin) {
+      const Vec3 l = frame.ToLocal(p);
+      if (std::abs(l.x()) <= frame.half.x() + margin &&
+          std::abs(l.y()) <= frame.half.y() + margin) {
         occupied_[iy * nx_ + ix] = 1;
       }
     }

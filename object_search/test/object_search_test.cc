@@ -98,6 +98,42 @@ TEST(GeometryTest, BoxesBlockSegmentsThatCrossThem) {
   EXPECT_TRUE(corners[0].isApprox(Vec3(0.75, -0.15, 0.75)));
 }
 
+// The occlusion checks test many sight lines against precomputed BoxFrames and skip the exact
+// slab test when a segment passes outside the bounding sphere; both must give what the exact
+// test alone gives, including segments that graze a box's corners and edges.
+TEST(GeometryTest, BoxFramesAnswerAsTheExactSlabTest) {
+  Rng rng(7);
+  int blocked = 0, grazing = 0;
+  for (int trial = 0; trial < 20000; ++trial) {
+    Box box;
+    box.center = Vec3(rng.Uniform(-1, 1), rng.Uniform(-1, 1), rng.Uniform(0, 1));
+    box.yaw = rng.Uniform(-4, 4);
+    box.size = Vec3(rng.Uniform(0.01, 1), rng.Uniform(0.01, 1), rng.Uniform(0.01, 1));
+    const BoxFrame frame(box);
+    const auto corners = box.Corners();
+    for (int k = 0; k < 8; ++k) EXPECT_EQ(frame.Corners()[k], corners[k]);
+    const Vec3 a(rng.Uniform(-3, 3), rng.Uniform(-3, 3), rng.Uniform(-1, 2));
+    // Half the segments end at a corner pushed out by a hair: the closest calls.
+    Vec3 b(rng.Uniform(-3, 3), rng.Uniform(-3, 3), rng.Uniform(-1, 2));
+    if (trial % 2 == 0) {
+      const Vec3& corner = corners[trial % 8];
+      b = corner + (corner - box.center) * rng.Uniform(1e-9, 1e-3) + (corner - a) * 0.5;
+      ++grazing;
+    }
+    const Vec3 dir = b - a;
+    const double length = dir.norm();
+    const bool exact = box.Intersect(a, dir / length, 1e-6, length - 1e-6) >= 0.0;
+    ASSERT_EQ(frame.BlocksSegment(a, b), exact) << "trial " << trial;
+    ASSERT_EQ(box.BlocksSegment(a, b), exact) << "trial " << trial;
+    EXPECT_EQ(frame.Contains(b), box.Contains(b));
+    blocked += exact;
+  }
+  // Both outcomes occur often enough for the comparison to mean something.
+  EXPECT_GT(blocked, 2000);
+  EXPECT_LT(blocked, 18000);
+  EXPECT_EQ(grazing, 10000);
+}
+
 TEST(ObjectSearchModelTest, ObservationUpdatesTheFourNearestGridsByTheMeanOdds) {
   World w = TestWorld();
   // Object 1: a box on the table believed to be the target; object 2: believed an obstacle;

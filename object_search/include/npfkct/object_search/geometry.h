@@ -32,6 +32,32 @@ struct Box {
   bool BlocksSegment(const Vec3& a, const Vec3& b, double clearance = 1e-6) const;
 };
 
+/// A Box with its yaw's cosine and sine computed once, for tests against many points and rays
+/// (the camera's occlusion checks); the same results as the Box methods of the same names.
+struct BoxFrame {
+  BoxFrame() = default;
+  explicit BoxFrame(const Box& box);
+
+  Vec3 center = Vec3::Zero();
+  double cos_yaw = 1.0, sin_yaw = 0.0;
+  Vec3 half = Vec3::Constant(0.5);     ///< Half extents.
+  double radius = 0.8660254037844386;  ///< Of the sphere around the center holding the box.
+
+  /// See Box::Corners.
+  std::array<Vec3, 8> Corners() const;
+  /// See Box::ToLocal.
+  Vec3 ToLocal(const Vec3& p) const;
+  /// See Box::Contains.
+  bool Contains(const Vec3& p, double margin = 0.0) const;
+  /// See Box::Intersect.
+  double Intersect(const Vec3& origin, const Vec3& dir, double t_min, double t_max) const;
+  /// See Box::BlocksSegment.
+  bool BlocksSegment(const Vec3& a, const Vec3& b, double clearance = 1e-6) const;
+  /// BlocksSegment for the segment from `a` along the unit vector `unit` for `length` (> 2
+  /// clearance), for one segment tested against many boxes.
+  bool BlocksUnitSegment(const Vec3& a, const Vec3& unit, double length, double clearance) const;
+};
+
 /// A robot configuration: the continuous action space of the paper (base x, y, yaw; lift; head
 /// pan and tilt). Positive tilt looks down.
 struct RobotConfig {
@@ -92,6 +118,9 @@ CameraPose CameraPoseFor(const RobotPreset& robot, const RobotConfig& config);
 
 /// Whether a world point lies inside the camera frustum.
 bool InFrustum(const CameraModel& camera, const CameraPose& pose, const Vec3& p);
+/// InFrustum with camera.TanHalfHorizontal() given, for many points seen by one camera.
+bool InFrustum(const CameraModel& camera, const CameraPose& pose, const Vec3& p,
+               double tan_half_horizontal);
 
 /// Wraps an angle into [-pi, pi).
 double WrapAngle(double a);

@@ -124,9 +124,15 @@ class ObjectSearchModel {
 
  private:
   void Observe(State* s, Rng& rng, Observation* o) const;
-  bool Sees(const CameraPose& pose, const State& s, const std::array<Box, 64>& boxes, int i) const;
+  /// Frames of the boxes of the objects of s (object 0's from s.target).
+  void ObjectFrames(const State& s, std::array<BoxFrame, 64>* frames) const;
+  bool Sees(const CameraPose& pose, const State& s, const std::array<BoxFrame, 64>& frames,
+            int i) const;
 
   std::shared_ptr<const World> world_;
+  std::vector<BoxFrame> furniture_frames_;  ///< Of world_->furniture, computed by SetWorld.
+  std::vector<BoxFrame> object_frames_;     ///< Of world_->objects' boxes, likewise.
+  double tan_half_horizontal_ = 0.0;        ///< Of world_->camera, likewise.
   SearchRollout rollout_;
   BoxSpace move_space_;
   BoxSpace point_;
