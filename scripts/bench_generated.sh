@@ -7,7 +7,7 @@
 #
 # Resumable like scripts/bench_table1.sh: one file per scene and planner,
 # bench/results/generated/RUN/SEED/PLANNER.jsonl; finished cells are skipped; --commit commits
-# each cell. About 2 CPU-hours.
+# each cell. About 1.5 CPU-hours (45 minutes on 2 cores at d6ae15f).
 # Usage: scripts/bench_generated.sh [--run NAME] [--cpu-ms MS] [--trials N] [--commit]
 #        env: SEEDS (default: 900001 ... 900030), PLANNERS, BUILD_DIR
 set -euo pipefail
