@@ -187,6 +187,29 @@ TEST(ObjectSearchModelTest, OccludedAndOutOfViewObjectsAreNotObserved) {
   EXPECT_EQ(model.VisibleObjects(s, c, &nearest) & 1u, 0u);
 }
 
+// The model keeps the boxes of the world it was given in precomputed form; a new world (after a
+// real step) must replace them: the same object moved out of the sight line, and a new occluder.
+TEST(ObjectSearchModelTest, ANewWorldReplacesTheOccluders) {
+  World w = TestWorld();
+  w.objects.push_back(Object("front", Vec3(0.85, 0.0, 0.9), Vec3(0.1, 0.4, 0.3), 0.0f));
+  w.objects.push_back(Object("hidden", Vec3(1.3, 0.0, 0.8), Vec3(0.1, 0.1, 0.1), 0.3f));
+  ObjectSearchModel model(std::make_shared<World>(w));
+  Rng rng(2);
+  State s = model.SampleInitialState(rng);
+  s.target = Vec3(-1.0, 0.0, 0.8);  // behind the robot
+  RobotConfig c;
+  c.tilt = 0.3;
+  EXPECT_FALSE(model.SeesObject(s, c, 2));
+  World moved = w;
+  moved.objects[1].box.center = Vec3(0.85, 0.6, 0.9);  // beside the sight line now
+  model.SetWorld(std::make_shared<World>(moved));
+  EXPECT_TRUE(model.SeesObject(s, c, 2));
+  moved.furniture.push_back(moved.objects[1].box);
+  moved.furniture.back().center = Vec3(0.85, 0.0, 0.9);  // furniture where the box was
+  model.SetWorld(std::make_shared<World>(moved));
+  EXPECT_FALSE(model.SeesObject(s, c, 2));
+}
+
 TEST(ObjectSearchModelTest, RewardTableAndIllegalActions) {
   World w = TestWorld();
   w.objects.push_back(Object("t", Vec3(1.0, 0.2, 0.8), Vec3(0.1, 0.1, 0.1), 0.0f));
