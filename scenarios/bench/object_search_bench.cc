@@ -185,11 +185,8 @@ EpisodeResult RunTrial(const TrialContext& ctx) {
     for (size_t i = 1; i < world.objects.size(); ++i) {
       const auto& o = world.objects[i];
       if (o.status == object_search::kRemoved) continue;
-      int plus = 0, minus = 0;
-      for (float v : o.odds) {
-        plus += v > world.params.declare_threshold;
-        minus += v < -world.params.declare_threshold;
-      }
+      const int plus = model.CountPast(o.odds, true);
+      const int minus = model.CountPast(o.odds, false);
       const bool declarable =
           o.status == object_search::kUpdating && std::max(plus, minus) >= world.params.n_odds;
       known += " " + o.key + ":" + std::to_string(plus) + "/" + std::to_string(minus) +
