@@ -3,7 +3,8 @@
 # 900001-900030 (no filter training data comes from seeds above 900000), 5 trials per scene and
 # planner, 0.25 s of the planning thread's CPU time per step, success within 50 steps. The summary
 # gives each planner's mean share of the oracle's reward over the scenes (with a Student's t
-# interval over the 30 scene means) and its success rate over all trials.
+# interval over the 30 scene means) and its success rate over all trials, then the same shares
+# per placement of the target (in the open, hidden behind tall boxes, covered by a larger box).
 #
 # Resumable like scripts/bench_table1.sh: one file per scene and planner,
 # bench/results/generated/RUN/SEED/PLANNER.jsonl; finished cells are skipped; --commit commits
@@ -28,4 +29,5 @@ for scene in "${SCENE_FILES[@]}"; do
       --planner "$planner" --trials "$TRIALS" --cpu-ms "$CPU_MS" --threads "$(nproc)" --seed 1
   done
 done
-python3 "$NPFKCT_ROOT/scripts/results_table.py" generated "$OUT" | tee "$OUT/summary.md"
+python3 "$NPFKCT_ROOT/scripts/results_table.py" generated "$OUT" "$BUILD_DIR/generated-scenes" |
+  tee "$OUT/summary.md"

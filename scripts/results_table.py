@@ -4,10 +4,14 @@
   results_table.py table1 DIR      Table 1 from DIR/SCENE/PLANNER.jsonl (scripts/bench_table1.sh):
                                    reward ± 95% CI | steps ± 95% CI | success, and each planner's
                                    mean reward as a share of the oracle's in the same scene.
-  results_table.py generated DIR   The held-out generated scenes (scripts/bench_generated.sh): per
+  results_table.py generated DIR [SCENES]
+                                   The held-out generated scenes (scripts/bench_generated.sh): per
                                    planner, the mean over scenes of its share of the oracle's
                                    reward with a Student's t interval over the scenes, success rate
-                                   and mean steps over every trial.
+                                   and mean steps over every trial; with SCENES (the folder of
+                                   the gen-SEED.json files) the same shares and steps per
+                                   placement of the target (in the open, hidden, covered), which
+                                   each scene's description names.
   results_table.py ablation DIR    The ablation (scripts/bench_ablation.sh): rows from
                                    DIR/ROW/SCENE.jsonl in the script's order, a column per scene
                                    and the mean reward over the scenes; with an oracle row (the
@@ -195,7 +199,47 @@ def oracle_summary(cells, groups, scenes):
     return out
 
 
-def generated(root):
+PLACEMENTS = [("in the open", "open"), ("hidden behind", "hidden"), ("covered by", "covered")]
+
+
+def scene_placement(path):
+    """The target's placement (open, hidden or covered) that npfkct-scenegen's description of the
+    scene names, or None."""
+    with open(path, encoding="utf-8") as f:
+        description = json.load(f).get("description", "")
+    for phrase, name in PLACEMENTS:
+        if "the target " + phrase in description:
+            return name
+    return None
+
+
+def by_placement(cells, planners, scenes, scenes_dir):
+    """Prints each planner's share of the oracle's reward (t interval over the scenes of the
+    group) and mean steps per placement of the target; cells keyed (planner, scene)."""
+    groups = {}
+    for s in scenes:
+        path = os.path.join(scenes_dir, s + ".json")
+        placement = scene_placement(path) if os.path.exists(path) else None
+        groups.setdefault(placement or "unknown", []).append(s)
+    names = order(set(groups), [name for _, name in PLACEMENTS])
+    print("\nBy placement of the target (share of the oracle's reward ± 95% t interval over the "
+          "group's scenes; mean steps over its trials):\n")
+    columns = [f"{name} ({len(groups[name])} scenes)" for name in names]
+
+    def cell(p, column):
+        name = names[columns.index(column)]
+        x = oracle_summary(cells, [p], groups[name])[p]
+        if x["scenes"] == 0:
+            return None
+        steps = f"{x['steps']:.1f} steps"
+        if p == "oracle":
+            return steps
+        return f"{100 * x['share']:.1f}% ± {100 * x['share_ci']:.1f}, {steps}"
+
+    planner_table(planners, columns, cell)
+
+
+def generated(root, scenes_dir=None):
     cells = {(p, s): r for (s, p), r in load_cells(root).items()}
     scenes = sorted({s for _, s in cells})
     planners = order({p for p, _ in cells}, PLANNER_ORDER)
@@ -208,6 +252,8 @@ def generated(root):
     for p, x in oracle_summary(cells, planners, scenes).items():
         print(f"| {p} | {100 * x['share']:.1f}% ± {100 * x['share_ci']:.1f} | "
               f"{x['success']:.1f}% | {x['steps']:.1f} ± {x['steps_ci']:.1f} | {x['scenes']} |")
+    if scenes_dir is not None:
+        by_placement(cells, planners, scenes, scenes_dir)
 
 
 ABLATION_ROWS = ["paper", "aimed", "candidates", "sibling", "w2-rule", "filter"]
@@ -435,7 +481,7 @@ def main():
     if sys.argv[1] == "table1":
         table1(sys.argv[2])
     elif sys.argv[1] == "generated":
-        generated(sys.argv[2])
+        generated(sys.argv[2], sys.argv[3] if len(sys.argv) > 3 else None)
     elif sys.argv[1] == "ablation":
         ablation(sys.argv[2])
     elif sys.argv[1] == "sensitivity":
