@@ -6,6 +6,8 @@
 #   on VDP Tag and SimpleLightDark at the published 1 s budgets, as CPU time of the planning thread;
 #   kct-vdptag and kct-lightdark: either half of it)
 # Takes about three hours on a 2-core machine with every section.
+# env: THREADS (episodes at once; default: the number of cores), SEED (the kct sections' seed,
+# default 1; a second seed gives new episodes to pool with the first).
 set -euo pipefail
 NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 source "$NPFKCT_ROOT/scripts/deps.sh"
@@ -13,7 +15,8 @@ npfkct_prepare npfkct-bench
 BENCH="$BUILD_DIR/scenarios/npfkct-bench"
 OUT="${OUT:-$NPFKCT_ROOT/bench/results/classic.jsonl}"
 mkdir -p "$(dirname "$OUT")"
-THREADS="$(nproc)"
+THREADS="${THREADS:-$(nproc)}"
+SEED="${SEED:-1}"
 run() { "$BENCH" "$@" | tee -a "$OUT"; }
 sections=("$@")
 [ ${#sections[@]} -eq 0 ] && sections=(tiger rocksample throughput lightdark vdptag kct)
@@ -54,10 +57,12 @@ for section in "${sections[@]}"; do
       # 1 s, ToNextML rollouts for all; SimpleLightDark's actions are discrete, so there kCT's
       # list holds them as points and VOMCPOW is POMCPOW.
       [ "$section" = kct-lightdark ] || for planner in kct vomcpow pomcpow; do
-        run --problem vdptag --planner "$planner" --episodes 100 --cpu-ms 1000 --threads "$THREADS" --rollout tonextml
+        run --problem vdptag --planner "$planner" --episodes 100 --cpu-ms 1000 --threads "$THREADS" \
+          --rollout tonextml --seed "$SEED"
       done
       [ "$section" = kct-vdptag ] || for planner in kct pomcpow; do
-        run --problem lightdark --planner "$planner" --episodes 200 --cpu-ms 1000 --threads "$THREADS"
+        run --problem lightdark --planner "$planner" --episodes 200 --cpu-ms 1000 --threads "$THREADS" \
+          --seed "$SEED"
       done
       ;;
     *) echo "unknown section $section" >&2; exit 2 ;;
