@@ -1,9 +1,12 @@
 #!/usr/bin/env python3
 """Builds the README's benchmark tables from npfkct-bench JSON lines.
 
-  results_table.py table1 DIR      Table 1 from DIR/SCENE/PLANNER.jsonl (scripts/bench_table1.sh):
+  results_table.py table1 DIR [DIR ...]
+                                   Table 1 from DIR/SCENE/PLANNER.jsonl (scripts/bench_table1.sh):
                                    reward ± 95% CI | steps ± 95% CI | success, and each planner's
-                                   mean reward as a share of the oracle's in the same scene.
+                                   mean reward as a share of the oracle's in the same scene. With
+                                   several runs a cell comes from the first DIR that has it, and
+                                   a last column names each planner's run(s).
   results_table.py generated DIR [SCENES]
                                    The held-out generated scenes (scripts/bench_generated.sh): per
                                    planner, the mean over scenes of its share of the oracle's
@@ -147,23 +150,31 @@ def planner_table(planners, columns, cell):
         print(f"| {p} |" + "".join(" – |" if t is None else f" {t} |" for t in texts))
 
 
-def table1(root):
-    cells = load_cells(root)
+def table1(*roots):
+    cells, runs = {}, {}
+    for root in roots:
+        for key, r in load_cells(root).items():
+            if key not in cells:
+                cells[key] = r
+                runs.setdefault(key[1], []).append(os.path.basename(os.path.normpath(root)))
     scenes = order({s for s, _ in cells}, PAPER_SCENES)
     planners = order({p for _, p in cells}, PLANNER_ORDER)
     budget = {(r["cpu_ms"], r["trials"]) for r in cells.values()}
     print(f"Cells: discounted reward ± 95% t interval \\| steps ± 95% t interval \\| success "
           f"rate; budgets and trials (cpu_ms, trials): {sorted(budget)}.\n")
     sims = "sims/CPU-s (Complex1)"
+    run_column = ["Run"] if len(roots) > 1 else []
 
     def reward_cell(p, s):
+        if s == "Run":
+            return ", ".join(sorted(set(runs[p])))
         if s == sims:
             r = cells.get(("Complex1", p))
             return None if r is None or p == "oracle" else f"{r['median_sims_per_cpu_second']:.0f}"
         r = cells.get((s, p))
         return None if r is None else cell_text(r)
 
-    planner_table(planners, scenes + [sims], reward_cell)
+    planner_table(planners, scenes + [sims] + run_column, reward_cell)
     print("\nMean reward as a share of the oracle's in the same scene:\n")
 
     def share_cell(p, s):
@@ -479,7 +490,7 @@ def main():
         print(__doc__)
         sys.exit(2)
     if sys.argv[1] == "table1":
-        table1(sys.argv[2])
+        table1(*sys.argv[2:])
     elif sys.argv[1] == "generated":
         generated(sys.argv[2], sys.argv[3] if len(sys.argv) > 3 else None)
     elif sys.argv[1] == "ablation":

@@ -198,3 +198,27 @@ def test_generated_groups_the_shares_by_the_placement_the_scene_names(tmp_path):
     out = subprocess.run([sys.executable, os.path.join(SCRIPTS, "results_table.py"), "generated",
                           str(runs)], check=True, capture_output=True, text=True).stdout
     assert "By placement" not in out
+
+
+def test_table1_takes_each_cell_from_the_first_run_that_has_it(tmp_path):
+    def cell(run, scene, planner, reward):
+        os.makedirs(tmp_path / run / scene, exist_ok=True)
+        record = {"scenario": scene, "planner": planner, "cpu_ms": 1000, "trials": 2,
+                  "mean_discounted_reward": reward, "ci95": 1.0, "mean_steps": 4.0,
+                  "ci95_steps": 0.0, "success_rate": 1.0, "median_sims_per_cpu_second": 10.0}
+        (tmp_path / run / scene / (planner + ".jsonl")).write_text(json.dumps(record) + "\n",
+                                                                   encoding="utf-8")
+
+    cell("run1", "Loose1", "oracle", 100.0)
+    cell("run1", "Loose1", "npfkct", 50.0)
+    cell("run1", "Loose1", "advt", 20.0)
+    cell("run3", "Loose1", "oracle", 100.0)
+    cell("run3", "Loose1", "npfkct", 80.0)
+    out = subprocess.run([sys.executable, os.path.join(SCRIPTS, "results_table.py"), "table1",
+                          str(tmp_path / "run3"), str(tmp_path / "run1")], check=True,
+                         capture_output=True, text=True).stdout
+    lines = out.splitlines()
+    assert "| npfkct | 80.0 ± 1.0 \\| 4.0 ± 0.0 \\| 100% | – | run3 |" in lines
+    assert "| advt | 20.0 ± 1.0 \\| 4.0 ± 0.0 \\| 100% | – | run1 |" in lines
+    # The shares come from the same merged cells: npfkct 80 of the oracle's 100.
+    assert "| npfkct | 80% |" in lines
