@@ -156,7 +156,7 @@ def table1(*roots):
         for key, r in load_cells(root).items():
             if key not in cells:
                 cells[key] = r
-                runs.setdefault(key[1], []).append(os.path.basename(os.path.normpath(root)))
+                runs.setdefault(key[1], set()).add(os.path.basename(os.path.normpath(root)))
     scenes = order({s for s, _ in cells}, PAPER_SCENES)
     planners = order({p for _, p in cells}, PLANNER_ORDER)
     budget = {(r["cpu_ms"], r["trials"]) for r in cells.values()}
@@ -167,7 +167,7 @@ def table1(*roots):
 
     def reward_cell(p, s):
         if s == "Run":
-            return ", ".join(sorted(set(runs[p])))
+            return ", ".join(sorted(runs[p]))
         if s == sims:
             r = cells.get(("Complex1", p))
             return None if r is None or p == "oracle" else f"{r['median_sims_per_cpu_second']:.0f}"
@@ -235,11 +235,11 @@ def by_placement(cells, planners, scenes, scenes_dir):
     names = order(set(groups), [name for _, name in PLACEMENTS])
     print("\nBy placement of the target (share of the oracle's reward ± 95% t interval over the "
           "group's scenes; mean steps over its trials):\n")
-    columns = [f"{name} ({len(groups[name])} scenes)" for name in names]
+    column_group = {f"{name} ({len(groups[name])} scenes)": name for name in names}
+    summaries = {name: oracle_summary(cells, planners, groups[name]) for name in names}
 
     def cell(p, column):
-        name = names[columns.index(column)]
-        x = oracle_summary(cells, [p], groups[name])[p]
+        x = summaries[column_group[column]][p]
         if x["scenes"] == 0:
             return None
         steps = f"{x['steps']:.1f} steps"
@@ -247,7 +247,7 @@ def by_placement(cells, planners, scenes, scenes_dir):
             return steps
         return f"{100 * x['share']:.1f}% ± {100 * x['share_ci']:.1f}, {steps}"
 
-    planner_table(planners, columns, cell)
+    planner_table(planners, list(column_group), cell)
 
 
 def generated(root, scenes_dir=None):
