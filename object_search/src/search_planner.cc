@@ -192,6 +192,11 @@ const std::vector<PlannerInfo>& SearchPlanners() {
        "Told the true world: plans the shortest legal action sequence (the ceiling; benchmark "
        "only)",
        false, true},
+      {"oracle-cover-unknown",
+       "The oracle not told which object covers the target: when nothing more of the target can "
+       "be seen it clears the movable object of the largest footprint (a ceiling told the "
+       "layout, not the target's box; benchmark only)",
+       false, true},
   };
   return *planners;
 }

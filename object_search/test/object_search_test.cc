@@ -466,9 +466,10 @@ TEST(DiscreteActionSetTest, PomcpPlansWithoutTheGuessedTargetAndGpomcpWithIt) {
   EXPECT_LT(dp.value, 0.0);     // only step costs
   EXPECT_GT(dg.value, 1000.0);  // declaring the guessed target is within reach
   EXPECT_FALSE(MakeSearchPlanner("oracle", model, {}).ok());
+  EXPECT_FALSE(MakeSearchPlanner("oracle-cover-unknown", model, {}).ok());
   EXPECT_FALSE(MakeSearchPlanner("nope", model, {}).ok());
   for (const std::string& name : SearchPlannerNames()) {
-    if (name == "oracle") continue;
+    if (FindSearchPlanner(name)->needs_truth) continue;
     auto p = MakeSearchPlanner(name, model, {});
     ASSERT_TRUE(p.ok()) << name;
     (*p)->SetBelief(belief);

@@ -305,7 +305,7 @@ int main(int argc, char** argv) {
   app.add_option("--planner", search.planners,
                  "problems: pomcp | pomcpow | vomcpow | advt | kct; scenarios: a comma-separated "
                  "list of npfkct, kct, pomcp, gpomcp, pomcp-joint, pomcpow, vomcpow, advt, oracle, "
-                 "or all")
+                 "oracle-cover-unknown, or all")
       ->delimiter(',')
       ->required();
   app.add_option("--episodes,--trials", c.episodes, "episodes (trials) per run")

@@ -163,8 +163,10 @@ EpisodeResult RunTrial(const TrialContext& ctx) {
   // The oracle is told the true scene; every other planner plans on the robot's belief.
   std::unique_ptr<sim::Oracle> oracle;
   std::unique_ptr<object_search::SearchPlanner> planner;
-  if (ctx.planner == "oracle") {
-    oracle = std::make_unique<sim::Oracle>(simulator);
+  if (object_search::FindSearchPlanner(ctx.planner)->needs_truth) {
+    sim::OracleOptions oracle_options;
+    oracle_options.cover_unknown = ctx.planner == "oracle-cover-unknown";
+    oracle = std::make_unique<sim::Oracle>(simulator, oracle_options);
   } else {
     auto made = MakePlanner(ctx.planner, model, ctx.options, ctx.filter_options, ctx.filter);
     if (!made.ok()) {
@@ -349,7 +351,9 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
       return 2;
     }
     if (mode == "perception" &&
-        std::find(planners.begin(), planners.end(), "oracle") != planners.end()) {
+        std::any_of(planners.begin(), planners.end(), [](const std::string& p) {
+          return object_search::FindSearchPlanner(p)->needs_truth;
+        })) {
       std::cerr << "npfkct-bench: the oracle observes geometrically only\n";
       return 2;
     }
@@ -373,7 +377,7 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
     }
     ObjectSearchModel probe(std::make_shared<World>(*world));
     for (const std::string& planner : planners) {
-      if (planner == "oracle") continue;
+      if (object_search::FindSearchPlanner(planner)->needs_truth) continue;
       auto made = MakePlanner(planner, probe, options, filter_options, net);
       if (!made.ok()) {
         std::cerr << "npfkct-bench: " << made.status().message() << "\n";

@@ -10,7 +10,7 @@ namespace npfkct::bench {
 /// Settings of an object-search benchmark run.
 struct SearchBenchConfig {
   std::vector<std::string> scenarios;  ///< Scenario files.
-  /// Planner registry names (object_search::SearchPlanners()), "all", or "oracle".
+  /// Planner registry names (object_search::SearchPlanners(), the oracles included) or "all".
   std::vector<std::string> planners;
   int trials = 20;
   double time_ms = 0.0;  ///< Wall-clock budget per step (0: none).

@@ -221,7 +221,18 @@ HybridAction Oracle::Next(const object_search::World& knowledge) const {
   }
   // 3. Nothing more of the target can be seen: clear the object whose removal exposes the most.
   int blocker = -1, best_exposed = 0;
-  for (int b = 0; b < static_cast<int>(scene.size()); ++b) {
+  if (options_.cover_unknown) {
+    double largest = 0.0;
+    for (int b = 0; b < static_cast<int>(scene.size()) && b < 64; ++b) {
+      if (b == target || sim_.removed(b) || !scene[b].moveable) continue;
+      const double area = scene[b].box.size.x() * scene[b].box.size.y();
+      if (area > largest) {
+        largest = area;
+        blocker = b;
+      }
+    }
+  }
+  for (int b = 0; b < static_cast<int>(scene.size()) && !options_.cover_unknown; ++b) {
     if (b == target || sim_.removed(b) || !scene[b].moveable || b >= 64) continue;
     // Only what stands near the target can hide it.
     const Vec3 d = scene[b].box.center - scene[target].box.center;

@@ -17,12 +17,12 @@ struct Episode {
 };
 
 // The closed loop of npfkct-bench with the oracle: act, execute in the simulator, observe.
-Episode RunOracle(const Scenario& scenario, uint64_t seed) {
+Episode RunOracle(const Scenario& scenario, uint64_t seed, OracleOptions options = {}) {
   Simulator sim(scenario, seed);
   object_search::World world = sim.InitialWorld().value();
   Rng world_rng(seed * 104729 + 3);
   EXPECT_TRUE(object_search::ApplyRealObservation(&world, sim.Observe(world_rng)).ok());
-  Oracle oracle(sim);
+  Oracle oracle(sim, options);
   Episode e;
   double discount = 1.0;
   for (int t = 0; t < scenario.params.max_steps; ++t) {
@@ -71,6 +71,29 @@ TEST(OracleTest, ClearsTheCoverOfACoveredTarget) {
   // and remove it (one view may serve twice).
   EXPECT_GE(e.steps, 7);
   EXPECT_LE(e.steps, 10);
+}
+
+TEST(OracleTest, NotToldTheCoverItClearsTheLargestBoxFirst) {
+  OracleOptions blind;
+  blind.cover_unknown = true;
+  // In Covered1 the cover has the largest footprint: the same episode as the oracle's.
+  const Scenario covered1 = Load("covered1");
+  const Episode told = RunOracle(covered1, 1000003ULL);
+  const Episode untold = RunOracle(covered1, 1000003ULL, blind);
+  EXPECT_TRUE(untold.success);
+  EXPECT_EQ(untold.steps, told.steps);
+  EXPECT_DOUBLE_EQ(untold.discounted, told.discounted);
+  // With a larger decoy it must declare and remove the decoy first: two steps at least.
+  Scenario decoy = covered1;
+  for (SceneObject& o : decoy.objects) {
+    if (o.name == "red-box") o.box.size = object_search::Vec3(0.3, 0.3, 0.15);
+  }
+  const Episode told_decoy = RunOracle(decoy, 1000003ULL);
+  const Episode untold_decoy = RunOracle(decoy, 1000003ULL, blind);
+  EXPECT_TRUE(told_decoy.success);
+  EXPECT_TRUE(untold_decoy.success);
+  EXPECT_GE(untold_decoy.steps, told_decoy.steps + 2);
+  EXPECT_LT(untold_decoy.discounted, told_decoy.discounted);
 }
 
 TEST(OracleTest, SolvesEveryPaperScene) {

@@ -23,6 +23,10 @@ struct OracleOptions {
   /// Head pans tried (between the limits, both included); every view's yaw aims the camera at
   /// the object it wants to see, so pan only matters near the joint limits.
   int pans = 3;
+  /// Not told which object covers the target: when no view can see an unconfirmed face grid of
+  /// the target, clear the movable object of the largest footprint instead of the one whose
+  /// removal exposes the most (a ceiling told the layout, not the target's box).
+  bool cover_unknown = false;
 };
 
 /// The oracle planner. Each step it looks at the robot's knowledge (what has been seen, which face
