@@ -5,6 +5,7 @@
 # gives each planner's mean share of the oracle's reward over the scenes (with a Student's t
 # interval over the 30 scene means) and its success rate over all trials, then the same shares
 # per placement of the target (in the open, hidden behind tall boxes, covered by a larger box).
+# oracle-cover-unknown is a second ceiling: the oracle not told which box covers the target.
 #
 # Resumable like scripts/bench_table1.sh: one file per scene and planner,
 # bench/results/generated/RUN/SEED/PLANNER.jsonl; finished cells are skipped; --commit commits
@@ -17,7 +18,7 @@ source "$NPFKCT_ROOT/scripts/deps.sh"
 npfkct_bench_args 250 5 13 "$@"
 npfkct_prepare npfkct-bench npfkct-scenegen
 SEEDS="${SEEDS:-$(seq 900001 900030)}"
-PLANNERS="${PLANNERS:-oracle npfkct kct pomcp-joint gpomcp vomcpow}"
+PLANNERS="${PLANNERS:-oracle oracle-cover-unknown npfkct kct pomcp-joint gpomcp vomcpow}"
 OUT="$NPFKCT_ROOT/bench/results/generated/$RUN"
 # shellcheck disable=SC2086  # one seed per word
 npfkct_generate_scenes "$BUILD_DIR/generated-scenes" $SEEDS

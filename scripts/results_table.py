@@ -49,8 +49,8 @@ import re
 import sys
 
 PAPER_SCENES = ["Loose1", "Loose2", "Hidden1", "Covered1", "Complex1", "Fig16"]
-PLANNER_ORDER = ["oracle", "npfkct", "kct", "pomcp", "gpomcp", "pomcp-joint", "pomcpow",
-                 "vomcpow", "advt"]
+PLANNER_ORDER = ["oracle", "oracle-cover-unknown", "npfkct", "kct", "pomcp", "gpomcp",
+                 "pomcp-joint", "pomcpow", "vomcpow", "advt"]
 
 
 def _beta_cf(x, a, b):
