@@ -219,11 +219,13 @@ HybridAction Oracle::Next(const object_search::World& knowledge) const {
   if (BestView(target, target_odds, +1, p.n_odds - count(target_odds, +1), 0, &view)) {
     return Move(view);
   }
-  // 3. Nothing more of the target can be seen: clear the object whose removal exposes the most.
-  int blocker = -1, best_exposed = 0;
+  // 3. Nothing more of the target can be seen: clear the object whose removal exposes the most
+  // (not told the cover: the movable object of the largest footprint).
+  int blocker = -1;
+  const int considered = std::min(static_cast<int>(scene.size()), 64);
   if (options_.cover_unknown) {
     double largest = 0.0;
-    for (int b = 0; b < static_cast<int>(scene.size()) && b < 64; ++b) {
+    for (int b = 0; b < considered; ++b) {
       if (b == target || sim_.removed(b) || !scene[b].moveable) continue;
       const double area = scene[b].box.size.x() * scene[b].box.size.y();
       if (area > largest) {
@@ -231,19 +233,21 @@ HybridAction Oracle::Next(const object_search::World& knowledge) const {
         blocker = b;
       }
     }
-  }
-  for (int b = 0; b < static_cast<int>(scene.size()) && !options_.cover_unknown; ++b) {
-    if (b == target || sim_.removed(b) || !scene[b].moveable || b >= 64) continue;
-    // Only what stands near the target can hide it.
-    const Vec3 d = scene[b].box.center - scene[target].box.center;
-    if (std::hypot(d.x(), d.y()) > 0.8) continue;
-    const uint64_t ignore = uint64_t{1} << b;
-    const uint32_t confirmed = ConfirmedMask(target_odds, +1, p.declare_threshold);
-    const uint32_t exposed = SeeableCorners(target, ignore);
-    const int n = std::popcount(exposed & ~confirmed);
-    if (n > best_exposed) {
-      best_exposed = n;
-      blocker = b;
+  } else {
+    int best_exposed = 0;
+    for (int b = 0; b < considered; ++b) {
+      if (b == target || sim_.removed(b) || !scene[b].moveable) continue;
+      // Only what stands near the target can hide it.
+      const Vec3 d = scene[b].box.center - scene[target].box.center;
+      if (std::hypot(d.x(), d.y()) > 0.8) continue;
+      const uint64_t ignore = uint64_t{1} << b;
+      const uint32_t confirmed = ConfirmedMask(target_odds, +1, p.declare_threshold);
+      const uint32_t exposed = SeeableCorners(target, ignore);
+      const int n = std::popcount(exposed & ~confirmed);
+      if (n > best_exposed) {
+        best_exposed = n;
+        blocker = b;
+      }
     }
   }
   if (blocker >= 0) {
