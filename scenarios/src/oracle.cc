@@ -235,13 +235,13 @@ HybridAction Oracle::Next(const object_search::World& knowledge) const {
     }
   } else {
     int best_exposed = 0;
+    const uint32_t confirmed = ConfirmedMask(target_odds, +1, p.declare_threshold);
     for (int b = 0; b < considered; ++b) {
       if (b == target || sim_.removed(b) || !scene[b].moveable) continue;
       // Only what stands near the target can hide it.
       const Vec3 d = scene[b].box.center - scene[target].box.center;
       if (std::hypot(d.x(), d.y()) > 0.8) continue;
       const uint64_t ignore = uint64_t{1} << b;
-      const uint32_t confirmed = ConfirmedMask(target_odds, +1, p.declare_threshold);
       const uint32_t exposed = SeeableCorners(target, ignore);
       const int n = std::popcount(exposed & ~confirmed);
       if (n > best_exposed) {

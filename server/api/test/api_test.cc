@@ -92,6 +92,8 @@ TEST(ParseCreateSession, SchemaViolationsNameTheFieldAsData) {
   cases.push_back({{{"world", world}, {"planner", {{"name", "magic"}}}}, "planner.name"});
   cases.push_back({{{"world", world}, {"planner", {{"name", "oracle"}}}}, "planner.name"});
   cases.push_back(
+      {{{"world", world}, {"planner", {{"name", "oracle-cover-unknown"}}}}, "planner.name"});
+  cases.push_back(
       {{{"world", world}, {"planner", {{"modelPath", "/etc/passwd"}}}}, "planner.modelPath"});
   cases.push_back({{{"world", world}, {"planner", {{"model", "../filter.pt"}}}}, "planner.model"});
   cases.push_back({{{"world", world}, {"planner", {{"model", "/etc/passwd"}}}}, "planner.model"});
