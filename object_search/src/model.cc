@@ -4,6 +4,8 @@
 #include <cmath>
 #include <numbers>
 
+#include "npfkct/object_search/proposals.h"
+
 namespace npfkct::object_search {
 
 uint64_t Observation::Hash() const {
@@ -288,7 +290,7 @@ HybridAction ObjectSearchModel::RolloutAction(const State& s, Rng& rng) const {
   thread_local std::vector<int> kinds;
   ActionKinds(s, &kinds);
   HybridAction a;
-  if (rollout_ == SearchRollout::kGreedy) {
+  if (rollout_ != SearchRollout::kRandom) {
     int best = -1, best_rank = 0;
     for (int k : kinds) {
       if (k == kMoveKind) continue;
@@ -311,6 +313,25 @@ HybridAction ObjectSearchModel::RolloutAction(const State& s, Rng& rng) const {
     a.kind = kinds[rng.UniformInt(static_cast<int64_t>(kinds.size()))];
   }
   if (a.kind != kMoveKind) return a;
+  if (rollout_ == SearchRollout::kAimed && rng.Uniform() < 0.5) {
+    // A placement the belief allows, drawn again (up to 4 times) while inside a known object
+    // that still stands; a camera aimed at it (else the random configuration below).
+    const int n = static_cast<int>(s.objects.size());
+    for (int tries = 0; tries < 4; ++tries) {
+      const Vec3 p = world_->grid.Sample(rng, 0.5 * world_->params.guess_size);
+      bool hidden = false;
+      for (int j = 1; j < n && !hidden; ++j) {
+        hidden = s.objects[j].status != kRemoved && object_frames_[j].Contains(p);
+      }
+      if (hidden) continue;
+      RobotConfig c;
+      if (AimAt(*world_, p, rng, &c)) {
+        a.x = VecOf(c);
+        return a;
+      }
+      break;
+    }
+  }
   // A random configuration whose base is feasible (a few tries, else stay).
   for (int tries = 0; tries < 8; ++tries) {
     a.x = move_space_.SampleUniform(rng);

@@ -281,6 +281,49 @@ TEST(ObjectSearchModelTest, InitialStatesSampleTheGuessedTargetFromTheGrid) {
   EXPECT_GT(far, 1980);
 }
 
+// The aimed rollout looks where the belief puts the target, but not inside a box still standing:
+// with the likely cells under a cover, its moves find the spot once the cover is removed in the
+// state, and no more often than the greedy rollout's random moves while it stands.
+TEST(ObjectSearchModelTest, AimedRolloutLooksBeneathARemovedCoverOnly) {
+  World w = TestWorld();
+  const Vec3 spot(1.55, 0.25, 0.8);
+  for (int c = 0; c < w.grid.num_cells(); ++c) {
+    const Vec3 p = w.grid.CellCenter(c);
+    const bool under = std::abs(p.x() - spot.x()) < 0.05 && std::abs(p.y() - spot.y()) < 0.05;
+    w.grid.set_log_odds(c, under ? 6.0f : -12.0f);
+  }
+  w.grid.RebuildSampler();
+  w.objects.push_back(Object("cover", spot, Vec3(0.2, 0.2, 0.15), -3.0f));
+  w.objects[1].status = kDeclaredObstacle;
+  auto world = std::make_shared<World>(w);
+  // The share of 2,000 rollout moves from `s` whose camera would see a target at the spot with
+  // the cover gone.
+  auto share = [&](SearchRollout rollout, int8_t cover_status) {
+    ObjectSearchModel model(world, rollout);
+    Rng rng(11);
+    State s = model.SampleInitialState(rng);
+    s.objects[1].status = cover_status;
+    State open = s;
+    open.objects[1].status = kRemoved;
+    open.target = spot;
+    int moves = 0, seen = 0;
+    for (int i = 0; i < 2000; ++i) {
+      const HybridAction a = model.RolloutAction(s, rng);
+      if (a.kind != kMoveKind) continue;
+      ++moves;
+      seen += model.SeesObject(open, ObjectSearchModel::ConfigOf(a.x), 0);
+    }
+    EXPECT_GT(moves, 1000);
+    return static_cast<double>(seen) / moves;
+  };
+  const double greedy = share(SearchRollout::kGreedy, kRemoved);
+  const double aimed_removed = share(SearchRollout::kAimed, kRemoved);
+  const double aimed_standing = share(SearchRollout::kAimed, kDeclaredObstacle);
+  EXPECT_LT(greedy, 0.1);
+  EXPECT_GT(aimed_removed, greedy + 0.25);
+  EXPECT_LT(aimed_standing, greedy + 0.04);
+}
+
 TEST(GridWorldTest, ViewLowersVisibleCellsOnly) {
   World w = TestWorld();
   RobotConfig c;

@@ -321,8 +321,10 @@ int main(int argc, char** argv) {
   app.add_option("--seed", c.seed, "base seed; episode i uses seed * 1000003 + i");
   app.add_option("--threads", c.threads, "episodes run in parallel")->check(CLI::PositiveNumber);
   app.add_option("--max-steps", c.max_steps, "episode length limit (default per problem)");
-  app.add_option("--rollout", c.rollout,
-                 "tiger: listen (default) | random; vdptag: random (default) | tonextml");
+  app.add_option(
+      "--rollout", c.rollout,
+      "tiger: listen (default) | random; vdptag: random (default) | tonextml; scenarios: "
+      "greedy (default) | aimed | random");
   app.add_option(
       "--opt", c.options,
       "planner option key=value (repeatable); scenarios: filter.* set Net_sam's options");
@@ -349,6 +351,7 @@ int main(int argc, char** argv) {
     search.threads = c.threads;
     search.max_steps = c.max_steps;
     search.options = c.options;
+    if (!c.rollout.empty()) search.rollout = c.rollout;
     return npfkct::bench::RunObjectSearchBench(search);
   }
   if (search.planners.size() != 1) {

@@ -37,6 +37,7 @@ struct TrialContext {
   bool trace = false;         // each step on stderr
   bool perception = false;    // observe through rendered frames and the perception pipeline
   std::shared_ptr<const filter::NeuralFilter> filter;  // Net_sam of the npfkct planner
+  object_search::SearchRollout rollout = object_search::SearchRollout::kGreedy;
 };
 
 // A registry planner; npfkct gets Net_sam over the loaded filter as its candidate sampler.
@@ -159,7 +160,7 @@ EpisodeResult RunTrial(const TrialContext& ctx) {
     result.error = first_status.ToString();
     return result;
   }
-  ObjectSearchModel model(std::make_shared<World>(world));
+  ObjectSearchModel model(std::make_shared<World>(world), ctx.rollout);
   // The oracle is told the true scene; every other planner plans on the robot's belief.
   std::unique_ptr<sim::Oracle> oracle;
   std::unique_ptr<object_search::SearchPlanner> planner;
@@ -358,6 +359,15 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
       return 2;
     }
   }
+  object_search::SearchRollout rollout = object_search::SearchRollout::kGreedy;
+  if (config.rollout == "aimed") {
+    rollout = object_search::SearchRollout::kAimed;
+  } else if (config.rollout == "random") {
+    rollout = object_search::SearchRollout::kRandom;
+  } else if (config.rollout != "greedy") {
+    std::cerr << "npfkct-bench: scenario rollouts are greedy (default), aimed or random\n";
+    return 2;
+  }
   std::map<std::string, std::map<std::string, RunSummary>> table;
   std::vector<std::string> scenario_names;
   std::vector<sim::Scenario> scenarios;
@@ -431,7 +441,8 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
                          render_prefix,
                          config.trace,
                          mode == "perception",
-                         net};
+                         net,
+                         rollout};
         return RunTrial(ctx);
       },
       "object search");
@@ -483,7 +494,7 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
       std::printf(
           "{\"scenario\": \"%s\", \"planner\": \"%s\", \"observe\": \"%s\", \"trials\": %d, "
           "\"time_ms\": %g, \"cpu_ms\": %g, \"sims\": %lld, \"robot\": \"%s\", \"seed\": %llu, "
-          "\"threads\": %d, \"options\": [%s], \"model\": \"%s\", "
+          "\"threads\": %d, \"options\": [%s], \"model\": \"%s\", \"rollout\": \"%s\", "
           "\"mean_discounted_reward\": %.1f, \"ci95\": %.1f, \"mean_steps\": %.2f, "
           "\"ci95_steps\": %.2f, \"success_rate\": %.3f, \"median_sims_per_step\": %.1f, "
           "\"median_sims_per_second\": %.1f, \"median_sims_per_cpu_second\": %.1f, "
@@ -493,13 +504,13 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
           JsonEscape(scenario.name).c_str(), planner.c_str(), mode.c_str(), config.trials,
           config.time_ms, config.cpu_ms, static_cast<long long>(config.sims),
           scenario.robot.c_str(), static_cast<unsigned long long>(config.seed), config.threads,
-          option_list.c_str(), JsonEscape(model_name).c_str(), s.mean_return, s.ci95_return,
-          s.mean_steps, s.ci95_steps, s.success_rate.value_or(0.0), s.median_sims_per_step,
-          s.median_sims_per_second, s.median_sims_per_cpu_second, s.median_cpu_ms_per_step,
-          s.median_first_step_sims_per_second, s.wall_seconds, s.failed_episodes, rewards.c_str(),
-          steps.c_str(), successes.c_str(), perception_ms.c_str(),
-          s.first_error.empty() ? "" : ", \"error\": \"", JsonEscape(s.first_error).c_str(),
-          s.first_error.empty() ? "" : "\"");
+          option_list.c_str(), JsonEscape(model_name).c_str(), config.rollout.c_str(),
+          s.mean_return, s.ci95_return, s.mean_steps, s.ci95_steps, s.success_rate.value_or(0.0),
+          s.median_sims_per_step, s.median_sims_per_second, s.median_sims_per_cpu_second,
+          s.median_cpu_ms_per_step, s.median_first_step_sims_per_second, s.wall_seconds,
+          s.failed_episodes, rewards.c_str(), steps.c_str(), successes.c_str(),
+          perception_ms.c_str(), s.first_error.empty() ? "" : ", \"error\": \"",
+          JsonEscape(s.first_error).c_str(), s.first_error.empty() ? "" : "\"");
     }
   }
   std::fflush(stdout);

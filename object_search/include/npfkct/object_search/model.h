@@ -69,6 +69,10 @@ inline int KindOffset(int kind) { return (kind - 1) % 3; }
 enum class SearchRollout {
   kRandom,  ///< Uniformly random legal kind and configuration (paper's Rollout_Random).
   kGreedy,  ///< Take a legal declare/remove when the odds allow it, else a random move.
+  /// As kGreedy, but half of the moves look at a placement of the target drawn from the grid
+  /// world that the state could show (not inside a known object still standing there), so that
+  /// a simulated removal is worth what the views beneath it find.
+  kAimed,
 };
 
 /// The generative object-search model over a World (held by shared pointer; the owner may
