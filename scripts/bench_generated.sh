@@ -12,7 +12,7 @@
 # each cell. About 1.5 CPU-hours (45 minutes on 2 cores at d6ae15f).
 # Usage: scripts/bench_generated.sh [--run NAME] [--cpu-ms MS] [--trials N] [--commit]
 #        env: SEEDS (default: 900001 ... 900030), PLANNERS, BUILD_DIR, ROLLOUT (the model's
-#        rollout policy for every planner: greedy, the default and the README's, or aimed)
+#        rollout policy for every planner: aimed, the default, or greedy, that of run1 and run2)
 set -euo pipefail
 NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 source "$NPFKCT_ROOT/scripts/deps.sh"
@@ -29,7 +29,7 @@ for scene in "${SCENE_FILES[@]}"; do
   for planner in $PLANNERS; do
     npfkct_bench_cell "$OUT/$seed/$planner.jsonl" "$TRIALS" --scenario "$scene" \
       --planner "$planner" --trials "$TRIALS" --cpu-ms "$CPU_MS" --threads "$(nproc)" --seed 1 \
-      --rollout "${ROLLOUT:-greedy}"
+      --rollout "${ROLLOUT:-aimed}"
   done
 done
 python3 "$NPFKCT_ROOT/scripts/results_table.py" generated "$OUT" "$BUILD_DIR/generated-scenes" |

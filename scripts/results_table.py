@@ -267,7 +267,7 @@ def generated(root, scenes_dir=None):
         by_placement(cells, planners, scenes, scenes_dir)
 
 
-ABLATION_ROWS = ["paper", "aimed", "candidates", "sibling", "w2-rule", "filter"]
+ABLATION_ROWS = ["paper", "aimed", "candidates", "sibling", "w2-rule", "filter", "rollout"]
 # Changes measured and not kept: each row and the kept row it changes (scripts/bench_ablation.sh).
 REJECTED_ROWS = {"visits": "sibling", "lcb": "filter"}
 
@@ -298,7 +298,9 @@ def ablation(root):
 def row_planner(cells, row):
     first = next(r for (rw, _), r in cells.items() if rw == row)
     opts = " ".join(first.get("options", []))
-    return f"`{first['planner']}{' ' + opts if opts else ''}`"
+    # Cells from before npfkct-bench recorded its rollout ran the greedy one.
+    rollout = first.get("rollout", "greedy")
+    return f"`{first['planner']}{' ' + opts if opts else ''} --rollout {rollout}`"
 
 
 SHARE_HEADER = ("| Row | Planner and options | Share of the oracle's reward | Change | Success | "

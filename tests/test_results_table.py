@@ -26,13 +26,15 @@ def test_mean_ci_uses_student_t():
     assert ci == pytest.approx(2.7764 * (2.5 ** 0.5) / 5 ** 0.5, rel=1e-3)
 
 
-def write_cell(root, row, scene, reward, steps=(5, 5), successes=(1, 1)):
+def write_cell(root, row, scene, reward, steps=(5, 5), successes=(1, 1), rollout=None):
     os.makedirs(os.path.join(root, row), exist_ok=True)
     record = {"scenario": scene, "planner": "kct" if row != "oracle" else "oracle",
               "options": [], "cpu_ms": 250, "trials": len(steps),
               "mean_discounted_reward": reward, "ci95": 0.0, "mean_steps": sum(steps) / 2,
               "ci95_steps": 0.0, "success_rate": sum(successes) / len(successes),
               "steps": list(steps), "successes": list(successes)}
+    if rollout is not None:
+        record["rollout"] = rollout
     with open(os.path.join(root, row, scene + ".jsonl"), "w", encoding="utf-8") as f:
         f.write(json.dumps(record) + "\n")
 
@@ -80,6 +82,19 @@ def test_a_rejected_ablation_row_is_compared_with_the_row_it_modifies(tmp_path):
     assert rows["sibling"][2].startswith("+20.0 ± ")  # against aimed: +0.3, +0.1
     assert rows["visits (against sibling)"][1].startswith("75.0% ± ")
     assert rows["visits (against sibling)"][2].startswith("-15.0 ± ")
+
+
+def test_an_ablation_row_names_its_rollout(tmp_path):
+    root = str(tmp_path)
+    # Cells from before npfkct-bench recorded the rollout ran the greedy one.
+    for row, rollout in {"oracle": None, "filter": None, "rollout": "aimed"}.items():
+        write_cell(root, row, "a", 100.0, rollout=rollout)
+    out = subprocess.run([sys.executable, os.path.join(SCRIPTS, "results_table.py"), "ablation",
+                          root], check=True, capture_output=True, text=True).stdout
+    rows = {line.split("|")[1].strip(): [c.strip() for c in line.split("|")[2:-1]]
+            for line in out.splitlines() if line.startswith("| ") and "---" not in line}
+    assert rows["filter"][0] == "`kct --rollout greedy`"
+    assert rows["rollout"][0] == "`kct --rollout aimed`"
 
 
 def test_sensitivity_compares_every_row_with_the_defaults(tmp_path):

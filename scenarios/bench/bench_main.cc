@@ -324,7 +324,7 @@ int main(int argc, char** argv) {
   app.add_option(
       "--rollout", c.rollout,
       "tiger: listen (default) | random; vdptag: random (default) | tonextml; scenarios: "
-      "greedy (default) | aimed | random");
+      "aimed (default) | greedy | random");
   app.add_option(
       "--opt", c.options,
       "planner option key=value (repeatable); scenarios: filter.* set Net_sam's options");

@@ -37,7 +37,7 @@ struct TrialContext {
   bool trace = false;         // each step on stderr
   bool perception = false;    // observe through rendered frames and the perception pipeline
   std::shared_ptr<const filter::NeuralFilter> filter;  // Net_sam of the npfkct planner
-  object_search::SearchRollout rollout = object_search::SearchRollout::kGreedy;
+  object_search::SearchRollout rollout = object_search::SearchRollout::kAimed;
 };
 
 // A registry planner; npfkct gets Net_sam over the loaded filter as its candidate sampler.
@@ -359,13 +359,13 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
       return 2;
     }
   }
-  object_search::SearchRollout rollout = object_search::SearchRollout::kGreedy;
-  if (config.rollout == "aimed") {
-    rollout = object_search::SearchRollout::kAimed;
+  object_search::SearchRollout rollout = object_search::SearchRollout::kAimed;
+  if (config.rollout == "greedy") {
+    rollout = object_search::SearchRollout::kGreedy;
   } else if (config.rollout == "random") {
     rollout = object_search::SearchRollout::kRandom;
-  } else if (config.rollout != "greedy") {
-    std::cerr << "npfkct-bench: scenario rollouts are greedy (default), aimed or random\n";
+  } else if (config.rollout != "aimed") {
+    std::cerr << "npfkct-bench: scenario rollouts are aimed (default), greedy or random\n";
     return 2;
   }
   std::map<std::string, std::map<std::string, RunSummary>> table;

@@ -30,9 +30,9 @@ struct SearchBenchConfig {
   /// "perception" (rendered 640x480 RGB-D frames, a noisy reported pose, and the perception
   /// pipeline: registration, segmentation, association, SIFT target detection).
   std::vector<std::string> observe = {"geometric"};
-  /// The model's rollout policy for every planner: "greedy" (the benchmark's), "aimed" or
-  /// "random" (object_search::SearchRollout).
-  std::string rollout = "greedy";
+  /// The model's rollout policy for every planner: "aimed" (the default), "greedy" or "random"
+  /// (object_search::SearchRollout).
+  std::string rollout = "aimed";
 };
 
 /// Runs every (scenario, planner) pair; prints one JSON line per pair (with every trial's reward,

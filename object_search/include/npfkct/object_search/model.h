@@ -71,7 +71,7 @@ enum class SearchRollout {
   kGreedy,  ///< Take a legal declare/remove when the odds allow it, else a random move.
   /// As kGreedy, but half of the moves look at a placement of the target drawn from the grid
   /// world that the state could show (not inside a known object still standing there), so that
-  /// a simulated removal is worth what the views beneath it find.
+  /// a simulated removal is worth what the views beneath it find. The default.
   kAimed,
 };
 
@@ -84,7 +84,7 @@ class ObjectSearchModel {
   using Observation = object_search::Observation;
 
   explicit ObjectSearchModel(std::shared_ptr<const World> world,
-                             SearchRollout rollout = SearchRollout::kGreedy);
+                             SearchRollout rollout = SearchRollout::kAimed);
 
   /// Installs a new World (after a real step).
   void SetWorld(std::shared_ptr<const World> world);
