@@ -38,6 +38,28 @@ double Ms(Clock::time_point since) {
   return std::chrono::duration<double, std::milli>(Clock::now() - since).count();
 }
 
+// Point-to-plane least squares whose step is the identity when the system gives no usable
+// transformation (not finite, or a translation beyond any room): PCL's ICP would move the source
+// by it and hand non-finite points to its k-d tree, which aborts the process (an assertion in
+// the Debian build of PCL). Found by a frame with points at 9,999 m.
+class FiniteStepPointToPlane final
+    : public pcl::registration::TransformationEstimationPointToPlaneLLS<PointNormal, PointNormal,
+                                                                        float> {
+ public:
+  using Base =
+      pcl::registration::TransformationEstimationPointToPlaneLLS<PointNormal, PointNormal, float>;
+  using Base::estimateRigidTransformation;
+  void estimateRigidTransformation(const NormalCloud& source, const NormalCloud& target,
+                                   const pcl::Correspondences& correspondences,
+                                   Matrix4& transformation) const override {
+    Base::estimateRigidTransformation(source, target, correspondences, transformation);
+    constexpr float kMaxStep = 1000.0f;  // metres
+    if (!transformation.allFinite() || transformation.block<3, 1>(0, 3).norm() > kMaxStep) {
+      transformation.setIdentity();
+    }
+  }
+};
+
 CloudXYZ::Ptr Downsample(const CloudXYZ::ConstPtr& in, double leaf) {
   auto out = pcl::make_shared<CloudXYZ>();
   pcl::VoxelGrid<PointXYZ> grid;
@@ -558,6 +580,7 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
       Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>>(system).eigenvalues();
   const bool observable = source->size() >= 200 && directions[0] > o.min_structure * directions[5];
   pcl::IterativeClosestPointWithNormals<PointNormal, PointNormal> icp;
+  icp.setTransformationEstimation(pcl::make_shared<FiniteStepPointToPlane>());
   icp.setInputSource(source);
   icp.setInputTarget(im.map_normals);
   icp.setMaxCorrespondenceDistance(o.icp_max_distance);
