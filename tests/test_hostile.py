@@ -230,6 +230,30 @@ def test_huge_finite_coordinates_are_refused_before_they_reach_pcl(hostile_serve
     assert_alive_and_intact(hostile_server, before, rec)
 
 
+def test_points_far_away_do_not_switch_off_downsampling(hostile_server):
+    """Three points 9,999 m away made PCL's voxel grid (32-bit voxel numbers) return a frame
+    unfiltered: a 1 mm blob of 100,000 points then became an object and cost the k-d tree
+    searches tens of minutes. Now the blob is one voxel with or without them."""
+    url, rec = hostile_server.url, Recorder()
+    keeper = create(url, rec)
+    before = {keeper: snapshot_of(url, keeper)}
+    rnd = random.Random(5)
+    blob = [(1.2 + 0.001 * rnd.random(), -0.3 + 0.001 * rnd.random(), 0.8 + 0.001 * rnd.random())
+            for _ in range(100_000)]
+    far = [(9999.0, 9999.0, 9999.0), (-9999.0, 9999.0, 0.5), (0.001, -9999.0, 9999.0)]
+    clusters = []
+    for points in (blob, far + blob):
+        sid = create(url, rec)
+        plan = http("POST", f"{url}/v1/sessions/{sid}:plan", rec,
+                    json={"budget": {"simulations": 20}}).json()
+        r = http("POST", f"{url}/v1/sessions/{sid}:observe", rec,
+                 json=raw_observation(plan["actionId"], points, "map"), timeout=60)
+        assert r.status_code == 200, r.text
+        clusters.append(r.json()["perception"]["clusters"])
+    assert clusters == [0, 0]
+    assert_alive_and_intact(hostile_server, before, rec)
+
+
 # ---- 2. grid and map overflows ----
 
 def test_worlds_whose_cells_overflow_are_refused_before_allocation(tmp_path):

@@ -1,5 +1,6 @@
 #include "npfkct/perception/perception.h"
 
+#include <pcl/common/common.h>
 #include <pcl/common/transforms.h>
 #include <pcl/features/fpfh.h>
 #include <pcl/features/normal_3d.h>
@@ -12,12 +13,14 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <limits>
+#include <map>
 #include <numbers>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/features2d.hpp>
@@ -60,13 +63,49 @@ class FiniteStepPointToPlane final
   }
 };
 
+// The centroid of the points in each voxel of the grid of edge `leaf` anchored at the origin.
+// PCL's VoxelGrid numbers a cloud's voxels with 32-bit integers and returns a cloud that spans
+// more of them (a few points 10 km away) unchanged: a dense blob then reached the k-d tree
+// searches whole, and a frame of 20,000 points took 45 s instead of 0.4 s. Such a cloud is
+// filtered in blocks of kBlock^3 voxels aligned with the grid, so that no voxel straddles two.
 CloudXYZ::Ptr Downsample(const CloudXYZ::ConstPtr& in, double leaf) {
-  auto out = pcl::make_shared<CloudXYZ>();
-  pcl::VoxelGrid<PointXYZ> grid;
-  grid.setInputCloud(in);
   const float f = static_cast<float>(leaf);
-  grid.setLeafSize(f, f, f);
-  grid.filter(*out);
+  auto filter = [f](const CloudXYZ::ConstPtr& cloud, CloudXYZ* out) {
+    pcl::VoxelGrid<PointXYZ> grid;
+    grid.setInputCloud(cloud);
+    grid.setLeafSize(f, f, f);
+    grid.filter(*out);
+  };
+  auto out = pcl::make_shared<CloudXYZ>();
+  if (in->empty()) return out;
+  // PCL's own count of the voxels the cloud spans, and its limit.
+  Eigen::Vector4f lo, hi;
+  pcl::getMinMax3D(*in, lo, hi);
+  const float inverse = 1.0f / f;
+  int64_t voxels = 1;
+  for (int a = 0; a < 3; ++a) voxels *= static_cast<int64_t>((hi[a] - lo[a]) * inverse) + 1;
+  if (voxels <= std::numeric_limits<int32_t>::max() / 2) {
+    filter(in, out.get());
+    return out;
+  }
+  constexpr int64_t kBlock = 1000;  // 1001^3 voxels at most per block: under PCL's limit
+  std::map<std::array<int64_t, 3>, CloudXYZ::Ptr> blocks;
+  for (const PointXYZ& p : *in) {
+    std::array<int64_t, 3> key;
+    for (int a = 0; a < 3; ++a) {
+      // The voxel index as VoxelGrid computes it, then its block.
+      const auto voxel = static_cast<int64_t>(std::floor(p.data[a] * inverse));
+      key[a] = voxel >= 0 ? voxel / kBlock : -((-voxel + kBlock - 1) / kBlock);
+    }
+    CloudXYZ::Ptr& block = blocks[key];
+    if (!block) block = pcl::make_shared<CloudXYZ>();
+    block->push_back(p);
+  }
+  CloudXYZ part;
+  for (const auto& [key, block] : blocks) {
+    filter(block, &part);
+    *out += part;
+  }
   return out;
 }
 
