@@ -254,6 +254,90 @@ def test_points_far_away_do_not_switch_off_downsampling(hostile_server):
     assert_alive_and_intact(hostile_server, before, rec)
 
 
+def rgb_png(width, height, row_of):
+    """An RGB PNG whose row y is row_of(y) (3 * width bytes)."""
+    def chunk(kind, payload):
+        return (struct.pack(">I", len(payload)) + kind + payload +
+                struct.pack(">I", zlib.crc32(kind + payload)))
+    comp = zlib.compressobj(9)
+    data = b"".join(comp.compress(b"\x00" + row_of(y)) for y in range(height)) + comp.flush()
+    return (b"\x89PNG\r\n\x1a\n" +
+            chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)) +
+            chunk(b"IDAT", data) + chunk(b"IEND", b""))
+
+
+def flat_png(width, height):
+    """One colour: 2048 x 2048 pixels in about 12 kB."""
+    row = bytes((120, 80, 40)) * width
+    return rgb_png(width, height, lambda y: row)
+
+
+def noise_png(size, seed=3):
+    rnd = random.Random(seed)
+    rows = [bytes(rnd.randrange(256) for _ in range(3 * size)) for _ in range(size)]
+    return rgb_png(size, size, lambda y: rows[y])
+
+
+def test_feature_of_points_a_denormal_apart_does_not_abort(hostile_server):
+    """A cube off the table (ICP fits it badly, RANSAC runs) and two points 2e-20 m apart across
+    a RANSAC voxel boundary: PCL's FPFH weight 1 / squared distance was inf, the feature NaN, and
+    the consensus' feature k-d tree asserted: the server aborted on a 0.3 MB frame."""
+    url, rec = hostile_server.url, Recorder()
+    keeper = create(url, rec)
+    before = {keeper: snapshot_of(url, keeper)}
+    sid = create(url, rec)
+    plan = http("POST", f"{url}/v1/sessions/{sid}:plan", rec,
+                json={"budget": {"simulations": 20}}).json()
+    rnd = random.Random(1)
+    points = []
+    for _ in range(20000):
+        u, v = rnd.uniform(-0.3, 0.3), rnd.uniform(-0.3, 0.3)
+        face = rnd.randrange(6)
+        a = 0.3 if face % 2 else -0.3
+        x, y, z = [(a, u, v), (u, a, v), (u, v, a)][face // 2]
+        if not (abs(x) < 0.06 and -1.53 < y - 1.5 < -1.44 and z + 0.6 > 0.87):
+            points.append((x, y - 1.5, z + 0.6))
+    points += [(1e-20, -1.485, 0.915), (-1e-20, -1.485, 0.915)]
+    r = http("POST", f"{url}/v1/sessions/{sid}:observe", rec,
+             json=raw_observation(plan["actionId"], points, "map"))
+    assert r.status_code == 200, r.text
+    assert r.json()["perception"]["registration"] == "RANSAC_ICP"
+    assert_alive_and_intact(hostile_server, before, rec)
+
+
+def test_sift_work_per_frame_is_bounded(hostile_server):
+    """30 thin plates on the camera's axis with fx = 1e6 and a 12 kB 2048 x 2048 image: every
+    plate's rectangle is the whole image, and SIFT ran on each (29 s of CPU, 1.2 GB). Regions are
+    scaled down to 640 x 480 pixels and SIFT stops at its per-frame budget. With 33 more plates
+    beside them the frame has 63 clusters, as many as a session may know; the 64th is refused
+    before any of that."""
+    url, rec = hostile_server.url, Recorder()
+    keeper = create(url, rec)
+    before = {keeper: snapshot_of(url, keeper)}
+    photo = base64.b64encode(noise_png(64)).decode()
+    for plates, status in [(63, 200), (64, 400)]:
+        sid = create(url, rec, target={"description": "x", "photos": [photo]})
+        plan = http("POST", f"{url}/v1/sessions/{sid}:plan", rec,
+                    json={"budget": {"simulations": 20}}).json()
+        # 30 plates on the axis (the table's length), the others beside it, out of the image.
+        spots = [(1.025 + 0.04 * (k % 30), (0.005, -0.245, 0.255)[k // 30]) for k in range(plates)]
+        points = [(x, y + 0.01 * i, 1.085 + 0.01 * j)
+                  for x, y in spots for i in range(-3, 4) for j in range(-3, 3)]
+        body = dict(raw_observation(plan["actionId"], points, "map"),
+                    robotState={"x": 0.3, "y": 0, "yaw": 0, "lift": 0.0, "pan": 0, "tilt": 0.0},
+                    camera={"width": 2048, "height": 2048, "fx": 1e6, "fy": 1e6, "cx": 1024,
+                            "cy": 1024},
+                    image={"data": base64.b64encode(flat_png(2048, 2048)).decode()})
+        r = http("POST", f"{url}/v1/sessions/{sid}:observe", rec, json=body, timeout=60)
+        assert r.status_code == status, r.text
+        if status == 400:
+            assert field_of(r) == "pointCloud.data"
+            assert "64 object clusters in one frame" in r.text
+        else:
+            assert r.json()["perception"]["clusters"] == 63
+    assert_alive_and_intact(hostile_server, before, rec)
+
+
 # ---- 2. grid and map overflows ----
 
 def test_worlds_whose_cells_overflow_are_refused_before_allocation(tmp_path):

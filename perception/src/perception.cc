@@ -109,6 +109,18 @@ CloudXYZ::Ptr Downsample(const CloudXYZ::ConstPtr& in, double leaf) {
   return out;
 }
 
+// Every k-th point of `in`, k the smallest that leaves at most `max_points` (all when they fit).
+template <typename Point>
+typename pcl::PointCloud<Point>::Ptr Thin(const typename pcl::PointCloud<Point>::Ptr& in,
+                                          int64_t max_points) {
+  const auto n = static_cast<int64_t>(in->size());
+  if (n <= max_points) return in;
+  const int64_t stride = (n + max_points - 1) / max_points;
+  auto out = pcl::make_shared<pcl::PointCloud<Point>>();
+  for (int64_t i = 0; i < n; i += stride) out->push_back((*in)[i]);
+  return out;
+}
+
 // Points with surface normals estimated from neighbours within `radius`.
 NormalCloud::Ptr WithNormals(const CloudXYZ::Ptr& in, double radius) {
   auto normals = pcl::make_shared<pcl::PointCloud<pcl::Normal>>();
@@ -173,8 +185,14 @@ struct Track {
   int surface = -1;  // workspace it stands on
   Box box;           // fitted to all its points so far
 
-  void Refresh(double voxel) {
+  // Downsamples the points (coarser voxels until at most `max_points` remain) and refits the
+  // statistics.
+  void Refresh(double voxel, int64_t max_points) {
     points = Downsample(points, voxel);
+    for (double leaf = 1.5 * voxel; static_cast<int64_t>(points->size()) > max_points;
+         leaf *= 1.5) {
+      points = Downsample(points, leaf);
+    }
     centroid.setZero();
     for (const auto& p : *points) centroid += p.getVector3fMap().cast<double>();
     centroid /= std::max<size_t>(points->size(), 1);
@@ -272,7 +290,9 @@ Status PerceptionOptions::Validate() const {
       return InvalidArgumentError("perception options must be > 0");
   }
   if (icp_iterations < 1 || min_cluster_points < 1 || max_cluster_points < min_cluster_points ||
-      min_features < 1 || min_inliers < 4) {
+      min_features < 1 || min_inliers < 4 || max_clusters < 1 || max_track_points < 1 ||
+      max_ransac_points < 1 || max_icp_points < 1 || max_features < 1 || max_sift_pixels < 16 ||
+      max_sift_frame_pixels < 0 || max_sift_pairs < 0) {
     return InvalidArgumentError("perception options: bad counts");
   }
   return OkStatus();
@@ -298,7 +318,7 @@ struct Perception::Impl {
   pcl::KdTreeFLANN<PointXYZ> map_tree;
   std::vector<Track> tracks;
   int next_id = 0;
-  cv::Ptr<cv::SIFT> sift = cv::SIFT::create();
+  cv::Ptr<cv::SIFT> sift;  // keeps options.max_features keypoints
   std::vector<cv::Mat> photo_descriptors;
   std::vector<std::vector<cv::KeyPoint>> photo_keypoints;
   std::vector<cv::Mat> photo_histograms;
@@ -318,9 +338,12 @@ struct Perception::Impl {
     return hist;
   }
 
-  void ComputeRansacFeatures(const CloudXYZ::Ptr& cloud, CloudXYZ::Ptr* down,
+  // FPFH features of `cloud` downsampled at ransac_voxel and, with `max_points` > 0, thinned to
+  // at most that many points (every k-th). Points whose feature is not finite are dropped.
+  void ComputeRansacFeatures(const CloudXYZ::Ptr& cloud, int64_t max_points, CloudXYZ::Ptr* down,
                              pcl::PointCloud<pcl::FPFHSignature33>::Ptr* features) const {
     *down = Downsample(cloud, options.ransac_voxel);
+    if (max_points > 0) *down = Thin<PointXYZ>(*down, max_points);
     auto normals = pcl::make_shared<pcl::PointCloud<pcl::Normal>>();
     pcl::NormalEstimation<PointXYZ, pcl::Normal> ne;
     ne.setInputCloud(*down);
@@ -332,6 +355,20 @@ struct Perception::Impl {
     fpfh.setInputNormals(normals);
     fpfh.setRadiusSearch(5.0 * options.ransac_voxel);
     fpfh.compute(**features);
+    // PCL weights a neighbour's histogram by 1 / squared distance: two points a float denormal
+    // apart make that inf and the feature NaN, on which the consensus' feature k-d tree asserts
+    // and aborts the process.
+    auto kept = pcl::make_shared<CloudXYZ>();
+    auto kept_features = pcl::make_shared<pcl::PointCloud<pcl::FPFHSignature33>>();
+    for (size_t i = 0; i < (*features)->size(); ++i) {
+      const auto& h = (**features)[i].histogram;
+      if (std::all_of(std::begin(h), std::end(h), [](float v) { return std::isfinite(v); })) {
+        kept->push_back((**down)[i]);
+        kept_features->push_back((**features)[i]);
+      }
+    }
+    *down = kept;
+    *features = kept_features;
   }
 };
 
@@ -342,6 +379,7 @@ Perception::Perception(const object_search::World& world, TargetModel target,
   im.world = world;
   im.target = std::move(target);
   im.options = options;
+  im.sift = cv::SIFT::create(options.max_features);
   for (const Box& b : world.furniture) SampleBox(b, 0.5 * options.voxel, im.map.get());
   const auto& occ = world.occupancy;
   const double floor_step = 2.0 * options.voxel;
@@ -359,6 +397,16 @@ Perception::Perception(const object_search::World& world, TargetModel target,
     cv::Mat descriptors;
     cv::Mat gray;
     cv::cvtColor(photo, gray, cv::COLOR_BGR2GRAY);
+    // Scaled down as large image regions are: SIFT's pyramid of a 4-megapixel photo takes about
+    // a gigabyte.
+    const int64_t area = int64_t{gray.cols} * gray.rows;
+    if (area > options.max_sift_pixels) {
+      const double f = std::sqrt(static_cast<double>(options.max_sift_pixels) / area);
+      cv::resize(gray, gray,
+                 cv::Size(std::max(4, static_cast<int>(gray.cols * f)),
+                          std::max(4, static_cast<int>(gray.rows * f))),
+                 0, 0, cv::INTER_AREA);
+    }
     im.sift->detectAndCompute(gray, cv::noArray(), keypoints, descriptors);
     if (!descriptors.empty()) {
       im.photo_descriptors.push_back(descriptors);
@@ -400,7 +448,7 @@ Status Perception::RestoreTracks(const std::vector<TrackState>& tracks, int next
     for (size_t i = 0; i < st.points.size(); i += 3) {
       t.points->push_back(PointXYZ(st.points[i], st.points[i + 1], st.points[i + 2]));
     }
-    t.Refresh(impl_->options.voxel);
+    t.Refresh(impl_->options.voxel, impl_->options.max_track_points);
     t.box = FitBox(*t.points, workspaces[t.surface].height);
     restored.push_back(std::move(t));
   }
@@ -432,6 +480,12 @@ Cloud::ConstPtr Perception::map() const {
 
 double Perception::TargetScore(const cv::Mat& region, bool* used_colour,
                                const cv::Mat& mask) const {
+  int64_t unbounded = std::numeric_limits<int64_t>::max();
+  return ScoreRegion(region, mask, &unbounded, used_colour);
+}
+
+double Perception::ScoreRegion(const cv::Mat& region, const cv::Mat& mask, int64_t* sift_pairs,
+                               bool* used_colour) const {
   const Impl& im = *impl_;
   if (used_colour != nullptr) *used_colour = false;
   if (region.empty() || im.target.photos.empty()) return 0.5;
@@ -447,8 +501,14 @@ double Perception::TargetScore(const cv::Mat& region, bool* used_colour,
   std::vector<cv::KeyPoint> keypoints;
   cv::Mat descriptors;
   const bool masked = !mask.empty() && mask.size() == region.size() && mask.type() == CV_8U;
-  im.sift->detectAndCompute(gray, masked ? mask : cv::Mat(), keypoints, descriptors);
-  const int n = static_cast<int>(keypoints.size());
+  if (sift_pairs != nullptr) {
+    im.sift->detectAndCompute(gray, masked ? mask : cv::Mat(), keypoints, descriptors);
+  }
+  int n = static_cast<int>(keypoints.size());
+  int64_t photo_features = 0;
+  for (const cv::Mat& d : im.photo_descriptors) photo_features += d.rows;
+  if (sift_pairs != nullptr && int64_t{n} * photo_features > *sift_pairs) n = 0;  // over budget
+  if (n > 0) *sift_pairs -= int64_t{n} * photo_features;
   int inliers = 0;
   if (n >= im.options.min_features) {
     cv::BFMatcher matcher(cv::NORM_L2);
@@ -601,7 +661,9 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
   if (structure->size() < 100) structure = in_map;
   // Point-to-plane ICP: the scene is mostly planes (floor, table tops, sides), along which
   // point-to-point ICP slides.
-  auto source = WithNormals(Downsample(structure, 2.0 * o.voxel), 3.0 * o.voxel);
+  // Thinned to max_icp_points: each ICP iteration searches the map for every source point.
+  auto source = Thin<PointNormal>(WithNormals(Downsample(structure, 2.0 * o.voxel), 3.0 * o.voxel),
+                                  o.max_icp_points);
   // The point-to-plane step solves a 6x6 least-squares system in (rotation, translation); when
   // the visible surfaces leave a direction free (only a floor and table tops, say) the system is
   // singular and the step degenerates, so the reported pose is kept.
@@ -635,10 +697,13 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
   }
   if (observable && fitness > o.icp_good_fitness) {
     // Poor fit from the reported pose: a global alignment first (RANSAC on FPFH features).
-    if (!im.map_features) im.ComputeRansacFeatures(im.map, &im.map_ransac, &im.map_features);
+    if (!im.map_features) {
+      im.ComputeRansacFeatures(im.map, /*max_points=*/0, &im.map_ransac, &im.map_features);
+    }
     CloudXYZ::Ptr src_down;
     pcl::PointCloud<pcl::FPFHSignature33>::Ptr src_features;
-    im.ComputeRansacFeatures(structure, &src_down, &src_features);
+    im.ComputeRansacFeatures(structure, o.max_ransac_points, &src_down, &src_features);
+    const bool enough = src_down->size() >= 3 && im.map_ransac->size() >= 3;
     pcl::SampleConsensusPrerejective<PointXYZ, PointXYZ, pcl::FPFHSignature33> ransac;
     ransac.setInputSource(src_down);
     ransac.setSourceFeatures(src_features);
@@ -651,8 +716,8 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
     ransac.setMaxCorrespondenceDistance(2.0f * static_cast<float>(o.ransac_voxel));
     ransac.setInlierFraction(0.25f);
     CloudXYZ ransac_aligned;
-    ransac.align(ransac_aligned);
-    if (ransac.hasConverged() && ransac.getFinalTransformation().allFinite()) {
+    if (enough) ransac.align(ransac_aligned);
+    if (enough && ransac.hasConverged() && ransac.getFinalTransformation().allFinite()) {
       icp.align(aligned, ransac.getFinalTransformation());
       const double f2 = icp.hasConverged() ? icp.getFitnessScore(o.icp_max_distance) : 1e9;
       if (f2 < fitness) {
@@ -712,6 +777,11 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
     ec.extract(clusters);
   }
   result.clusters = static_cast<int>(clusters.size());
+  if (result.clusters > o.max_clusters) {  // before any track changes
+    return InvalidFieldError("pointCloud.data", std::to_string(result.clusters) +
+                                                    " object clusters in one frame; at most " +
+                                                    std::to_string(o.max_clusters));
+  }
   result.timings.segmentation = Ms(t0);
 
   // ---- 3. association ----
@@ -753,7 +823,7 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
     Track& tr = im.tracks[best];
     *tr.points += cluster;
     tr.surface = surface_of[clusters[c].indices.front()];
-    tr.Refresh(o.voxel);
+    tr.Refresh(o.voxel, o.max_track_points);
     tr.box = FitBox(*tr.points, workspaces[tr.surface].height);
     track_of[c] = best;
   }
@@ -765,6 +835,7 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
   const Vec3 camera_position = camera_to_map.block<3, 1>(0, 3);
   std::vector<Box> boxes;
   for (int t : track_of) boxes.push_back(im.tracks[t].box);
+  int64_t sift_pixels = o.max_sift_frame_pixels, sift_pairs = o.max_sift_pairs;
   for (size_t c = 0; c < clusters.size(); ++c) {
     const Track& tr = im.tracks[track_of[c]];
     object_search::ObjectDetection det;
@@ -781,8 +852,9 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
         const Eigen::Vector4d q =
             map_to_camera * Eigen::Vector4d((*objects)[i].x, (*objects)[i].y, (*objects)[i].z, 1);
         if (q.z() <= 0) continue;
-        const int u = static_cast<int>(in.fx * q.x() / q.z() + in.cx);
-        const int v = static_cast<int>(in.fy * q.y() / q.z() + in.cy);
+        // Clamped before the cast: a point just in front of the camera projects anywhere.
+        const int u = static_cast<int>(std::clamp(in.fx * q.x() / q.z() + in.cx, -1e6, 1e6));
+        const int v = static_cast<int>(std::clamp(in.fy * q.y() / q.z() + in.cy, -1e6, 1e6));
         // The voxel's footprint in pixels: neighbouring points' disks overlap.
         const int r = std::clamp(static_cast<int>(std::ceil(in.fx * o.voxel / q.z())), 1, 50);
         pixels.emplace_back(u, v, r);
@@ -798,7 +870,21 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
         for (const cv::Point3i& p : pixels) {
           cv::circle(mask, cv::Point(p.x - rect.x, p.y - rect.y), p.z, cv::Scalar(255), cv::FILLED);
         }
-        score = TargetScore(frame.image(rect), nullptr, mask);
+        cv::Mat region = frame.image(rect);
+        const int64_t area = int64_t{rect.width} * rect.height;
+        if (area > o.max_sift_pixels) {
+          const double f = std::sqrt(static_cast<double>(o.max_sift_pixels) / area);
+          const cv::Size size(std::max(4, static_cast<int>(rect.width * f)),
+                              std::max(4, static_cast<int>(rect.height * f)));
+          cv::resize(frame.image(rect), region, size, 0, 0, cv::INTER_AREA);
+          cv::Mat small_mask;
+          cv::resize(mask, small_mask, size, 0, 0, cv::INTER_NEAREST);
+          mask = small_mask;
+        }
+        const int64_t pixels = int64_t{region.cols} * region.rows;
+        const bool sift = pixels <= sift_pixels;
+        if (sift) sift_pixels -= pixels;
+        score = ScoreRegion(region, mask, sift ? &sift_pairs : nullptr, nullptr);
       }
     }
     const auto semantic = frame.semantic_scores.find(tr.id);

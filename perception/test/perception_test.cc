@@ -19,6 +19,7 @@ namespace npfkct::perception {
 namespace {
 
 using object_search::RobotConfig;
+using object_search::Vec3;
 using sim::Simulator;
 
 sim::Scenario Load(const std::string& name) {
@@ -228,6 +229,20 @@ TEST(PerceptionTest, SiftMatchesTheTargetAndRejectsLookAlikes) {
   EXPECT_TRUE(colour);
 }
 
+TEST(PerceptionTest, LargePhotosAreScaledDownAndStillMatch) {
+  // Photos 1,600 pixels wide are scaled down to options.max_sift_pixels before SIFT (its pyramid
+  // of a 4-megapixel photo takes about a gigabyte); the target is still recognised (unscaled,
+  // these photos gave the same view 0.18).
+  Simulator sim(Load("loose1"), 1);
+  sim::SceneObject target = sim.objects()[sim.target_index()];
+  Perception p(sim.InitialWorld().value(), {sim::ObjectPhotos(target, 1600)}, {});
+  cv::Mat face = sim::ObjectPhotos(target, 300)[1], view;
+  cv::resize(face, view, cv::Size(), 0.6, 0.6);
+  bool colour = true;
+  EXPECT_GT(p.TargetScore(view, &colour), 0.8);
+  EXPECT_FALSE(colour);
+}
+
 TEST(PerceptionTest, BadFramesGetClearErrorsAndChangeNothing) {
   Simulator sim(Load("loose1"), 1);
   Perception p(sim.InitialWorld().value(), TargetOf(sim), {});
@@ -351,6 +366,129 @@ TEST(PerceptionTest, PointsFarAwayChangeNothingNearby) {
   for (size_t i = 0; i < ca.size(); ++i) {
     for (int k = 0; k < 3; ++k) EXPECT_NEAR(ca[i][k], cb[i][k], 1e-4) << i;
   }
+}
+
+// A map-frame frame of the given points, the robot reported at the room's centre.
+SensorFrame MapFrame(Cloud::Ptr cloud) {
+  SensorFrame frame;
+  frame.cloud = std::move(cloud);
+  frame.cloud_in_map_frame = true;
+  frame.intrinsics = {640, 480, 500.0, 500.0, 320.0, 240.0};
+  frame.reported = Config(0.3, 0.0, 0.0);
+  return frame;
+}
+
+void AddPoint(Cloud* cloud, double x, double y, double z) {
+  pcl::PointXYZRGB q;
+  q.x = static_cast<float>(x);
+  q.y = static_cast<float>(y);
+  q.z = static_cast<float>(z);
+  cloud->push_back(q);
+}
+
+TEST(PerceptionTest, FeaturesOfPointsADenormalApartAreDropped) {
+  // The surface of a 0.6 m cube off the table, which the map does not hold (ICP fits it badly
+  // and RANSAC runs), with two points 2e-20 m apart on either side of a RANSAC voxel boundary,
+  // alone in their voxels. PCL weights an FPFH neighbour by 1 / squared distance, inf here: the
+  // feature was NaN, and the consensus' feature k-d tree asserted and aborted the process.
+  Simulator sim(Load("loose1"), 1);
+  Perception p(sim.InitialWorld().value(), TargetOf(sim), {});
+  auto cloud = pcl::make_shared<Cloud>();
+  Rng rng(1);
+  for (int i = 0; i < 20000; ++i) {
+    const double u = rng.Uniform(-0.3, 0.3), v = rng.Uniform(-0.3, 0.3);
+    const int64_t face = rng.UniformInt(6);
+    const double a = face % 2 == 1 ? 0.3 : -0.3;
+    const Vec3 l = face / 2 == 0 ? Vec3(a, u, v) : face / 2 == 1 ? Vec3(u, a, v) : Vec3(u, v, a);
+    const Vec3 q(l.x(), -1.5 + l.y(), 0.6 + l.z());
+    if (std::abs(q.x()) < 0.06 && q.y() > -1.53 && q.y() < -1.44 && q.z() > 0.87) continue;
+    AddPoint(cloud.get(), q.x(), q.y(), q.z());
+  }
+  AddPoint(cloud.get(), 1e-20, -1.485, 0.915);
+  AddPoint(cloud.get(), -1e-20, -1.485, 0.915);
+  auto r = p.Process(MapFrame(cloud));
+  ASSERT_TRUE(r.ok()) << r.status().message();
+  EXPECT_GT(r->fitness, 0.0);
+}
+
+TEST(PerceptionTest, FramesWithMoreClustersThanASessionKnowsAreRefusedFirst) {
+  // 8 x 8 blocks of 50 points on the table, 12 cm and 10 cm apart: 64 clusters.
+  Simulator sim(Load("loose1"), 1);
+  auto cloud = pcl::make_shared<Cloud>();
+  for (int i = 0; i < 8; ++i) {
+    for (int j = 0; j < 8; ++j) {
+      for (int k = 0; k < 50; ++k) {
+        AddPoint(cloud.get(), 1.105 + 0.12 * i + 0.01 * (k % 5),
+                 -0.345 + 0.1 * j + 0.01 * (k / 5 % 5), 0.785 + 0.01 * (k / 25));
+      }
+    }
+  }
+  Perception p(sim.InitialWorld().value(), TargetOf(sim), {});
+  auto r = p.Process(MapFrame(cloud));
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(
+      r.status().message().find("pointCloud.data: 64 object clusters in one frame; at most 63"),
+      std::string::npos)
+      << r.status().message();
+  EXPECT_EQ(p.tracks(), 0);
+  PerceptionOptions more;
+  more.max_clusters = 64;
+  Perception q(sim.InitialWorld().value(), TargetOf(sim), more);
+  r = q.Process(MapFrame(cloud));
+  ASSERT_TRUE(r.ok()) << r.status().message();
+  EXPECT_EQ(r->clusters, 64);
+  EXPECT_EQ(q.tracks(), 64);
+}
+
+TEST(PerceptionTest, TracksAreThinnedToTheirBound) {
+  Simulator sim(Load("loose1"), 1);
+  const RobotConfig at = Config(0.4, 0.0, 0.0);
+  const SensorFrame frame = Capture(&sim, at, at);
+  auto largest = [&](const PerceptionOptions& options) {
+    Perception p(sim.InitialWorld().value(), TargetOf(sim), options);
+    EXPECT_TRUE(p.Process(frame).ok());
+    int next = 0;
+    size_t most = 0;
+    for (const TrackState& t : p.SaveTracks(&next)) most = std::max(most, t.points.size() / 3);
+    return most;
+  };
+  PerceptionOptions few;
+  few.max_track_points = 100;
+  EXPECT_GT(largest({}), 100u);
+  EXPECT_LE(largest(few), 100u);
+  EXPECT_GT(largest(few), 20u);
+}
+
+TEST(PerceptionTest, SiftStopsAtItsBudgetAndColourStillScores) {
+  Simulator sim(Load("loose1"), 1);
+  const RobotConfig at = Config(0.4, 0.0, 0.0);
+  const SensorFrame frame = Capture(&sim, at, at);
+  // The mean face score of the target's detection.
+  auto target_score = [&](const PerceptionOptions& options) {
+    Perception p(sim.InitialWorld().value(), TargetOf(sim), options);
+    auto r = p.Process(frame);
+    EXPECT_TRUE(r.ok());
+    double score = -1.0;
+    for (const auto& d : r->observation.objects) {
+      if (!sim.objects()[SceneObjectOf(sim, d.box)].target || d.faces.empty()) continue;
+      score = 0.0;
+      for (const auto& face : d.faces) score += face.score / static_cast<double>(d.faces.size());
+    }
+    return score;
+  };
+  PerceptionOptions no_pairs, no_pixels, small_regions;
+  no_pairs.max_sift_pairs = 0;
+  no_pixels.max_sift_frame_pixels = 0;
+  small_regions.max_sift_pixels = 400;
+  const double full = target_score({});
+  EXPECT_GT(full, 0.6);
+  // Colour alone gives at most sigmoid(0.5).
+  EXPECT_LT(target_score(no_pairs), 0.63);
+  EXPECT_LT(target_score(no_pixels), 0.63);
+  EXPECT_GT(target_score(no_pixels), 0.05);
+  const double small = target_score(small_regions);
+  EXPECT_GE(small, 0.05);
+  EXPECT_LE(small, 0.95);
 }
 
 TEST(PerceptionTest, PriorMapPointsBoundsTheMapBeforeItIsBuilt) {

@@ -83,6 +83,23 @@ struct PerceptionOptions {
   /// overflow PCL's voxel grids and kd-trees).
   int64_t max_points = 1'000'000;
   double max_coordinate = 1e4;
+  /// Work bounds, so that no frame costs more than its size pays for. A frame with more object
+  /// clusters than max_clusters is refused (the session could not know them all).
+  int max_clusters = 63;
+  /// A track holding more points is thinned with coarser voxels (it stays in a snapshot's bound).
+  int64_t max_track_points = 200'000;
+  /// The source points of ICP and of the RANSAC fallback, after downsampling, are thinned to
+  /// these many.
+  int64_t max_icp_points = 20'000;
+  int64_t max_ransac_points = 10'000;
+  /// SIFT keypoints kept per target photo and per image region (the strongest).
+  int max_features = 2'000;
+  /// An image region or target photo larger than this (pixels) is scaled down before SIFT.
+  int64_t max_sift_pixels = 640 * 480;
+  /// Per frame: pixels of the regions SIFT runs on, and region keypoints times photo keypoints
+  /// it matches; the regions beyond either are scored by colour alone.
+  int64_t max_sift_frame_pixels = 4 * 640 * 480;
+  int64_t max_sift_pairs = 20'000'000;
 
   Status Validate() const;
 };
@@ -147,6 +164,11 @@ class Perception {
                      const cv::Mat& mask = cv::Mat()) const;
 
  private:
+  // TargetScore with SIFT skipped (sift_pairs null) or bounded: the region's keypoints times the
+  // photos' are taken from *sift_pairs, and SIFT gives no evidence when they exceed it.
+  double ScoreRegion(const cv::Mat& region, const cv::Mat& mask, int64_t* sift_pairs,
+                     bool* used_colour) const;
+
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
