@@ -876,9 +876,10 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
           const double f = std::sqrt(static_cast<double>(o.max_sift_pixels) / area);
           const cv::Size size(std::max(4, static_cast<int>(rect.width * f)),
                               std::max(4, static_cast<int>(rect.height * f)));
-          cv::resize(frame.image(rect), region, size, 0, 0, cv::INTER_AREA);
-          cv::Mat small_mask;
+          cv::Mat small_region, small_mask;  // new buffers: `region` views the caller's image
+          cv::resize(region, small_region, size, 0, 0, cv::INTER_AREA);
           cv::resize(mask, small_mask, size, 0, 0, cv::INTER_NEAREST);
+          region = small_region;
           mask = small_mask;
         }
         const int64_t pixels = int64_t{region.cols} * region.rows;

@@ -88,17 +88,19 @@ struct PerceptionOptions {
   int max_clusters = 63;
   /// A track holding more points is thinned with coarser voxels (it stays in a snapshot's bound).
   int64_t max_track_points = 200'000;
-  /// The source points of ICP and of the RANSAC fallback, after downsampling, are thinned to
-  /// these many.
+  /// ICP's source points, after downsampling, are thinned (every k-th) to this many.
   int64_t max_icp_points = 20'000;
+  /// The RANSAC fallback's source points, after downsampling, are thinned to this many.
   int64_t max_ransac_points = 10'000;
   /// SIFT keypoints kept per target photo and per image region (the strongest).
   int max_features = 2'000;
   /// An image region or target photo larger than this (pixels) is scaled down before SIFT.
   int64_t max_sift_pixels = 640 * 480;
-  /// Per frame: pixels of the regions SIFT runs on, and region keypoints times photo keypoints
-  /// it matches; the regions beyond either are scored by colour alone.
+  /// Per frame, the pixels of the image regions SIFT runs on; regions beyond are scored by
+  /// colour alone.
   int64_t max_sift_frame_pixels = 4 * 640 * 480;
+  /// Per frame, region keypoints times photo keypoints that SIFT matches; regions beyond are
+  /// scored by colour alone.
   int64_t max_sift_pairs = 20'000'000;
 
   Status Validate() const;
