@@ -107,6 +107,14 @@ def create(url, recorder, scenario="loose1", **extra):
     return r.json()["id"]
 
 
+def planned(url, recorder, **extra):
+    """A new session with a plan pending: its id and the plan's action id."""
+    sid = create(url, recorder, **extra)
+    plan = http("POST", f"{url}/v1/sessions/{sid}:plan", recorder,
+                json={"budget": {"simulations": 20}}).json()
+    return sid, plan["actionId"]
+
+
 def snapshot_of(url, sid):
     """What must survive an attack unchanged: the resource and the belief."""
     s = requests.get(f"{url}/v1/sessions/{sid}", timeout=30).json()
@@ -173,16 +181,14 @@ def test_huge_finite_coordinates_are_refused_before_they_reach_pcl(hostile_serve
     url, rec = hostile_server.url, Recorder()
     keeper = create(url, rec)
     before = {keeper: snapshot_of(url, keeper)}
-    sid = create(url, rec)
-    plan = http("POST", f"{url}/v1/sessions/{sid}:plan", rec,
-                json={"budget": {"simulations": 20}}).json()
+    sid, action_id = planned(url, rec)
     good = [(0.01 * i, 0.0, 1.0 + 0.001 * i) for i in range(200)]
     for points, frame in [([(0.0, 0.0, 3e38)] * 3 + good, "camera"),
                           ([(1e37, 1e37, 1e37)] * 3 + good, "map"),
                           ([(-3.4e38, 0.0, 1.0)] + good, "map"),
                           ([(1e4 + 1, 0.0, 1.0)] + good, "camera")]:
         r = http("POST", f"{url}/v1/sessions/{sid}:observe", rec,
-                 json=raw_observation(plan["actionId"], points, frame))
+                 json=raw_observation(action_id, points, frame))
         assert r.status_code == 400, r.text
         assert field_of(r) == "pointCloud.data"
     for world_edit in [lambda w: w["furniture"][0].__setitem__("center", [1e37, 0]),
@@ -194,12 +200,12 @@ def test_huge_finite_coordinates_are_refused_before_they_reach_pcl(hostile_serve
         r = http("POST", url + "/v1/sessions", rec, json={"world": world})
         assert r.status_code == 400 and field_of(r).startswith("world."), r.text
     r = http("POST", f"{url}/v1/sessions/{sid}:observe", rec,
-             json=dict(observation(plan["actionId"]),
+             json=dict(observation(action_id),
                        robotState={"x": 1e308, "y": 0, "yaw": 0, "lift": 0, "pan": 0, "tilt": 0}))
     assert r.status_code == 400 and field_of(r) == "robotState.x"
     # The session whose observations were refused still has its action pending and goes on.
     assert http("POST", f"{url}/v1/sessions/{sid}:observe", rec,
-                json=observation(plan["actionId"])).status_code == 200
+                json=observation(action_id)).status_code == 200
     # At the limit, inside it: a real rendered frame with points at 9,999 m reaches PCL (whose
     # voxel grid cannot index such an extent and keeps the points) and is processed. Every second
     # point of the frame is sent, so that a close view's frame stays under this server's 4 MiB
@@ -243,11 +249,9 @@ def test_points_far_away_do_not_switch_off_downsampling(hostile_server):
     far = [(9999.0, 9999.0, 9999.0), (-9999.0, 9999.0, 0.5), (0.001, -9999.0, 9999.0)]
     clusters = []
     for points in (blob, far + blob):
-        sid = create(url, rec)
-        plan = http("POST", f"{url}/v1/sessions/{sid}:plan", rec,
-                    json={"budget": {"simulations": 20}}).json()
+        sid, action_id = planned(url, rec)
         r = http("POST", f"{url}/v1/sessions/{sid}:observe", rec,
-                 json=raw_observation(plan["actionId"], points, "map"), timeout=60)
+                 json=raw_observation(action_id, points, "map"), timeout=60)
         assert r.status_code == 200, r.text
         clusters.append(r.json()["perception"]["clusters"])
     assert clusters == [0, 0]
@@ -285,9 +289,7 @@ def test_feature_of_points_a_denormal_apart_does_not_abort(hostile_server):
     url, rec = hostile_server.url, Recorder()
     keeper = create(url, rec)
     before = {keeper: snapshot_of(url, keeper)}
-    sid = create(url, rec)
-    plan = http("POST", f"{url}/v1/sessions/{sid}:plan", rec,
-                json={"budget": {"simulations": 20}}).json()
+    sid, action_id = planned(url, rec)
     rnd = random.Random(1)
     points = []
     for _ in range(20000):
@@ -299,7 +301,7 @@ def test_feature_of_points_a_denormal_apart_does_not_abort(hostile_server):
             points.append((x, y - 1.5, z + 0.6))
     points += [(1e-20, -1.485, 0.915), (-1e-20, -1.485, 0.915)]
     r = http("POST", f"{url}/v1/sessions/{sid}:observe", rec,
-             json=raw_observation(plan["actionId"], points, "map"))
+             json=raw_observation(action_id, points, "map"))
     assert r.status_code == 200, r.text
     assert r.json()["perception"]["registration"] == "RANSAC_ICP"
     assert_alive_and_intact(hostile_server, before, rec)
@@ -316,14 +318,12 @@ def test_sift_work_per_frame_is_bounded(hostile_server):
     before = {keeper: snapshot_of(url, keeper)}
     photo = base64.b64encode(noise_png(64)).decode()
     for plates, status in [(63, 200), (64, 400)]:
-        sid = create(url, rec, target={"description": "x", "photos": [photo]})
-        plan = http("POST", f"{url}/v1/sessions/{sid}:plan", rec,
-                    json={"budget": {"simulations": 20}}).json()
+        sid, action_id = planned(url, rec, target={"description": "x", "photos": [photo]})
         # 30 plates on the axis (the table's length), the others beside it, out of the image.
         spots = [(1.025 + 0.04 * (k % 30), (0.005, -0.245, 0.255)[k // 30]) for k in range(plates)]
         points = [(x, y + 0.01 * i, 1.085 + 0.01 * j)
                   for x, y in spots for i in range(-3, 4) for j in range(-3, 3)]
-        body = dict(raw_observation(plan["actionId"], points, "map"),
+        body = dict(raw_observation(action_id, points, "map"),
                     robotState={"x": 0.3, "y": 0, "yaw": 0, "lift": 0.0, "pan": 0, "tilt": 0.0},
                     camera={"width": 2048, "height": 2048, "fx": 1e6, "fy": 1e6, "cx": 1024,
                             "cy": 1024},
