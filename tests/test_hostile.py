@@ -16,6 +16,8 @@ import select
 import signal
 import socket
 import struct
+import subprocess
+import sys
 import threading
 import time
 import zlib
@@ -23,7 +25,7 @@ import zlib
 import pytest
 import requests
 
-from conftest import BUILD, SERVER_BIN, ServerProcess, SimRobot, world_of
+from conftest import BUILD, ROOT, SERVER_BIN, ServerProcess, SimRobot, world_of
 
 RELEASE_BIN = os.environ.get("NPFKCT_RELEASE_SERVER_BIN",
                              os.path.join(BUILD, "server", "npfkct-server"))
@@ -305,6 +307,15 @@ def test_feature_of_points_a_denormal_apart_does_not_abort(hostile_server):
     assert r.status_code == 200, r.text
     assert r.json()["perception"]["registration"] == "RANSAC_ICP"
     assert_alive_and_intact(hostile_server, before, rec)
+
+
+def test_the_attack_script_runs():
+    """scripts/perception_attacks.py, which measured the README's figures, on small inputs."""
+    script = os.path.join(ROOT, "scripts", "perception_attacks.py")
+    for attack in (["far-blob", "1000"], ["sift-plates", "3"]):
+        out = subprocess.run([sys.executable, script, *attack], capture_output=True, text=True,
+                             timeout=300).stdout
+        assert f"{attack[0]}: status 200" in out and "server exit status 0" in out, out
 
 
 def test_sift_work_per_frame_is_bounded(hostile_server):
