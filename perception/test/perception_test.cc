@@ -53,6 +53,12 @@ SensorFrame Capture(Simulator* sim, const RobotConfig& truth, const RobotConfig&
   return frame;
 }
 
+// The frame of the view from the room's side of the table (0.4, 0), reported exactly.
+SensorFrame FrontView(Simulator* sim) {
+  const RobotConfig at = Config(0.4, 0.0, 0.0);
+  return Capture(sim, at, at);
+}
+
 TargetModel TargetOf(const Simulator& sim) {
   return {sim::ObjectPhotos(sim.objects()[sim.target_index()])};
 }
@@ -104,8 +110,7 @@ TEST(PerceptionTest, RansacRescuesABadReportedPose) {
 TEST(PerceptionTest, ClustersBoxesAndDetectsTheTarget) {
   Simulator sim(Load("loose1"), 1);
   Perception p(sim.InitialWorld().value(), TargetOf(sim), {});
-  const RobotConfig at = Config(0.4, 0.0, 0.0);
-  auto frame = Capture(&sim, at, at);
+  auto frame = FrontView(&sim);
   // The truth: scene objects with enough pixels in the rendered frame.
   const sim::Frame f = sim.Render(640, 480);
   std::map<int, int> pixels;
@@ -246,8 +251,7 @@ TEST(PerceptionTest, LargePhotosAreScaledDownAndStillMatch) {
 TEST(PerceptionTest, BadFramesGetClearErrorsAndChangeNothing) {
   Simulator sim(Load("loose1"), 1);
   Perception p(sim.InitialWorld().value(), TargetOf(sim), {});
-  const RobotConfig at = Config(0.4, 0.0, 0.0);
-  SensorFrame good = Capture(&sim, at, at);
+  SensorFrame good = FrontView(&sim);
   SensorFrame empty = good;
   empty.cloud = pcl::make_shared<Cloud>();
   EXPECT_NE(p.Process(empty).status().message().find("pointCloud.data: the cloud is empty"),
@@ -322,8 +326,7 @@ TEST(PerceptionTest, PointsFarAwayChangeNothingNearby) {
   // it unfiltered: the blob's 20,000 points became an object of their own (a cluster the frame
   // without far points never has) and the frame took 45 s instead of 0.4 s.
   Simulator sim(Load("loose1"), 1);
-  const RobotConfig at = Config(0.4, 0.0, 0.0);
-  SensorFrame near = Capture(&sim, at, at);
+  SensorFrame near = FrontView(&sim);
   auto blob = sim::FrameCloud(sim.Render(640, 480), /*world_frame=*/true);
   Rng rng(3);
   for (int i = 0; i < 20000; ++i) {
@@ -442,8 +445,7 @@ TEST(PerceptionTest, FramesWithMoreClustersThanASessionKnowsAreRefusedFirst) {
 
 TEST(PerceptionTest, TracksAreThinnedToTheirBound) {
   Simulator sim(Load("loose1"), 1);
-  const RobotConfig at = Config(0.4, 0.0, 0.0);
-  const SensorFrame frame = Capture(&sim, at, at);
+  const SensorFrame frame = FrontView(&sim);
   auto largest = [&](const PerceptionOptions& options) {
     Perception p(sim.InitialWorld().value(), TargetOf(sim), options);
     EXPECT_TRUE(p.Process(frame).ok());
@@ -461,8 +463,7 @@ TEST(PerceptionTest, TracksAreThinnedToTheirBound) {
 
 TEST(PerceptionTest, SiftStopsAtItsBudgetAndColourStillScores) {
   Simulator sim(Load("loose1"), 1);
-  const RobotConfig at = Config(0.4, 0.0, 0.0);
-  const SensorFrame frame = Capture(&sim, at, at);
+  const SensorFrame frame = FrontView(&sim);
   // The mean face score of the target's detection.
   auto target_score = [&](const PerceptionOptions& options) {
     Perception p(sim.InitialWorld().value(), TargetOf(sim), options);
