@@ -89,7 +89,8 @@ int ObjectSearchModel::CountPast(const std::array<float, 8>& odds, bool positive
   return n;
 }
 
-void ObjectSearchModel::ObjectFrames(const State& s, std::array<BoxFrame, 64>* frames) const {
+void ObjectSearchModel::ObjectFrames(const State& s,
+                                     std::array<BoxFrame, kMaxObjects>* frames) const {
   const int n = static_cast<int>(s.objects.size());
   for (int i = 0; i < n; ++i) {
     (*frames)[i] = i == 0 ? BoxFrame(ObjectBox(s, 0)) : object_frames_[i];
@@ -97,7 +98,7 @@ void ObjectSearchModel::ObjectFrames(const State& s, std::array<BoxFrame, 64>* f
 }
 
 bool ObjectSearchModel::Sees(const CameraPose& pose, const State& s,
-                             const std::array<BoxFrame, 64>& frames, int i) const {
+                             const std::array<BoxFrame, kMaxObjects>& frames, int i) const {
   const World& w = *world_;
   const int n = static_cast<int>(s.objects.size());
   if (s.objects[i].status == kRemoved) return false;
@@ -129,16 +130,17 @@ bool ObjectSearchModel::Sees(const CameraPose& pose, const State& s,
 bool ObjectSearchModel::SeesObject(const State& s, const RobotConfig& config, int i) const {
   const int n = static_cast<int>(s.objects.size());
   if (i < 0 || i >= n) return false;
-  std::array<BoxFrame, 64> frames;
+  std::array<BoxFrame, kMaxObjects> frames;
   ObjectFrames(s, &frames);
   return Sees(CameraPoseFor(world_->robot, config), s, frames, i);
 }
 
-uint64_t ObjectSearchModel::VisibleObjects(const State& s, const RobotConfig& config,
-                                           std::array<std::array<int, 4>, 64>* nearest) const {
+uint64_t ObjectSearchModel::VisibleObjects(
+    const State& s, const RobotConfig& config,
+    std::array<std::array<int, 4>, kMaxObjects>* nearest) const {
   const CameraPose pose = CameraPoseFor(world_->robot, config);
   const int n = static_cast<int>(s.objects.size());
-  std::array<BoxFrame, 64> frames;
+  std::array<BoxFrame, kMaxObjects> frames;
   ObjectFrames(s, &frames);
   uint64_t visible = 0;
   for (int i = 0; i < n; ++i) {
@@ -157,7 +159,7 @@ uint64_t ObjectSearchModel::VisibleObjects(const State& s, const RobotConfig& co
 
 void ObjectSearchModel::Observe(State* s, Rng& rng, Observation* o) const {
   const SearchParams& p = world_->params;
-  std::array<std::array<int, 4>, 64> nearest;
+  std::array<std::array<int, 4>, kMaxObjects> nearest;
   o->visible = VisibleObjects(*s, s->robot, &nearest);
   o->positive = o->negative = 0;
   const float limit = static_cast<float>(p.face_odds_limit);
@@ -270,7 +272,7 @@ bool ObjectSearchModel::IsFeasible(const State& s, const Action& a) const {
 double ObjectSearchModel::ObservationLikelihood(const Action& a, const State& sp,
                                                 const Observation& o) const {
   (void)a;
-  std::array<std::array<int, 4>, 64> unused;
+  std::array<std::array<int, 4>, kMaxObjects> unused;
   if (sp.terminal) return o == Observation{} ? 1.0 : 0.0;
   if (VisibleObjects(sp, sp.robot, &unused) != o.visible) return 0.0;
   // The update direction is a function of the odds before the update, which s' no longer holds
@@ -345,7 +347,7 @@ Observation ObjectSearchModel::RealObservationKey(const std::vector<int>& detect
   Observation o;
   const SearchParams& p = world_->params;
   for (int i : detected) {
-    if (i < 1 || i >= static_cast<int>(world_->objects.size()) || i >= 64) continue;
+    if (i < 1 || i >= static_cast<int>(world_->objects.size()) || i >= kMaxObjects) continue;
     o.visible |= uint64_t{1} << i;
     double mean = 0.0;
     for (float v : world_->objects[i].odds) mean += v;

@@ -205,7 +205,10 @@ Status World::Validate() const {
       return s;
     }
   }
-  if (objects.size() > 64) return InvalidArgumentError("objects: at most 63 objects are supported");
+  if (objects.size() > kMaxObjects) {
+    return InvalidArgumentError("objects: at most " + std::to_string(kMaxKnownObjects) +
+                                " objects are supported");
+  }
   return OkStatus();
 }
 
@@ -365,8 +368,9 @@ Status ApplyRealObservation(World* world, const RealObservation& observation) {
                                     "].score: must be in [0, 1]");
       }
     }
-    if (world->FindObject(d.key) < 0 && world->objects.size() >= 64) {
-      return ResourceExhaustedError(field + ": at most 63 objects are supported");
+    if (world->FindObject(d.key) < 0 && world->objects.size() >= kMaxObjects) {
+      return ResourceExhaustedError(field + ": at most " + std::to_string(kMaxKnownObjects) +
+                                    " objects are supported");
     }
   }
   // Everything is valid: apply.

@@ -321,6 +321,7 @@ struct Perception::Impl {
   cv::Ptr<cv::SIFT> sift;  // keeps options.max_features keypoints
   std::vector<cv::Mat> photo_descriptors;
   std::vector<std::vector<cv::KeyPoint>> photo_keypoints;
+  int64_t photo_features = 0;  // keypoints over every photo: a region's matching costs this each
   std::vector<cv::Mat> photo_histograms;
   // RANSAC fallback features of the map (computed on first use).
   pcl::PointCloud<pcl::FPFHSignature33>::Ptr map_features;
@@ -411,6 +412,7 @@ Perception::Perception(const object_search::World& world, TargetModel target,
     if (!descriptors.empty()) {
       im.photo_descriptors.push_back(descriptors);
       im.photo_keypoints.push_back(keypoints);
+      im.photo_features += descriptors.rows;
     }
     im.photo_histograms.push_back(im.Histogram(photo));
   }
@@ -505,10 +507,8 @@ double Perception::ScoreRegion(const cv::Mat& region, const cv::Mat& mask, int64
     im.sift->detectAndCompute(gray, masked ? mask : cv::Mat(), keypoints, descriptors);
   }
   int n = static_cast<int>(keypoints.size());
-  int64_t photo_features = 0;
-  for (const cv::Mat& d : im.photo_descriptors) photo_features += d.rows;
-  if (sift_pairs != nullptr && int64_t{n} * photo_features > *sift_pairs) n = 0;  // over budget
-  if (n > 0) *sift_pairs -= int64_t{n} * photo_features;
+  if (sift_pairs != nullptr && int64_t{n} * im.photo_features > *sift_pairs) n = 0;  // over budget
+  if (n > 0) *sift_pairs -= int64_t{n} * im.photo_features;
   int inliers = 0;
   if (n >= im.options.min_features) {
     cv::BFMatcher matcher(cv::NORM_L2);

@@ -294,9 +294,11 @@ StatusOr<api::ObserveReply> Session::Observe(api::ObserveRequest req, SessionSto
     if (index < 0) fresh.insert(det.key);
     detected.push_back(index);
   }
-  if (next.objects.size() + fresh.size() > 64) {
+  if (next.objects.size() + fresh.size() > object_search::kMaxObjects) {
     return fail(InvalidFieldError(req.frame ? "pointCloud" : "detections",
-                                  "the session would know more than 63 objects"));
+                                  "the session would know more than " +
+                                      std::to_string(object_search::kMaxKnownObjects) +
+                                      " objects"));
   }
   const object_search::Observation key = model_->RealObservationKey(detected);
   if (Status s = object_search::ApplyRealObservation(&next, obs); !s.ok()) {

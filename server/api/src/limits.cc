@@ -1,6 +1,11 @@
 #include "npfkct/api/limits.h"
 
+#include "npfkct/object_search/world.h"
+
 namespace npfkct::api {
+
+static_assert(Limits{}.max_objects == object_search::kMaxKnownObjects,
+              "a session knows at most the objects a world can hold");
 
 const Limits& HardLimits() {
   static const Limits* hard = [] {

@@ -220,7 +220,7 @@ double TargetScore(const ObjectSearchModel& model, const State& s, int candidate
   }
   const uint32_t unconfirmed = object_search::UnconfirmedFaces(model.world(), candidate, +1);
   if (unconfirmed == 0) return 0.0;
-  std::array<std::array<int, 4>, 64> nearest;
+  std::array<std::array<int, 4>, object_search::kMaxObjects> nearest;
   if (!(model.VisibleObjects(s, config, &nearest) >> candidate & 1u)) return 0.0;
   int updated = 0;
   for (int k : nearest[candidate]) updated += (unconfirmed >> k) & 1u;

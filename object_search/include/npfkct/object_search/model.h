@@ -110,7 +110,7 @@ class ObjectSearchModel {
   /// Which objects the camera sees from `config` in state s (bit i: object i), and for each the
   /// 4 face grids nearest to the camera.
   uint64_t VisibleObjects(const State& s, const RobotConfig& config,
-                          std::array<std::array<int, 4>, 64>* nearest) const;
+                          std::array<std::array<int, 4>, kMaxObjects>* nearest) const;
   /// Whether the camera at `config` sees object i's center unoccluded in state s (object 0: the
   /// guessed target at s.target); the rule VisibleObjects applies to every object.
   bool SeesObject(const State& s, const RobotConfig& config, int i) const;
@@ -129,8 +129,8 @@ class ObjectSearchModel {
  private:
   void Observe(State* s, Rng& rng, Observation* o) const;
   /// Frames of the boxes of the objects of s (object 0's from s.target).
-  void ObjectFrames(const State& s, std::array<BoxFrame, 64>* frames) const;
-  bool Sees(const CameraPose& pose, const State& s, const std::array<BoxFrame, 64>& frames,
+  void ObjectFrames(const State& s, std::array<BoxFrame, kMaxObjects>* frames) const;
+  bool Sees(const CameraPose& pose, const State& s, const std::array<BoxFrame, kMaxObjects>& frames,
             int i) const;
 
   std::shared_ptr<const World> world_;

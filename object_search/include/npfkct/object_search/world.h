@@ -15,6 +15,12 @@
 
 namespace npfkct::object_search {
 
+/// Objects a world holds at most, the guessed target (object 0) included: the model's
+/// observations are 64-bit masks over them.
+inline constexpr int kMaxObjects = 64;
+/// Real objects a world can know: kMaxObjects less the guessed target.
+inline constexpr int kMaxKnownObjects = kMaxObjects - 1;
+
 /// Object status (paper footnote 2).
 enum ObjectStatus : int8_t {
   kRemoved = -2,

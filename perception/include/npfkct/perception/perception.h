@@ -85,7 +85,7 @@ struct PerceptionOptions {
   double max_coordinate = 1e4;
   /// Work bounds, so that no frame costs more than its size pays for. A frame with more object
   /// clusters than max_clusters is refused (the session could not know them all).
-  int max_clusters = 63;
+  int max_clusters = object_search::kMaxKnownObjects;
   /// A track holding more points is thinned with coarser voxels (it stays in a snapshot's bound).
   int64_t max_track_points = 200'000;
   /// ICP's source points, after downsampling, are thinned (every k-th) to this many.

@@ -32,8 +32,8 @@ struct Limits {
   /// Base regions and manual base poses.
   int max_base_regions = 64;
   int max_discrete_poses = 64;
-  /// Objects a session can know (the model's 64 minus the guessed target); detections per
-  /// observation.
+  /// Objects a session can know (object_search::kMaxKnownObjects: the model's 64 less the
+  /// guessed target); detections per observation.
   int max_objects = 63;
 
   // ---- planner ----
