@@ -45,7 +45,8 @@ def observe(server, sid, body, label):
         r = http("POST", f"{server.url}/v1/sessions/{sid}:observe", None, json=body, timeout=3600)
         what = f"status {r.status_code}"
         if r.status_code == 200 and "perception" in r.json():
-            what += f", {r.json()['perception']['clusters']} clusters"
+            p = r.json()["perception"]
+            what += f", {p['clusters']} clusters, registration {p['registration']}"
     except Exception as e:  # the server died or hung up
         what = f"no answer ({type(e).__name__}), server alive: {server.alive()}"
     print(f"{label}: {what}, server CPU {cpu_seconds(pid) - before:.1f} s, "

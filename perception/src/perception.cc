@@ -727,9 +727,13 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
         plausible) {
       icp.align(aligned, ransac.getFinalTransformation());
       const double f2 = icp.hasConverged() ? icp.getFitnessScore(o.icp_max_distance) : 1e9;
-      if (f2 < fitness) {
+      const Eigen::Matrix4d refined = icp.getFinalTransformation().cast<double>();
+      // A refinement that moves the camera too far is not kept (the check below would throw
+      // away ICP's own correction with it), nor reported as used.
+      if (f2 < fitness && refined.allFinite() &&
+          refined.block<3, 1>(0, 3).norm() <= o.max_correction) {
         fitness = f2;
-        correction = icp.getFinalTransformation().cast<double>();
+        correction = refined;
         result.used_ransac = true;
       }
     }
