@@ -409,8 +409,9 @@ pcl::shared_ptr<Cloud> CubeOffTheTable() {
 TEST(PerceptionTest, ARansacRefinementIsKeptOnlyWhereItIsPlausible) {
   // A refinement of RANSAC's alignment that moved the camera more than max_correction used to
   // replace ICP's own correction, be thrown away (the pose fell back to the reported one) and be
-  // reported as used (RANSAC_ICP; the hostile suite's frame of the next test did). Used now
-  // means kept: the correction is the refinement, within max_correction.
+  // reported as used (RANSAC_ICP). Used now means kept: the correction is the refinement, within
+  // max_correction. These two frames do not reach the far case in this pose (the hostile
+  // suite's version of the next test's frame does, test_hostile.py); here it is an invariant.
   Simulator sim(Load("loose1"), 1);
   const PerceptionOptions defaults;
   for (bool pair : {false, true}) {
