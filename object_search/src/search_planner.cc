@@ -236,11 +236,20 @@ StatusOr<std::unique_ptr<SearchPlanner>> MakeSearchPlanner(
     o.observations.enabled = false;
     o.max_feasibility_tries = kFeasibilityTries;
     // proposals.* choose the candidates of kct (and of npfkct without a filter): aimed at what is
-    // left to see (default) or uniform (proposals.aimed = 0, the paper's candidates).
+    // left to see (default) or uniform (proposals.aimed = 0, the paper's candidates). npfkct's
+    // filter draws its own (filter.target_share, filter.object_share): there they would be
+    // options given and not used, so they are refused.
+    const bool filtered = name == "npfkct" && sampler != nullptr;
     ProposalOptions proposals;
     bool aimed = true;
     std::vector<std::pair<std::string, double>> rest;
     for (const auto& [key, value] : options) {
+      if (filtered && key.rfind("proposals.", 0) == 0) {
+        return InvalidArgumentError("option " + key +
+                                    ": npfkct's candidates come from its filter (filter.* "
+                                    "options); proposals.* apply to kct and to npfkct without a "
+                                    "model");
+      }
       if (key == "proposals.aimed") {
         if (value != 0.0 && value != 1.0) {
           return InvalidArgumentError("option proposals.aimed: 0 (uniform) or 1 (aimed)");

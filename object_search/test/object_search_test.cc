@@ -9,6 +9,7 @@
 
 #include "npfkct/object_search/discrete.h"
 #include "npfkct/object_search/model.h"
+#include "npfkct/object_search/proposals.h"
 #include "npfkct/object_search/search_planner.h"
 #include "npfkct/solver/kct.h"
 #include "npfkct/solver/pomcp.h"
@@ -518,6 +519,21 @@ TEST(DiscreteActionSetTest, PomcpPlansWithoutTheGuessedTargetAndGpomcpWithIt) {
     (*p)->SetBelief(belief);
     EXPECT_TRUE((*p)->Plan(Budget::Simulations(200), rng).status.ok()) << name;
   }
+}
+
+TEST(SearchPlannerTest, ProposalOptionsAreRefusedWhereTheFilterDrawsTheCandidates) {
+  // npfkct with a sampler (the neural filter in the server and the benchmark) takes its
+  // candidates from it: proposals.* would be options given and not used.
+  const World w = FourSidedWorld();
+  ObjectSearchModel model(std::make_shared<World>(w));
+  auto sampler = std::make_shared<AimedCandidateSampler>(model);
+  const std::vector<std::pair<std::string, double>> share = {{"proposals.object_share", 0.1}};
+  const auto refused = MakeSearchPlanner("npfkct", model, share, sampler);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.status().message().find("proposals.object_share"), std::string::npos);
+  EXPECT_NE(refused.status().message().find("filter"), std::string::npos);
+  EXPECT_TRUE(MakeSearchPlanner("npfkct", model, share).ok());  // no filter: its own proposals
+  EXPECT_TRUE(MakeSearchPlanner("kct", model, share, sampler).ok());
 }
 
 TEST(HybridBaselinesTest, NewActionsAreFeasibleConfigurations) {
