@@ -265,7 +265,7 @@ StatusOr<std::unique_ptr<SearchPlanner>> MakeSearchPlanner(
     }
     if (Status s = proposals.Validate(); !s.ok()) return Prefixed("option proposals", s);
     if (Status s = ApplyAll(&o, rest); !s.ok()) return s;
-    if (name == "kct" || sampler == nullptr) {
+    if (!filtered) {
       sampler = aimed ? std::make_shared<AimedCandidateSampler>(model, proposals) : nullptr;
     }
     return std::unique_ptr<SearchPlanner>(
