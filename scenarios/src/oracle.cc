@@ -250,16 +250,48 @@ HybridAction Oracle::Next(const object_search::World& knowledge) const {
       }
     }
   }
-  if (blocker >= 0) {
+  // Declares object b as an obstacle if it can be, else moves to see more of it; false if no
+  // view sees a face grid of it not yet confirmed.
+  HybridAction action;
+  auto clear = [&](int b) {
     std::array<float, 8> odds{};
-    const int kb = known(blocker);
+    const int kb = known(b);
     if (kb > 0) {
       odds = knowledge.objects[kb].odds;
       if (knowledge.objects[kb].status == object_search::kUpdating && count(odds, -1) >= p.n_odds) {
-        return OnObject(kb, object_search::kDeclareObstacleOffset);
+        action = OnObject(kb, object_search::kDeclareObstacleOffset);
+        return true;
       }
     }
-    if (BestView(blocker, odds, -1, p.n_odds - count(odds, -1), 0, &view)) return Move(view);
+    if (!BestView(b, odds, -1, p.n_odds - count(odds, -1), 0, &view)) return false;
+    action = Move(view);
+    return true;
+  };
+  if (blocker >= 0) {
+    if (clear(blocker)) return action;
+    // Other objects hide the faces of the blocker still to be confirmed (a wall wedged between
+    // two others): clear a nearby object, those whose removal exposes the most of the target's
+    // and the blocker's unconfirmed faces first, then the nearest. Every object cleared is
+    // removed, so this ends.
+    const int kb = known(blocker);
+    const uint32_t blocker_confirmed =
+        kb > 0 ? ConfirmedMask(knowledge.objects[kb].odds, -1, p.declare_threshold) : 0;
+    const uint32_t target_confirmed = ConfirmedMask(target_odds, +1, p.declare_threshold);
+    std::vector<std::pair<double, int>> order;  // (-exposed + distance / 10, object)
+    for (int b = 0; b < considered; ++b) {
+      if (b == target || b == blocker || sim_.removed(b) || !scene[b].moveable) continue;
+      const Vec3 d = scene[b].box.center - scene[target].box.center;
+      const double distance = std::hypot(d.x(), d.y());
+      if (distance > 0.8) continue;
+      const uint64_t ignore = uint64_t{1} << b;
+      const int exposed = std::popcount(SeeableCorners(target, ignore) & ~target_confirmed) +
+                          std::popcount(SeeableCorners(blocker, ignore) & ~blocker_confirmed);
+      order.emplace_back(-exposed + 0.1 * distance, b);
+    }
+    std::sort(order.begin(), order.end());
+    for (const auto& [unused, b] : order) {
+      if (clear(b)) return action;
+    }
   }
   // 4. Nothing helps (an unsolvable scene): keep looking at the target from its best view.
   std::array<float, 8> none{};

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include "npfkct/object_search/model.h"
+#include "npfkct/sim/scenegen.h"
 
 namespace npfkct::sim {
 namespace {
@@ -103,6 +104,19 @@ TEST(OracleTest, SolvesEveryPaperScene) {
       EXPECT_TRUE(e.success) << name << " trial " << trial;
       EXPECT_LE(e.steps, 12) << name << " trial " << trial;
     }
+  }
+}
+
+TEST(OracleTest, ClearsAWallThatHidesTheBlockersFaces) {
+  // npfkct-scenegen --seed 910002: the target in a pocket of three tall walls and the open side
+  // behind a tall box. Removing the -x wall would expose the target, but the two walls beside
+  // it hide half of its faces, so it cannot be declared until one of them goes: the oracle used
+  // to repeat a view that showed nothing new until the 50 steps ran out.
+  const Scenario pocket = ParseScenario(GenerateScenarioJson(910002)).value();
+  for (uint64_t trial = 0; trial < 3; ++trial) {
+    const Episode e = RunOracle(pocket, 1000003ULL + trial);
+    EXPECT_TRUE(e.success) << "trial " << trial;
+    EXPECT_LE(e.steps, 16) << "trial " << trial;
   }
 }
 
