@@ -17,6 +17,11 @@ Status CheckBox(const Box& b, const std::string& field) {
   return OkStatus();
 }
 
+// The message of both limits on known objects (a world given whole, one grown by observations).
+std::string TooManyObjects(const std::string& field) {
+  return field + ": at most " + std::to_string(kMaxKnownObjects) + " objects are supported";
+}
+
 }  // namespace
 
 Status SearchParams::Validate() const {
@@ -206,8 +211,7 @@ Status World::Validate() const {
     }
   }
   if (objects.size() > kMaxObjects) {
-    return InvalidArgumentError("objects: at most " + std::to_string(kMaxKnownObjects) +
-                                " objects are supported");
+    return InvalidArgumentError(TooManyObjects("objects"));
   }
   return OkStatus();
 }
@@ -369,8 +373,7 @@ Status ApplyRealObservation(World* world, const RealObservation& observation) {
       }
     }
     if (world->FindObject(d.key) < 0 && world->objects.size() >= kMaxObjects) {
-      return ResourceExhaustedError(field + ": at most " + std::to_string(kMaxKnownObjects) +
-                                    " objects are supported");
+      return ResourceExhaustedError(TooManyObjects(field));
     }
   }
   // Everything is valid: apply.
