@@ -271,8 +271,8 @@ HybridAction Oracle::Next(const object_search::World& knowledge) const {
     if (clear(blocker)) return action;
     // Other objects hide the faces of the blocker still to be confirmed (a wall wedged between
     // two others): clear a nearby object, those whose removal exposes the most of the target's
-    // and the blocker's unconfirmed faces first, then the nearest. Every object cleared is
-    // removed, so this ends.
+    // and the blocker's unconfirmed faces first, then the nearest. Each step either confirms a
+    // face grid or declares or removes an object, so this cannot repeat a useless view.
     const int kb = known(blocker);
     const uint32_t blocker_confirmed =
         kb > 0 ? ConfirmedMask(knowledge.objects[kb].odds, -1, p.declare_threshold) : 0;

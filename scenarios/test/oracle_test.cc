@@ -110,8 +110,9 @@ TEST(OracleTest, SolvesEveryPaperScene) {
 TEST(OracleTest, ClearsAWallThatHidesTheBlockersFaces) {
   // npfkct-scenegen --seed 910002: the target in a pocket of three tall walls and the open side
   // behind a tall box. Removing the -x wall would expose the target, but the two walls beside
-  // it hide half of its faces, so it cannot be declared until one of them goes: the oracle used
-  // to repeat a view that showed nothing new until the 50 steps ran out.
+  // it hide the faces it still needs, so it cannot be declared until one of them goes: the
+  // oracle used to repeat a view that showed nothing new until the 50 steps ran out (0 of 5
+  // trials solved).
   const Scenario pocket = ParseScenario(GenerateScenarioJson(910002)).value();
   for (uint64_t trial = 0; trial < 3; ++trial) {
     const Episode e = RunOracle(pocket, 1000003ULL + trial);
