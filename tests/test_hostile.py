@@ -793,3 +793,34 @@ def test_mixed_hostile_traffic_leaves_other_sessions_intact(hostile_server):
     assert -1 not in [c for c, _ in rec.codes]
     del rnd
     assert_alive_and_intact(hostile_server, before, rec)
+
+
+# ---- found by an outside-style attack pass (session 15) ----
+
+def test_multipart_bodies_odd_methods_and_option_spellings(hostile_server):
+    url, port, rec = hostile_server.url, hostile_server.port, Recorder()
+    keeper = create(url, rec)
+    before = {keeper: snapshot_of(url, keeper)}
+    # A multipart body: httplib's plain body reader throws on one (a 500 before this fix).
+    part = b"--xx\r\nContent-Disposition: form-data; name=\"a\"\r\n\r\n1\r\n--xx--\r\n"
+    for target in (b"/v1/sessions", b"/v1/sessions/" + keeper.encode() + b":plan"):
+        reply = raw_exchange(port, b"POST " + target + b" HTTP/1.1\r\nHost: x\r\n"
+                             b"Content-Type: multipart/form-data; boundary=xx\r\n"
+                             b"Content-Length: " + str(len(part)).encode() + b"\r\n\r\n" + part)
+        assert status_of(reply) == 415, reply[:300]
+        rec.add(415)
+    # A method that is not HTTP's: counted as "other", never copied into /metrics.
+    reply = raw_exchange(port, b'A"},evil="1 /healthz HTTP/1.1\r\nHost: x\r\n\r\n')
+    assert status_of(reply) in (400, 404, 405, 501), reply[:200]
+    metrics = http("GET", url + "/metrics", rec).text
+    assert "evil" not in metrics
+    assert 'method="other"' in metrics
+    # Option keys reach the planner in snake_case: other spellings of a bounded option would
+    # pass its bound, so only lowerCamelCase keys are taken.
+    for key in ("num_candidates", "search.Threads", "K", "diameter_samples", "search.num_particles"):
+        r = http("POST", url + "/v1/sessions", rec,
+                 json={"world": world_of("loose1"), "planner": {"name": "kct",
+                                                                "options": {key: 1e9}}})
+        assert r.status_code == 400, (key, r.text)
+        assert field_of(r) == "planner.options." + key, r.text
+    assert_alive_and_intact(hostile_server, before, rec)

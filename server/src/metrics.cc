@@ -1,6 +1,8 @@
 #include "npfkct/server/metrics.h"
 
+#include <algorithm>
 #include <cstdio>
+#include <string_view>
 
 namespace npfkct::server {
 namespace {
@@ -34,9 +36,15 @@ Metrics::Metrics() {
 
 void Metrics::ObserveRequest(const std::string& method, const std::string& route, int code,
                              double seconds) {
+  // The methods of HTTP/1.1 (RFC 9110) keep their name; anything else a client sends is
+  // "other", so that a label never carries client bytes nor grows a series per spelling.
+  static constexpr std::string_view kMethods[] = {"GET",     "HEAD",    "POST",  "PUT",  "DELETE",
+                                                  "CONNECT", "OPTIONS", "TRACE", "PATCH"};
+  const bool known = method == "-" || std::find(std::begin(kMethods), std::end(kMethods), method) !=
+                                          std::end(kMethods);
   std::lock_guard<std::mutex> lock(mutex_);
-  ++requests_["method=\"" + method + "\",route=\"" + route + "\",code=\"" + std::to_string(code) +
-              "\""];
+  ++requests_["method=\"" + (known ? method : std::string("other")) + "\",route=\"" + route +
+              "\",code=\"" + std::to_string(code) + "\""];
   auto& h = request_seconds_["route=\"" + route + "\""];
   if (h.bounds.empty()) {
     h.bounds = LatencyBounds();

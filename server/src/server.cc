@@ -321,6 +321,14 @@ struct Server::Impl {
         res.set_header("Allow", allow);
         return R::Handled;
       }
+      // httplib reads a multipart body only through its multipart reader (the plain one
+      // throws); no route takes one.
+      if (req.is_multipart_form_data()) {
+        if (conn) conn->must_close = true;
+        Fail(res, InvalidArgumentError("Content-Type: expected application/json, not multipart"),
+             415);
+        return R::Handled;
+      }
       if (route->auth && !options.api_key.empty() &&
           req.get_header_value("Authorization") != "Bearer " + options.api_key) {
         Fail(res, Status(StatusCode::kUnauthenticated,

@@ -41,8 +41,8 @@ struct OptionBound {
 };
 constexpr OptionBound kOptionBounds[] = {
     {"k", 16, true},
-    {"numCandidates", 10000},
-    {"maxInitialClusters", 64},
+    {"numCandidates", 4096},
+    {"maxInitialClusters", 16},
     {"maxFeasibilityTries", 10000},
     {"treeFeasibilityTries", 10000},
     {"feasibilityTries", 10000},
@@ -50,14 +50,32 @@ constexpr OptionBound kOptionBounds[] = {
     {"numParticles", 10000},
     {"threads", 4},
     {"maxAttemptsPerParticle", 1000},
-    {"diameterSamples", 10000},
+    {"diameterSamples", 300},
     {"walkSteps", 10000},
     {"maxTries", 10000},
     {"priorCount", 1000000},
     {"candidates", 100000},
-    {"context", 1024},
+    {"context", 1000},
     {"placements", 4096},
 };
+
+// Dot-separated segments, each a lowercase letter followed by letters and digits.
+bool IsLowerCamelKey(const std::string& key) {
+  bool segment_start = true;
+  for (char ch : key) {
+    const auto c = static_cast<unsigned char>(ch);
+    if (ch == '.') {
+      if (segment_start) return false;
+      segment_start = true;
+    } else if (segment_start) {
+      if (!std::islower(c)) return false;
+      segment_start = false;
+    } else if (!std::isalnum(c)) {
+      return false;
+    }
+  }
+  return !segment_start;
+}
 
 Status ReadPlanner(const json& p, const Limits& limits, PlannerSpec* spec) {
   spec->name = internal::String(p, "name", spec->name);
@@ -100,6 +118,11 @@ Status ReadPlanner(const json& p, const Limits& limits, PlannerSpec* spec) {
     }
     for (auto it = o.begin(); it != o.end(); ++it) {
       const std::string field = "planner.options." + it.key();
+      // lowerCamelCase only: the session turns keys into snake_case, so "num_candidates" or
+      // "search.Threads" would reach the same option past the bounds below.
+      if (!IsLowerCamelKey(it.key())) {
+        return InvalidFieldError(field, "expected a lowerCamelCase key (e.g. search.maxDepth)");
+      }
       const double v = it->is_boolean() ? (it->get<bool>() ? 1.0 : 0.0) : it->get<double>();
       if (!std::isfinite(v)) return InvalidFieldError(field, "not finite");
       const size_t dot = it.key().find_last_of('.');

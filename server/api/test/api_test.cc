@@ -103,6 +103,12 @@ TEST(ParseCreateSession, SchemaViolationsNameTheFieldAsData) {
                    "planner.options.maxDepth"});
   cases.push_back(
       {{{"world", world}, {"planner", {{"options", {{"x", "str"}}}}}}, "planner.options.x"});
+  // The bounds above hold for the lowerCamelCase keys; other spellings, which the session would
+  // turn into the same snake_case option, are refused.
+  for (const char* key : {"num_candidates", "search.Threads", "K", "diameter_samples"}) {
+    cases.push_back({{{"world", world}, {"planner", {{"options", {{key, 1e9}}}}}},
+                     std::string("planner.options.") + key});
+  }
   {
     json w = world;
     w["furniture"][0]["center"][0] = 1e37;  // finite, huge
