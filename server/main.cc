@@ -84,6 +84,8 @@ int main(int argc, char** argv) {
                  "largest simulation budget one :plan may ask for");
   app.add_option("--max-session-plan-seconds", o.limits.max_session_plan_seconds,
                  "planning (wall-clock seconds) one session may spend over its life");
+  app.add_option("--max-heap-mb", o.limits.max_heap_mb,
+                 "heap (MiB) past which a running plan stops with its best action so far");
   app.add_option("--max-particles", o.limits.max_particles, "largest planner.particles");
   app.add_option("--model-dir", o.model_dir,
                  "folder of the neural filter models clients may name (planner.model)");

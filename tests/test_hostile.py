@@ -824,3 +824,36 @@ def test_multipart_bodies_odd_methods_and_option_spellings(hostile_server):
         assert r.status_code == 400, (key, r.text)
         assert field_of(r) == "planner.options." + key, r.text
     assert_alive_and_intact(hostile_server, before, rec)
+
+
+def test_a_growing_search_tree_stops_at_the_heap_bound(tmp_path):
+    # pomcp-joint's tree grows by about 400 MiB a second here; with --max-heap-mb 256 a 5 s plan
+    # stops early with its best action, the next plan is refused while the tree is kept, and
+    # deleting the session gives the heap back. The Release build: ASan's allocator is not the
+    # one the bound reads.
+    server = ServerProcess("--state-dir", str(tmp_path / "state"), "--max-heap-mb", "256",
+                           binary=RELEASE_BIN)
+    url, rec = server.url, Recorder()
+
+    def rss_mib():
+        with open(f"/proc/{server.proc.pid}/status") as f:
+            return next(int(l.split()[1]) for l in f if l.startswith("VmRSS")) / 1024
+
+    start = rss_mib()
+    big = create(url, rec, planner={"name": "pomcp-joint"})
+    t = time.monotonic()
+    r = http("POST", f"{url}/v1/sessions/{big}:plan", rec, json={"budget": {"timeMs": 5000}})
+    assert r.status_code == 200, r.text
+    assert time.monotonic() - t < 4.0
+    stats = r.json()["stats"]
+    assert stats["budgetExhausted"] is False and stats["simulations"] > 0, stats
+    assert rss_mib() - start < 600, (start, rss_mib())
+    other = create(url, rec)
+    r = http("POST", f"{url}/v1/sessions/{other}:plan", rec, json={"budget": {"timeMs": 200}})
+    assert r.status_code == 429 and "max-heap-mb" in r.json()["error"]["message"], r.text
+    rec.add(429)
+    assert http("DELETE", f"{url}/v1/sessions/{big}", rec).status_code == 200
+    r = http("POST", f"{url}/v1/sessions/{other}:plan", rec, json={"budget": {"timeMs": 200}})
+    assert r.status_code == 200, r.text
+    rec.check()
+    assert_clean_exit(server)

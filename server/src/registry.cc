@@ -136,6 +136,7 @@ std::string Registry::NewId() {
 Registry::Registry(const ServerOptions& options, Metrics* metrics)
     : options_(options), metrics_(metrics) {
   session_limits_.max_plan_seconds = options.limits.max_session_plan_seconds;
+  session_limits_.max_heap_bytes = options.limits.max_heap_mb << 20;
   session_limits_.max_perception_map_points = options.limits.max_perception_map_points;
   session_limits_.max_photo_pixels = options.limits.max_photo_pixels;
 }

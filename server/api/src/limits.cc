@@ -14,6 +14,7 @@ const Limits& HardLimits() {
     l->max_plan_ms = 600'000;
     l->max_plan_simulations = 100'000'000;
     l->max_session_plan_seconds = 1e9;
+    l->max_heap_mb = int64_t{1} << 30;
     return l;
   }();
   return *hard;
@@ -36,6 +37,9 @@ Status Limits::Validate() const {
   if (!in(max_session_plan_seconds, 1.0, hard.max_session_plan_seconds)) {
     return InvalidFieldError("max_session_plan_seconds", "must be >= 1");
   }
+  if (!in(static_cast<double>(max_heap_mb), 64.0, static_cast<double>(hard.max_heap_mb))) {
+    return InvalidFieldError("max_heap_mb", "must be >= 64");
+  }
   if (!in(max_particles, 1, hard.max_particles)) {
     return InvalidFieldError("max_particles",
                              "must be in [1, " + std::to_string(hard.max_particles) + "]");
@@ -56,7 +60,8 @@ Status Limits::Validate() const {
       max_json_values == hard.max_json_values;
   if (!fixed) {
     return InvalidArgumentError(
-        "limits: only the budgets and max_particles can be configured; the others are the "
+        "limits: only the budgets, max_heap_mb and max_particles can be configured; the others "
+        "are the "
         "documented ones");
   }
   return OkStatus();

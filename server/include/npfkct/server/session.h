@@ -40,6 +40,8 @@ struct SessionConfig {
 struct SessionLimits {
   /// Planning a session may spend over its life (wall-clock seconds).
   double max_plan_seconds = 3600.0;
+  /// Heap in use (bytes) past which a running plan stops with its best action so far.
+  int64_t max_heap_bytes = int64_t{4096} << 20;
   /// Points of the prior map perception would build; larger worlds cannot take raw data.
   int64_t max_perception_map_points = 4'000'000;
   /// Pixels of a target photo (checked again from the header when perception decodes them).

@@ -51,6 +51,10 @@ struct Limits {
   int64_t max_plan_simulations = 10'000'000;
   /// Planning a session may spend over its life (wall-clock seconds of every :plan together).
   double max_session_plan_seconds = 3'600;
+  /// Heap (MiB) the server's allocations may reach while a plan searches: past it the plan
+  /// stops with the best action found so far (a search tree grows by up to hundreds of MiB a
+  /// second, and sessions keep theirs).
+  int64_t max_heap_mb = 4'096;
 
   // ---- sensor data and photos ----
   /// Points of one raw point cloud.
