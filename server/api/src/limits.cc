@@ -61,8 +61,7 @@ Status Limits::Validate() const {
   if (!fixed) {
     return InvalidArgumentError(
         "limits: only the budgets, max_heap_mb and max_particles can be configured; the others "
-        "are the "
-        "documented ones");
+        "are the documented ones");
   }
   return OkStatus();
 }
