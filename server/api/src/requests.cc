@@ -55,7 +55,7 @@ constexpr OptionBound kOptionBounds[] = {
     {"maxTries", 10000},
     {"priorCount", 1000000},
     {"candidates", 100000},
-    {"context", 1000},
+    {"context", 256},
     {"placements", 4096},
 };
 
