@@ -223,10 +223,21 @@ HybridAction Oracle::Next(const object_search::World& knowledge) const {
   // (not told the cover: the movable object of the largest footprint).
   int blocker = -1;
   const int considered = std::min(static_cast<int>(scene.size()), 64);
+  auto movable = [&](int b) { return b != target && !sim_.removed(b) && scene[b].moveable; };
+  // Only what stands near the target can hide it.
+  auto distance_to_target = [&](int b) {
+    const Vec3 d = scene[b].box.center - scene[target].box.center;
+    return std::hypot(d.x(), d.y());
+  };
+  // Face grids of `object` not in `confirmed` that some view would see once b is gone.
+  auto exposed_without = [&](int object, uint32_t confirmed, int b) {
+    return std::popcount(SeeableCorners(object, uint64_t{1} << b) & ~confirmed);
+  };
+  const uint32_t target_confirmed = ConfirmedMask(target_odds, +1, p.declare_threshold);
   if (options_.cover_unknown) {
     double largest = 0.0;
     for (int b = 0; b < considered; ++b) {
-      if (b == target || sim_.removed(b) || !scene[b].moveable) continue;
+      if (!movable(b)) continue;
       const double area = scene[b].box.size.x() * scene[b].box.size.y();
       if (area > largest) {
         largest = area;
@@ -235,15 +246,9 @@ HybridAction Oracle::Next(const object_search::World& knowledge) const {
     }
   } else {
     int best_exposed = 0;
-    const uint32_t confirmed = ConfirmedMask(target_odds, +1, p.declare_threshold);
     for (int b = 0; b < considered; ++b) {
-      if (b == target || sim_.removed(b) || !scene[b].moveable) continue;
-      // Only what stands near the target can hide it.
-      const Vec3 d = scene[b].box.center - scene[target].box.center;
-      if (std::hypot(d.x(), d.y()) > 0.8) continue;
-      const uint64_t ignore = uint64_t{1} << b;
-      const uint32_t exposed = SeeableCorners(target, ignore);
-      const int n = std::popcount(exposed & ~confirmed);
+      if (!movable(b) || distance_to_target(b) > 0.8) continue;
+      const int n = exposed_without(target, target_confirmed, b);
       if (n > best_exposed) {
         best_exposed = n;
         blocker = b;
@@ -276,16 +281,13 @@ HybridAction Oracle::Next(const object_search::World& knowledge) const {
     const int kb = known(blocker);
     const uint32_t blocker_confirmed =
         kb > 0 ? ConfirmedMask(knowledge.objects[kb].odds, -1, p.declare_threshold) : 0;
-    const uint32_t target_confirmed = ConfirmedMask(target_odds, +1, p.declare_threshold);
     std::vector<std::pair<double, int>> order;  // (-exposed + distance / 10, object)
     for (int b = 0; b < considered; ++b) {
-      if (b == target || b == blocker || sim_.removed(b) || !scene[b].moveable) continue;
-      const Vec3 d = scene[b].box.center - scene[target].box.center;
-      const double distance = std::hypot(d.x(), d.y());
+      if (b == blocker || !movable(b)) continue;
+      const double distance = distance_to_target(b);
       if (distance > 0.8) continue;
-      const uint64_t ignore = uint64_t{1} << b;
-      const int exposed = std::popcount(SeeableCorners(target, ignore) & ~target_confirmed) +
-                          std::popcount(SeeableCorners(blocker, ignore) & ~blocker_confirmed);
+      const int exposed = exposed_without(target, target_confirmed, b) +
+                          exposed_without(blocker, blocker_confirmed, b);
       order.emplace_back(-exposed + 0.1 * distance, b);
     }
     std::sort(order.begin(), order.end());
