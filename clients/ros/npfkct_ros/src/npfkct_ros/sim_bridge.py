@@ -64,7 +64,9 @@ class SimRobotBridge:
         self.tf = tf2_ros.TransformBroadcaster()
         self.static_tf = tf2_ros.StaticTransformBroadcaster()
         self.joint_pub = rospy.Publisher("joint_states", JointState, queue_size=50)
-        self.det_pub = rospy.Publisher("detections", Detection3DArray, queue_size=10)
+        # Latched: the simulator senses once per action, so a subscriber that connects after
+        # the action (a node starting beside the bridge on a loaded machine) still gets it.
+        self.det_pub = rospy.Publisher("detections", Detection3DArray, queue_size=10, latch=True)
         self.truth_pub = rospy.Publisher("sim/robot_state", RobotConfig, queue_size=100)
         rospy.Subscriber("base_goal", PoseStamped, self.on_base_goal, queue_size=10)
         mount = TransformStamped()
