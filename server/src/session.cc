@@ -150,18 +150,12 @@ StatusOr<api::PlanReply> Session::Plan(const Budget& asked,
   }
   Decision<HybridAction> d;
   bool cancelled = false;
-  std::atomic<bool> heap_full{false};
   {
     // Constructed here, in the planning thread: a CPU budget reads this thread's clock. Past the
-    // heap bound the search stops as if cancelled, and its best action is kept (below).
+    // heap bound the search ends early and its best action stands.
     TerminationCondition stop(
-        budget,
-        [&] {
-          if (cancel_.load() || (client_gone && client_gone())) return true;
-          if (HeapInUse() > limits_.max_heap_bytes) heap_full = true;
-          return heap_full.load();
-        },
-        2.0);
+        budget, [&] { return cancel_.load() || (client_gone && client_gone()); }, 2.0);
+    stop.StopAtLimit([this] { return HeapInUse() > limits_.max_heap_bytes; });
     {
       std::lock_guard<std::mutex> lock(running_mutex_);
       running_ = &stop;
@@ -173,18 +167,11 @@ StatusOr<api::PlanReply> Session::Plan(const Budget& asked,
       running_ = nullptr;
     }
     cancelled = stop.cancelled();
-  }
-  const bool heap_stop = cancelled && heap_full && !cancel_ && !(client_gone && client_gone());
-  if (heap_stop && d.stats.simulations > 0 &&
-      (d.status.ok() || d.status.code() == StatusCode::kCancelled)) {
-    d.status = OkStatus();  // stopped by the heap bound, not cancelled: the best action stands
-    d.stats.budget_exhausted = false;
-    cancelled = false;
-  } else if (heap_stop) {
-    cancelled = false;
-    d.status = ResourceExhaustedError("the server's heap is past its bound (--max-heap-mb " +
-                                      std::to_string(limits_.max_heap_bytes >> 20) +
-                                      "): delete sessions or plan later");
+    if (!cancelled && stop.limit_reached() && d.status.ok() && d.stats.simulations == 0) {
+      d.status = ResourceExhaustedError("the server's heap is past its bound (--max-heap-mb " +
+                                        std::to_string(limits_.max_heap_bytes >> 20) +
+                                        "): delete sessions or plan later");
+    }
   }
   std::unique_lock<std::mutex> state(state_mutex_);
   in_use_ = false;

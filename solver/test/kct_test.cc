@@ -254,6 +254,36 @@ TEST(KctTest, RootParallelSearchMergesTheTreesAndFindsThePeak) {
   EXPECT_LT(d3.stats.elapsed_ms, 5000.0);
 }
 
+// The caller's condition is not read while the worker threads search: its extra condition and
+// its resource limit must reach them through their own conditions.
+TEST(KctTest, RootParallelSearchPollsTheCallersConditionAndLimit) {
+  PeakSearch model;
+  Rng rng(12);
+  KctOptions o = PeakOptions();
+  o.search.threads = 2;
+  KCenterTree<PeakSearch> planner(model, o);
+  planner.Reset(rng);
+  const auto t0 = Clock::now();
+  TerminationCondition hung_up(
+      Budget::Time(30000.0), [&] { return MillisSince(t0) > 30.0; }, 1.0);
+  auto cancelled = planner.Plan(hung_up, rng);
+  EXPECT_EQ(cancelled.status.code(), StatusCode::kCancelled);
+  EXPECT_LT(cancelled.stats.elapsed_ms, 5000.0);
+
+  planner.Reset(rng);
+  const auto t1 = Clock::now();
+  TerminationCondition full(Budget::Time(30000.0), {}, 1.0);
+  full.StopAtLimit([&] { return MillisSince(t1) > 30.0; });
+  auto ended = planner.Plan(full, rng);
+  ASSERT_TRUE(ended.status.ok()) << ended.status.ToString();  // an early end, not a cancellation
+  EXPECT_TRUE(full.limit_reached());
+  EXPECT_FALSE(full.cancelled());
+  EXPECT_FALSE(ended.stats.budget_exhausted);
+  EXPECT_GT(ended.stats.simulations, 0);
+  EXPECT_LT(ended.stats.elapsed_ms, 5000.0);
+  EXPECT_TRUE(planner.CheckInvariants().ok());
+}
+
 TEST(KctTest, VdpTagWithObservationWideningHonoursTheTimeBudget) {
   VdpTag tag;
   Rng rng(9);

@@ -128,6 +128,30 @@ TEST(TerminationConditionTest, ExtraConditionIsPolledAndStopsTheSearch) {
   EXPECT_TRUE(stop.cancelled());
 }
 
+TEST(TerminationConditionTest, ResourceLimitEndsTheSearchWithItsBestAction) {
+  const auto model = models::RockSample::Standard78();
+  Pomcp<models::RockSample> planner(model, RockOptions());
+  Rng rng(6);
+  planner.Reset(rng);
+  std::atomic<int> polls{0};
+  TerminationCondition stop(Budget::Time(30000.0), {}, 0.0);
+  stop.StopAtLimit([&] { return ++polls >= 200; });
+  const Decision<int> d = planner.Plan(stop, rng);
+  EXPECT_TRUE(d.status.ok()) << d.status.ToString();
+  EXPECT_TRUE(stop.limit_reached());
+  EXPECT_FALSE(stop.cancelled());
+  EXPECT_FALSE(d.stats.budget_exhausted);
+  EXPECT_EQ(polls.load(), 200);
+  EXPECT_GT(d.stats.simulations, 0);
+  EXPECT_LT(d.stats.elapsed_ms, 5000.0);
+  // A cancellation wins over the limit.
+  TerminationCondition both(
+      Budget::Time(30000.0), [] { return true; }, 0.0);
+  both.StopAtLimit([] { return true; });
+  EXPECT_EQ(planner.Plan(both, rng).status.code(), StatusCode::kCancelled);
+  EXPECT_FALSE(both.limit_reached());
+}
+
 TEST(TerminationConditionTest, SimulationBudgetIsExact) {
   const auto model = models::RockSample::Standard78();
   Pomcp<models::RockSample> planner(model, RockOptions());

@@ -287,7 +287,8 @@ class KCenterTree {
     // The search: with one thread on the calling thread under the caller's condition. With
     // several, every worker (worker 0 on the calling thread) gets a condition of its own with
     // what is left of the caller's wall and CPU budget (each on its own thread's CPU clock), its
-    // share of the simulations, and the caller's cancellation.
+    // share of the simulations, and the caller's cancellation and resource limit (polled by the
+    // workers: the caller's condition is not read while they run).
     if (threads == 1) {
       RunEpisodes(workers_[0], stop);
     } else {
@@ -299,8 +300,9 @@ class KCenterTree {
       }
       auto run = [this, left, &stop](int t) {
         TerminationCondition local(
-            left, [&stop] { return stop.cancelled(); }, 1.0);
+            left, [&stop] { return stop.Interrupted(); }, 1.0);
         RunEpisodes(workers_[t], local);
+        workers_[t].cpu_ms = t == 0 ? 0.0 : local.CpuMs();  // the caller's own clock counts 0
       };
       std::vector<std::thread> pool;
       for (int t = 1; t < threads; ++t) pool.emplace_back(run, t);
@@ -348,7 +350,11 @@ class KCenterTree {
     last_sphere_ = {an.action.kind, an.action.x, an.data.range, an.data.members};
     for (Worker& w : workers_) w.last_entry = -1;
     cw.last_entry = best;
-    return FinishSearch(std::move(d), stop);
+    d = FinishSearch(std::move(d), stop);
+    if (threads > 1) {
+      for (const Worker& w : workers_) d.stats.cpu_ms += w.cpu_ms;  // every search thread's
+    }
+    return d;
   }
 
   /// Filtering (algorithm 1, line 20): updates the belief with the executed action and the real
@@ -431,6 +437,7 @@ class KCenterTree {
     int max_depth = 0;
     int64_t refinements = 0;
     int64_t simulations = 0;
+    double cpu_ms = 0.0;  // CPU time of this worker's thread in the last call (threads > 1)
     double vmin = std::numeric_limits<double>::infinity();
     double vmax = -std::numeric_limits<double>::infinity();
     int last_entry = -1;

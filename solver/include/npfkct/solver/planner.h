@@ -77,7 +77,8 @@ struct Budget {
 };
 
 /// Decides when a search stops: after the budget's wall time, CPU time or simulations, when
-/// Terminate() was called (from any thread), or when the optional extra condition holds. Like
+/// Terminate() was called (from any thread), when the optional extra condition holds (a
+/// cancellation), or when the optional resource limit is reached (an early end). Like
 /// OMPL's PlannerTerminationCondition it is owned by the caller and passed to Plan(), so a caller
 /// that deletes a session, notices a disconnect or shuts down can stop a running search:
 ///
@@ -87,10 +88,16 @@ struct Budget {
 ///
 /// Time counts from construction. A CPU budget reads the CPU clock of the thread that constructed
 /// the condition, so construct it in the planning thread.
+///
+/// A resource limit ends a search early without cancelling it: the decision keeps an OK status
+/// and its best action, with stats.budget_exhausted false:
+///
+///   TerminationCondition stop(Budget::Cpu(500), client_gone);
+///   stop.StopAtLimit([] { return HeapBytes() > kMaxHeap; });
 class TerminationCondition {
  public:
   /// Counts from now. `also_stop`, when given, is polled at most every `poll_ms` of wall time
-  /// (e.g. "the client closed its connection") and stops the search when it returns true.
+  /// (e.g. "the client closed its connection") and cancels the search when it returns true.
   explicit TerminationCondition(const Budget& budget, std::function<bool()> also_stop = {},
                                 double poll_ms = 5.0)
       : budget_(budget), also_stop_(std::move(also_stop)), poll_ms_(poll_ms) {
@@ -103,26 +110,30 @@ class TerminationCondition {
   TerminationCondition(const TerminationCondition&) = delete;
   TerminationCondition& operator=(const TerminationCondition&) = delete;
 
+  /// Also ends the search, like its budget, once `reached` returns true (polled with the extra
+  /// condition; e.g. "the process's memory is past its bound"). Call before planning.
+  void StopAtLimit(std::function<bool()> reached) { limit_ = std::move(reached); }
+
   /// Asks the search to stop at its next check. Safe to call from any thread.
   void Terminate() const { terminated_.store(true, std::memory_order_relaxed); }
   /// Whether Terminate() was called or the extra condition fired (a cancellation, not a budget).
   bool cancelled() const { return terminated_.load(std::memory_order_relaxed); }
+  /// Whether the resource limit of StopAtLimit() ended the search.
+  bool limit_reached() const { return limit_hit_.load(std::memory_order_relaxed); }
   const Budget& budget() const { return budget_; }
+
+  /// Whether the search was cancelled or reached its resource limit, polling the extra condition
+  /// and the limit when `poll_ms` has passed since the last poll; the budget is not read. For a
+  /// search split over threads, each under a condition of its own: any thread may call it.
+  bool Interrupted() const { return Interrupted(ElapsedMs()); }
 
   /// Whether the search must stop after `simulations` completed simulations.
   bool ShouldStop(int64_t simulations) const {
     if (budget_.max_simulations > 0 && simulations >= budget_.max_simulations) return true;
-    if (cancelled()) return true;
     const auto now = Clock::now();
     if (budget_.time_ms > 0.0 && now >= deadline_) return true;
     const double wall_ms = std::chrono::duration<double, std::milli>(now - start_).count();
-    if (also_stop_ && wall_ms >= next_poll_ms_.load(std::memory_order_relaxed)) {
-      next_poll_ms_.store(wall_ms + poll_ms_, std::memory_order_relaxed);
-      if (also_stop_()) {
-        Terminate();
-        return true;
-      }
-    }
+    if (Interrupted(wall_ms)) return true;
     if (budget_.cpu_ms > 0.0) {
       // Reading a thread's CPU clock is a system call; read it at most every 0.1 ms of wall time
       // (the CPU time used in between cannot exceed the wall time that passed).
@@ -143,6 +154,26 @@ class TerminationCondition {
   double CpuMs() const { return CpuNowMs() - cpu_start_ms_; }
 
  private:
+  // One thread at a time runs the callbacks: the one that moves the next poll time on.
+  bool Interrupted(double wall_ms) const {
+    if (cancelled() || limit_reached()) return true;
+    if (!also_stop_ && !limit_) return false;
+    double next = next_poll_ms_.load(std::memory_order_relaxed);
+    if (wall_ms < next || !next_poll_ms_.compare_exchange_strong(next, wall_ms + poll_ms_,
+                                                                 std::memory_order_relaxed)) {
+      return false;
+    }
+    if (also_stop_ && also_stop_()) {
+      Terminate();
+      return true;
+    }
+    if (limit_ && limit_()) {
+      limit_hit_.store(true, std::memory_order_relaxed);
+      return true;
+    }
+    return false;
+  }
+
   double CpuNowMs() const {
     timespec ts{};
     clock_gettime(cpu_clock_, &ts);
@@ -151,12 +182,14 @@ class TerminationCondition {
 
   Budget budget_;
   std::function<bool()> also_stop_;
+  std::function<bool()> limit_;
   double poll_ms_;
   Clock::time_point start_;
   Clock::time_point deadline_;
   clockid_t cpu_clock_ = CLOCK_THREAD_CPUTIME_ID;
   double cpu_start_ms_ = 0.0;
   mutable std::atomic<bool> terminated_{false};
+  mutable std::atomic<bool> limit_hit_{false};
   mutable std::atomic<double> next_poll_ms_{0.0};
   mutable std::atomic<double> cpu_seen_ms_{0.0};
   mutable std::atomic<double> cpu_seen_at_ms_{-1.0};
@@ -166,7 +199,7 @@ class TerminationCondition {
 struct SearchStats {
   int64_t simulations = 0;       ///< Episodes simulated from the root in this call.
   double elapsed_ms = 0.0;       ///< Wall time of the call, teardown included.
-  double cpu_ms = 0.0;           ///< CPU time of the planning thread during the call.
+  double cpu_ms = 0.0;           ///< CPU time of the call's threads (the caller's and workers').
   double teardown_ms = 0.0;      ///< Time spent discarding the previous tree.
   int64_t tree_nodes = 0;        ///< Observation + action nodes in the tree after the call.
   int max_depth = 0;             ///< Deepest tree level reached.
@@ -178,14 +211,17 @@ struct SearchStats {
 };
 
 /// Fills the time statistics of a finished search from its termination condition and reports a
-/// cancellation (Terminate() or the extra condition) as CANCELLED. The decision's action is kept,
-/// so a caller may still use the best action found so far.
+/// cancellation (Terminate() or the extra condition) as CANCELLED and a search ended by its
+/// resource limit as not having exhausted its budget. The decision's action is kept, so a caller
+/// may still use the best action found so far.
 template <class Decision>
 Decision FinishSearch(Decision d, const TerminationCondition& stop) {
   d.stats.elapsed_ms = stop.ElapsedMs();
   d.stats.cpu_ms = stop.CpuMs();
   if (stop.cancelled() && d.status.ok()) {
     d.status = CancelledError("planning was cancelled");
+    d.stats.budget_exhausted = false;
+  } else if (stop.limit_reached()) {
     d.stats.budget_exhausted = false;
   }
   return d;
