@@ -450,6 +450,51 @@ def test_bodies_past_the_limit_in_any_framing_and_ranges(hostile_server):
     assert_alive_and_intact(hostile_server, before, rec)
 
 
+def test_heads_httplib_would_read_otherwise_and_connection_tokens(hostile_server):
+    # The front frames a request by CRLF lines; httplib also ends a line at a bare LF, so a head
+    # with a bare LF, CR or NUL would be two different requests to the two parsers.
+    url, port, rec = hostile_server.url, hostile_server.port, Recorder()
+    keeper = create(url, rec)
+    before = {keeper: snapshot_of(url, keeper)}
+    refused = {
+        b"Host: x\nContent-Length: 5\r\n": b"outside a CRLF",
+        b"Host: x\rContent-Length: 5\r\n": b"outside a CRLF",
+        b"X-A: a\x00b\r\n": b"NUL",
+        b"Content-Length 5\r\n": b"without a colon",
+        b"Content-Length : 5\r\n": b"not a token",
+        b"X-A: a\r\n b\r\n": b"folding",
+    }
+    for head, why in refused.items():
+        reply = raw_exchange(port, b"POST /v1/sessions HTTP/1.1\r\n" + head + b"\r\nhello")
+        assert status_of(reply) == 400 and why in reply, (head, reply[:300])
+        rec.add(400)
+    # Connection is a case-insensitive token list; HTTP/1.0 closes unless asked to keep alive.
+    # The second, pipelined request is never answered and the server closes at once.
+    second = b"GET /healthz HTTP/1.1\r\nHost: x\r\n\r\n"
+    for first in [b"GET /v1/sessions HTTP/1.1\r\nConnection: Close\r\n\r\n",
+                  b"GET /v1/sessions HTTP/1.1\r\nConnection: keep-alive, close\r\n\r\n",
+                  b"GET /v1/sessions HTTP/1.0\r\n\r\n"]:
+        t = time.monotonic()
+        with socket.create_connection(("127.0.0.1", port), timeout=10) as s:
+            s.sendall(first + second)
+            out = b""
+            while chunk := s.recv(65536):
+                out += chunk
+        assert time.monotonic() - t < 5.0, first
+        assert out.count(b"HTTP/1.1 ") == 1 and b"Connection: close" in out, (first, out)
+        assert b"Keep-Alive" not in out, out
+        rec.add(200)
+    # Empty lines before a request line are ignored (RFC 9112 2.2).
+    reply = raw_exchange(port, b"\r\n\r\nGET /healthz HTTP/1.1\r\nHost: x\r\n\r\n")
+    assert status_of(reply) == 200, reply[:200]
+    rec.add(200)
+    # An unknown key of 1 MiB is named, cut, in a short answer (not echoed back twice).
+    r = http("POST", f"{url}/v1/sessions", rec, json={"k" * (1 << 20): 1})
+    assert r.status_code == 400 and len(r.content) < 1024, len(r.content)
+    assert field_of(r) == "k" * 96 + "..."
+    assert_alive_and_intact(hostile_server, before, rec)
+
+
 # ---- 4. slowloris and starvation ----
 
 def test_slow_and_idle_clients_and_busy_planners_never_delay_health(hostile_server):

@@ -12,8 +12,10 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cstring>
 #include <map>
+#include <string_view>
 
 namespace npfkct::server {
 namespace {
@@ -27,6 +29,27 @@ Clock::duration Seconds(double s) {
 std::string Lower(std::string s) {
   for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   return s;
+}
+
+// A header field name: one or more tchar (RFC 9110 5.6.2).
+bool IsToken(const std::string& s) {
+  static constexpr std::string_view kSymbols = "!#$%&'*+-.^_`|~";
+  return !s.empty() && std::all_of(s.begin(), s.end(), [](char ch) {
+    return std::isalnum(static_cast<unsigned char>(ch)) || kSymbols.find(ch) != kSymbols.npos;
+  });
+}
+
+// Whether a head (up to its final CRLF) holds a NUL, or a CR or LF that is not part of a CRLF:
+// httplib ends lines at a bare LF where the front does not, so such a head would be read as two
+// different requests.
+bool HasStrayLineBreakOrNul(std::string_view head) {
+  for (size_t i = 0; i < head.size(); ++i) {
+    const char ch = head[i];
+    if (ch == '\0') return true;
+    if (ch == '\r' && (i + 1 >= head.size() || head[i + 1] != '\n')) return true;
+    if (ch == '\n' && (i == 0 || head[i - 1] != '\r')) return true;
+  }
+  return false;
 }
 
 std::string Trim(const std::string& s) {
@@ -99,6 +122,7 @@ struct HttpFront::Conn {
   bool head_started = false;  // a request's first bytes arrived (the head deadline runs)
   size_t discard = 0;         // closing: request bytes still to read and drop (lingering close)
   bool closing = false;
+  bool close_asked = false;  // the request asked to close after its response (or is HTTP/1.0)
   Connection view;
 };
 
@@ -363,7 +387,7 @@ void HttpFront::Serve(std::unique_ptr<Conn> c) {
     c->view.start = Clock::now();
     c->view.route = "-";
     current_connection = &c->view;
-    const bool last = ++c->served >= options_.keep_alive_max || stopping_;
+    const bool last = ++c->served >= options_.keep_alive_max || stopping_ || c->close_asked;
     bool closed = false;
     const bool ok = process_request(stream, last, closed, nullptr);
     current_connection = nullptr;
@@ -418,6 +442,13 @@ void HttpFront::Reactor() {
   // Advances a connection's request: 1 complete, 0 waiting for bytes, -1 refused (closed).
   auto advance = [&](std::unique_ptr<Conn>& c) -> int {
     if (c->head_end == 0) {
+      // Empty lines before a request line are ignored (RFC 9112 2.2).
+      size_t empty = 0;
+      while (c->buf.compare(empty, 2, "\r\n") == 0) empty += 2;
+      if (empty > 0) {
+        ReleaseBytes(c.get(), empty);
+        c->buf.erase(0, empty);
+      }
       const size_t end = c->buf.find("\r\n\r\n");
       if (end == std::string::npos) {
         if (c->buf.size() > options_.max_head_bytes) {
@@ -426,7 +457,6 @@ void HttpFront::Reactor() {
                      " bytes");
           return -1;
         }
-        // Leading empty lines between requests are allowed (RFC 9112 2.2).
         return 0;
       }
       if (end + 4 > options_.max_head_bytes) {
@@ -435,20 +465,36 @@ void HttpFront::Reactor() {
                    " bytes");
         return -1;
       }
+      if (HasStrayLineBreakOrNul(std::string_view(c->buf).substr(0, end + 2))) {
+        refuse(std::move(c), 400, "the request head holds a NUL, or a CR or LF outside a CRLF");
+        return -1;
+      }
       // Parse the head: request line, then "name: value" lines.
       size_t line_end = c->buf.find("\r\n");
       const std::string request_line = c->buf.substr(0, line_end);
       std::string content_length, transfer_encoding, content_encoding;
       int content_length_count = 0;
-      bool expect_continue = false;
+      bool expect_continue = false, keep_alive_asked = false;
+      c->close_asked = false;
       // Header lines httplib must not see: Expect (answered here) and Range (see below).
       std::vector<std::pair<size_t, size_t>> hidden;
       for (size_t pos = line_end + 2; pos < end + 2;) {
         const size_t next = c->buf.find("\r\n", pos);
         const std::string line = c->buf.substr(pos, next - pos);
         const size_t colon = line.find(':');
-        if (colon != std::string::npos) {
-          const std::string name = Lower(Trim(line.substr(0, colon)));
+        if (!line.empty() && (line[0] == ' ' || line[0] == '\t')) {
+          refuse(std::move(c), 400, "a header line folded onto the next (obsolete line folding)");
+          return -1;
+        }
+        if (colon == std::string::npos || !IsToken(line.substr(0, colon))) {
+          refuse(std::move(c), 400,
+                 colon == std::string::npos
+                     ? "a header line without a colon"
+                     : "a header name that is not a token (no spaces before the colon)");
+          return -1;
+        }
+        {
+          const std::string name = Lower(line.substr(0, colon));
           const std::string value = Trim(line.substr(colon + 1));
           if (name == "content-length") {
             if (content_length_count++ > 0 && value != content_length) {
@@ -461,6 +507,15 @@ void HttpFront::Reactor() {
             transfer_encoding.append(Lower(value));
           } else if (name == "content-encoding") {
             content_encoding = Lower(value);
+          } else if (name == "connection") {
+            // A list of case-insensitive tokens (RFC 9110 7.6.1); httplib matches "close" alone.
+            for (size_t a = 0; a <= value.size();) {
+              const size_t b = std::min(value.find(',', a), value.size());
+              const std::string option = Lower(Trim(value.substr(a, b - a)));
+              c->close_asked = c->close_asked || option == "close";
+              keep_alive_asked = keep_alive_asked || option == "keep-alive";
+              a = b + 1;
+            }
           } else if (name == "expect" && Lower(value) == "100-continue") {
             expect_continue = true;
             hidden.emplace_back(pos, next + 2 - pos);
@@ -519,6 +574,11 @@ void HttpFront::Reactor() {
       }
       c->head_end = head_end;
       c->chunk_pos = head_end;
+      // HTTP/1.0 closes unless the client asked to keep the connection (RFC 9112 9.3).
+      if (request_line.size() >= 8 &&
+          request_line.compare(request_line.size() - 8, 8, "HTTP/1.0") == 0 && !keep_alive_asked) {
+        c->close_asked = true;
+      }
       const size_t sp1 = request_line.find(' ');
       const size_t sp2 = request_line.find(' ', sp1 == std::string::npos ? 0 : sp1 + 1);
       if (sp1 != std::string::npos && sp2 != std::string::npos) {

@@ -28,6 +28,16 @@ std::string Quoted(const std::string& s) {
   return a == std::string::npos ? "" : s.substr(a + 1, b - a - 1);
 }
 
+// A field path cut to 96 bytes (at a UTF-8 character boundary) and marked "...": an error never
+// echoes a long unknown key, which a client could otherwise make the server write back twice.
+std::string Shortened(const std::string& field) {
+  constexpr size_t kMax = 96;
+  if (field.size() <= kMax) return field;
+  size_t cut = kMax;
+  while (cut > 0 && (static_cast<unsigned char>(field[cut]) & 0xC0) == 0x80) --cut;
+  return field.substr(0, cut) + "...";
+}
+
 // The number at the end of a valijson message ("Expected number less than 5.000000").
 std::string TrailingNumber(const std::string& s) {
   size_t end = s.size();
@@ -316,8 +326,8 @@ Status ValidateAgainstSchema(std::string_view message, const json& doc, size_t m
     if (unique.size() >= max_violations) break;
   }
   if (unique.empty()) unique.push_back({"body", "does not match the request schema", 0});
-  Status s(StatusCode::kInvalidArgument, unique[0].field + ": " + unique[0].description);
-  for (const Violation& v : unique) s.WithFieldViolation(v.field, v.description);
+  Status s(StatusCode::kInvalidArgument, Shortened(unique[0].field) + ": " + unique[0].description);
+  for (const Violation& v : unique) s.WithFieldViolation(Shortened(v.field), v.description);
   return s;
 }
 

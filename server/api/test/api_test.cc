@@ -163,6 +163,23 @@ TEST(ParseCreateSession, SchemaViolationsNameTheFieldAsData) {
   }
 }
 
+TEST(ParseCreateSession, ALongUnknownKeyIsNotEchoedBack) {
+  json body = CreateBody();
+  const std::string key = "\xc3\xa9" + std::string(100'000, 'a');  // a 2-byte character first
+  body[key] = 1;
+  auto r = ParseCreateSession(body.dump(), kLimits);
+  ASSERT_FALSE(r.ok());
+  const std::string field = FieldOf(r);
+  EXPECT_EQ(field, key.substr(0, 96) + "...");
+  EXPECT_LT(r.status().ToString().size(), 400u) << r.status().ToString().size();
+  // Cut at a character boundary: 95 bytes when the 96th would split a character.
+  body = CreateBody();
+  body[std::string(95, 'b') + "\xc3\xa9"] = 1;
+  r = ParseCreateSession(body.dump(), kLimits);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(FieldOf(r), std::string(95, 'b') + "...");
+}
+
 TEST(ParseCreateSession, DescribesViolationsInWords) {
   json body = CreateBody();
   body["world"]["robot"] = "r2d2";
