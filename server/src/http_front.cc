@@ -263,8 +263,9 @@ HttpFront::~HttpFront() { Shutdown(); }
 
 Connection* HttpFront::Current() { return current_connection; }
 
-bool HttpFront::ClientGone() {
-  const Connection* c = current_connection;
+bool HttpFront::ClientGone() { return ClientGone(current_connection); }
+
+bool HttpFront::ClientGone(const Connection* c) {
   if (c == nullptr || c->fd < 0) return false;
   pollfd p{c->fd, POLLIN | POLLRDHUP, 0};
   if (::poll(&p, 1, 0) <= 0) return false;

@@ -77,6 +77,9 @@ class HttpFront : public httplib::Server {
   static Connection* Current();
   /// Whether the client of the current connection closed or reset it (false outside a handler).
   static bool ClientGone();
+  /// Whether the client of `connection` (Current() of a handler) closed or reset it; any thread
+  /// may ask while the handler runs (e.g. a plan's search threads).
+  static bool ClientGone(const Connection* connection);
   /// Connections accepted and not closed yet (those refused at the limit never count).
   int open_connections() const { return open_connections_.load(); }
 

@@ -177,8 +177,11 @@ struct Server::Impl {
     StatusOr<api::PlanReply> reply = Status(StatusCode::kInternal, "not planned");
     {
       BatchScheduling batch;
+      // The search's own threads poll this too: the connection is captured, not the
+      // handler thread's.
+      const Connection* connection = HttpFront::Current();
       reply = s->Plan(
-          budget, [] { return HttpFront::ClientGone(); }, registry.store());
+          budget, [connection] { return HttpFront::ClientGone(connection); }, registry.store());
     }
     if (!reply.ok()) return Fail(res, reply.status());
     const double total =
