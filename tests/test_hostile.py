@@ -871,6 +871,52 @@ def test_multipart_bodies_odd_methods_and_option_spellings(hostile_server):
     assert_alive_and_intact(hostile_server, before, rec)
 
 
+def test_candidate_sampling_stops_with_the_plan(hostile_server):
+    # A sparse world at its limits (1M map cells, 100 small tables, 64 small base regions) and the
+    # candidate options at their caps: sampling the candidates took 13 s (npfkct, 100,000 filter
+    # candidates) whatever the budget, and neither a DELETE nor a hang-up stopped it.
+    url, rec = hostile_server.url, Recorder()
+    world = world_of("loose1")
+    world["room"] = {"min": [-10, -10], "max": [10, 10]}
+    world["mapResolution"] = 0.02
+    world["furniture"] = [{"name": f"f{i}", "center": [-9 + 2 * (i % 10), -9 + 2 * (i // 10)],
+                           "size": [0.99, 0.99, 0.75], "workspace": True} for i in range(100)]
+    world["baseRegions"] = [{"min": [-9.9 + 2.4 * (i % 8), -9.9 + 2.4 * (i // 8)],
+                             "max": [-9.4 + 2.4 * (i % 8), -9.4 + 2.4 * (i // 8)]}
+                            for i in range(64)]
+    world["start"] = {"x": 0.0, "y": 0.0, "yaw": 0.0, "lift": 0.2, "pan": 0.0, "tilt": 0.3}
+    world.pop("discretePoses", None)
+    caps = {"numCandidates": 4096, "maxInitialClusters": 16, "k": 16}
+    planners = {"npfkct": dict(caps, **{"filter.candidates": 100000, "filter.context": 256,
+                                        "filter.placements": 4096}),
+                "kct": dict(caps, maxFeasibilityTries=10000, treeFeasibilityTries=1000,
+                            **{"search.threads": 4})}
+    for name, options in planners.items():
+        spec = {"name": name, "particles": 10000, "options": options}
+        sid = create(url, rec, world=world, planner=spec)
+        t = time.monotonic()
+        r = http("POST", f"{url}/v1/sessions/{sid}:plan", rec, json={"budget": {"timeMs": 50}})
+        assert r.status_code == 200 and time.monotonic() - t < 2.0, (name, time.monotonic() - t)
+        # A long plan deleted while it samples ends at once.
+        sid = create(url, rec, world=world, planner=spec)
+        ended = {}
+
+        def plan():
+            ended["r"] = http("POST", f"{url}/v1/sessions/{sid}:plan", rec,
+                              json={"budget": {"timeMs": 30000}})
+            ended["t"] = time.monotonic()
+
+        worker = threading.Thread(target=plan)
+        worker.start()
+        time.sleep(0.5)
+        t = time.monotonic()
+        assert http("DELETE", f"{url}/v1/sessions/{sid}", rec).status_code == 200
+        worker.join(timeout=30)
+        assert ended["t"] - t < 0.5, (name, ended["t"] - t)
+        assert ended["r"].status_code == 409, ended["r"].text
+    rec.check()
+
+
 def test_a_growing_search_tree_stops_at_the_heap_bound(tmp_path):
     # pomcp-joint's tree grows by about 400 MiB a second here; with --max-heap-mb 256 a 5 s plan
     # stops early with its best action, the next plan is refused while the tree is kept, and

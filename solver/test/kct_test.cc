@@ -179,8 +179,9 @@ TEST(KctTest, TreeReuseKeepsTheSubtreeAndAddsNewSpheres) {
 class SpotSampler : public CandidateSampler<int> {
  public:
   explicit SpotSampler(ActionVec spot, bool outside = false) : spot_(spot), outside_(outside) {}
-  Status Sample(const ParticleBelief<int>&, int, const BoxSpace& box, int count, Rng& rng,
-                std::vector<ActionVec>* out, CandidateStats* stats) override {
+  Status Sample(const ParticleBelief<int>&, int, const BoxSpace& box, int count,
+                const TerminationCondition&, Rng& rng, std::vector<ActionVec>* out,
+                CandidateStats* stats) override {
     ++calls;
     for (int i = 0; i < count; ++i) {
       out->push_back(outside_ ? MakeActionVec({2.0, 2.0}) : box.SampleInBall(spot_, 0.05, rng));

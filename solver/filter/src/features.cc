@@ -236,13 +236,21 @@ object_search::ProposalOptions TrainingProposals() {
 
 ScoredConfigs ScoreConfigs(const ObjectSearchModel& model, const State& s,
                            const std::vector<Vec3>& placements, const std::vector<Vec3>& probe,
-                           int n, Rng& rng) {
+                           int n, Rng& rng, const TerminationCondition* stop) {
   ScoredConfigs out;
   const int candidate = object_search::TargetCandidate(model.world());
-  object_search::ProposeMoves(model, TrainingProposals(), n, rng, &out.configs, nullptr);
+  object_search::ProposeMoves(model, TrainingProposals(), n, rng, &out.configs, nullptr, stop);
+  n = static_cast<int>(out.configs.size());
   out.queries.resize(static_cast<size_t>(n) * kQueryDim);
   out.scores.resize(n);
   for (int i = 0; i < n; ++i) {
+    // One exact score checks every placement (up to 10,000 of them).
+    if (stop != nullptr && stop->ShouldStop(0)) {
+      out.configs.resize(i);
+      out.queries.resize(static_cast<size_t>(i) * kQueryDim);
+      out.scores.resize(i);
+      break;
+    }
     QueryOf(model.world(), out.configs[i], candidate, probe,
             &out.queries[static_cast<size_t>(i) * kQueryDim]);
     out.scores[i] =

@@ -66,11 +66,12 @@ class NetSam final : public CandidateSampler<State> {
       : filter_(std::move(filter)), model_(model), options_(options) {}
 
   Status Sample(const ParticleBelief<State>& belief, int kind, const BoxSpace& box, int count,
-                Rng& rng, std::vector<ActionVec>* out, CandidateStats* stats) override {
+                const TerminationCondition& stop, Rng& rng, std::vector<ActionVec>* out,
+                CandidateStats* stats) override {
     // Discrete kinds, and a belief without the guessed target, get uniform candidates.
     if (kind != kMoveKind || belief.size() == 0 || belief.particles()[0].objects.empty()) {
       UniformCandidateSampler<State> uniform;
-      return uniform.Sample(belief, kind, box, count, rng, out, stats);
+      return uniform.Sample(belief, kind, box, count, stop, rng, out, stats);
     }
     const World& w = model_.world();
     const State& s = belief.Sample(rng);
@@ -81,26 +82,33 @@ class NetSam final : public CandidateSampler<State> {
     // Proposals: aimed at the target candidate, at other known objects, or uniform.
     std::vector<RobotConfig> configs;
     std::vector<object_search::ProposalSource> sources;
-    object_search::ProposeMoves(model_, mix, options_.candidates, rng, &configs, &sources);
-    if (candidate > 0 && object_search::UnconfirmedFaces(w, candidate, +1) == 0) {
-      // Every face of the candidate is confirmed: it can be declared, no view scores, and the
-      // proposals go through as they are.
-      for (int i = 0; i < count && i < options_.candidates; ++i) {
-        out->push_back(box.Clamp(ObjectSearchModel::VecOf(configs[i])));
-      }
+    object_search::ProposeMoves(model_, mix, options_.candidates, rng, &configs, &sources, &stop);
+    const int proposed = static_cast<int>(configs.size());  // fewer when the search must stop
+    // The proposals as they are, unscored.
+    auto unfiltered = [&] {
+      const int n = std::min(count, proposed);
+      for (int i = 0; i < n; ++i) out->push_back(box.Clamp(ObjectSearchModel::VecOf(configs[i])));
       if (stats != nullptr) {
-        stats->sampled += options_.candidates;
-        stats->accepted += std::min(count, options_.candidates);
+        stats->sampled += proposed;
+        stats->accepted += n;
       }
       return OkStatus();
+    };
+    // Every face of the candidate is confirmed: it can be declared, no view scores. Or the search
+    // must stop (its budget, a cancellation, a resource limit) before the filter is through.
+    if ((candidate > 0 && object_search::UnconfirmedFaces(w, candidate, +1) == 0) ||
+        stop.ShouldStop(0)) {
+      return unfiltered();
     }
     const std::vector<Vec3> placements = SamplePlacements(w, options_.placements, rng);
     const std::vector<Vec3> probe = SamplePlacements(w, kProbePlacements, rng);
     const SceneFeatures scene = SceneOf(w, rng);
     // Context: configurations scored exactly, drawn as in training.
-    const ScoredConfigs context = ScoreConfigs(model_, s, placements, probe, options_.context, rng);
+    const ScoredConfigs context =
+        ScoreConfigs(model_, s, placements, probe, options_.context, rng, &stop);
+    if (stop.ShouldStop(0)) return unfiltered();
     std::vector<std::pair<double, ActionVec>> known_good;
-    for (int i = 0; i < options_.context; ++i) {
+    for (size_t i = 0; i < context.scores.size(); ++i) {
       const ActionVec x = ObjectSearchModel::VecOf(context.configs[i]);
       if (context.scores[i] > kEfficientScore && box.Contains(x)) {
         known_good.push_back({context.scores[i], x});
@@ -109,14 +117,16 @@ class NetSam final : public CandidateSampler<State> {
     // The network scores the views of the target candidate and the uniform ones; views aimed at
     // other objects' faces serve their declaration as obstacles, which g does not score.
     std::vector<int> scored, objects;
-    for (int i = 0; i < options_.candidates; ++i) {
+    for (int i = 0; i < proposed; ++i) {
       (sources[i] == object_search::ProposalSource::kObject ? objects : scored).push_back(i);
     }
     std::vector<float> q(scored.size() * kQueryDim);
     for (size_t j = 0; j < scored.size(); ++j) {
+      if (j % 256 == 255 && stop.ShouldStop(0)) return unfiltered();
       QueryOf(w, configs[scored[j]], candidate, probe, &q[j * kQueryDim]);
     }
-    const Prediction p = filter_->Predict(scene, context.queries, context.scores, q);
+    const Prediction p = filter_->Predict(scene, context.queries, context.scores, q, &stop);
+    if (p.mu.size() < scored.size()) return unfiltered();
     const double beta = options_.Beta();
     std::vector<std::pair<double, int>> ranked(scored.size());
     for (size_t j = 0; j < scored.size(); ++j) {
@@ -133,7 +143,7 @@ class NetSam final : public CandidateSampler<State> {
                                      static_cast<int>(std::lround(options_.object_share * count)));
     const int explore = static_cast<int>(std::lround(options_.explore * count));
     const int filtered = std::max(1, count - explore - object_keep);
-    std::vector<bool> used(options_.candidates, false);
+    std::vector<bool> used(proposed, false);
     int added = 0;
     for (const auto& [g, x] : known_good) {
       if (added >= filtered) break;
@@ -152,14 +162,14 @@ class NetSam final : public CandidateSampler<State> {
       used[objects[k]] = true;
       ++added;
     }
-    for (int i = 0; i < options_.candidates && added < count && explore > 0; ++i) {
+    for (int i = 0; i < proposed && added < count && explore > 0; ++i) {
       if (used[i] || sources[i] != object_search::ProposalSource::kUniform) continue;
       out->push_back(box.Clamp(ObjectSearchModel::VecOf(configs[i])));
       ++added;
     }
     // The caller (kCT's EnsureSpheres) times the call into stats->elapsed_ms.
     if (stats != nullptr) {
-      stats->sampled += options_.candidates + options_.context;
+      stats->sampled += proposed + static_cast<int>(context.scores.size());
       stats->accepted += added;
     }
     return OkStatus();
@@ -233,7 +243,8 @@ StatusOr<std::shared_ptr<NeuralFilter>> NeuralFilter::Load(const std::string& pa
 Prediction NeuralFilter::Predict(const SceneFeatures& scene,
                                  const std::vector<float>& context_queries,
                                  const std::vector<float>& context_scores,
-                                 const std::vector<float>& queries) const {
+                                 const std::vector<float>& queries,
+                                 const TerminationCondition* stop) const {
   torch::InferenceMode guard;
   const FlushDenormals flush;
   const int64_t m = static_cast<int64_t>(context_scores.size());
@@ -251,13 +262,23 @@ Prediction NeuralFilter::Predict(const SceneFeatures& scene,
                        FromVector(scene.image, {1, kImageChannels, kImageSize, kImageSize}));
   const torch::Tensor xc = net->EncodeQuery(FromVector(context_queries, {1, m, kQueryDim}));
   const torch::Tensor yc = FromVector(context_scores, {1, m, 1});
-  const torch::Tensor xt = net->EncodeQuery(FromVector(queries, {1, n, kQueryDim}));
   const torch::Tensor z = net->Latent(sc, xc, yc).first;
-  auto [mu, sigma] = net->Decode(sc, xt, net->Deterministic(sc, xc, yc, xt), z);
-  mu = mu.contiguous();
-  sigma = sigma.contiguous();
-  out.mu.assign(mu.data_ptr<float>(), mu.data_ptr<float>() + n);
-  out.sigma.assign(sigma.data_ptr<float>(), sigma.data_ptr<float>() + n);
+  // Given the context, each query's prediction is its own: blocks change no result.
+  constexpr int64_t kBlock = 4096;
+  out.mu.reserve(n);
+  out.sigma.reserve(n);
+  for (int64_t a = 0; a < n; a += kBlock) {
+    if (a > 0 && stop != nullptr && stop->ShouldStop(0)) break;
+    const int64_t rows = std::min(kBlock, n - a);
+    const torch::Tensor block = torch::from_blob(const_cast<float*>(queries.data() + a * kQueryDim),
+                                                 {1, rows, kQueryDim}, torch::kFloat32);
+    const torch::Tensor xt = net->EncodeQuery(block);
+    auto [mu, sigma] = net->Decode(sc, xt, net->Deterministic(sc, xc, yc, xt), z);
+    mu = mu.contiguous();
+    sigma = sigma.contiguous();
+    out.mu.insert(out.mu.end(), mu.data_ptr<float>(), mu.data_ptr<float>() + rows);
+    out.sigma.insert(out.sigma.end(), sigma.data_ptr<float>(), sigma.data_ptr<float>() + rows);
+  }
   return out;
 }
 

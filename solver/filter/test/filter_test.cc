@@ -354,15 +354,19 @@ TEST(FilterTest, NetSamReturnsBetterCandidatesThanUniform) {
   const BoxSpace& box = model.KindSpace(object_search::kMoveKind);
   std::vector<ActionVec> kept, uniform;
   CandidateStats stats;
+  const TerminationCondition unlimited(Budget::Time(60'000.0));
   ASSERT_TRUE(
-      (*netsam)->Sample(belief, object_search::kMoveKind, box, 256, rng, &kept, &stats).ok());
+      (*netsam)
+          ->Sample(belief, object_search::kMoveKind, box, 256, unlimited, rng, &kept, &stats)
+          .ok());
   ASSERT_FALSE(kept.empty());
   EXPECT_LE(kept.size(), 256u);
   EXPECT_EQ(stats.accepted, static_cast<int>(kept.size()));
   EXPECT_GT(stats.sampled, stats.accepted);
   for (const ActionVec& x : kept) EXPECT_TRUE(box.Contains(x));
   UniformCandidateSampler<State> u;
-  ASSERT_TRUE(u.Sample(belief, object_search::kMoveKind, box, 256, rng, &uniform, nullptr).ok());
+  ASSERT_TRUE(
+      u.Sample(belief, object_search::kMoveKind, box, 256, unlimited, rng, &uniform, nullptr).ok());
   // Exact scores for the target candidate against fresh placements, over belief samples.
   const int candidate = object_search::TargetCandidate(w);
   const auto placements = SamplePlacements(w, 128, rng);
@@ -405,12 +409,65 @@ TEST(FilterTest, NetSamReturnsBetterCandidatesThanUniform) {
   EXPECT_GT(top, 1.5 * all) << "top " << top << " all " << all;
   // Discrete kinds pass through.
   std::vector<ActionVec> discrete;
-  ASSERT_TRUE((*netsam)->Sample(belief, 1, model.KindSpace(1), 3, rng, &discrete, nullptr).ok());
+  ASSERT_TRUE(
+      (*netsam)->Sample(belief, 1, model.KindSpace(1), 3, unlimited, rng, &discrete, nullptr).ok());
   EXPECT_EQ(discrete.size(), 3u);
   // Bad options are refused.
   FilterOptions bad;
   bad.candidates = 0;
   EXPECT_FALSE(MakeNetSam(*filter, model, bad).ok());
+}
+
+// 100,000 candidates took 13 s in a sparse world whatever the plan's budget: the sampler, its
+// exact context scores and the network stop with the search.
+TEST(FilterTest, NetSamAndPredictStopWithTheSearch) {
+  auto filter = NeuralFilter::Load(NPFKCT_FILTER_MODEL);
+  ASSERT_TRUE(filter.ok()) << filter.status().ToString();
+  const World w = SceneWorld("complex1", 3);
+  ObjectSearchModel model(std::make_shared<const World>(w));
+  Rng rng(12);
+  const State s = model.SampleInitialState(rng);
+  const SceneFeatures scene = SceneOf(w, rng);
+  const std::vector<Vec3> placements = SamplePlacements(w, 64, rng);
+  const std::vector<Vec3> probe = SamplePlacements(w, kProbePlacements, rng);
+  const ScoredConfigs context = ScoreConfigs(model, s, placements, probe, 16, rng);
+  const ScoredConfigs many = ScoreConfigs(model, s, placements, probe, 5000, rng);
+  // Blocks of 4,096 queries change no prediction: the first block alone predicts the same.
+  const Prediction all = (*filter)->Predict(scene, context.queries, context.scores, many.queries);
+  const std::vector<float> first(many.queries.begin(), many.queries.begin() + 4096 * kQueryDim);
+  const Prediction block = (*filter)->Predict(scene, context.queries, context.scores, first);
+  ASSERT_EQ(all.mu.size(), 5000u);
+  for (int i = 0; i < 4096; i += 97) {
+    EXPECT_NEAR(all.mu[i], block.mu[i], 1e-5) << i;
+    EXPECT_NEAR(all.sigma[i], block.sigma[i], 1e-5) << i;
+  }
+  // A search that must stop gets the first block only, and fewer exact scores.
+  const TerminationCondition stopped(Budget::Time(60'000.0));
+  stopped.Terminate();
+  EXPECT_EQ(
+      (*filter)->Predict(scene, context.queries, context.scores, many.queries, &stopped).mu.size(),
+      4096u);
+  EXPECT_EQ(ScoreConfigs(model, s, placements, probe, 16, rng, &stopped).scores.size(), 0u);
+  // NetSam returns at once with the few proposals made before it looked (unscored), however
+  // many candidates it was asked to score.
+  std::vector<State> particles;
+  for (int i = 0; i < 20; ++i) particles.push_back(model.SampleInitialState(rng));
+  ParticleBelief<State> belief(particles);
+  FilterOptions o;
+  o.candidates = 100'000;
+  o.context = 256;
+  o.placements = 4096;
+  auto netsam = MakeNetSam(*filter, model, o);
+  ASSERT_TRUE(netsam.ok());
+  std::vector<ActionVec> out;
+  CandidateStats stats;
+  ASSERT_TRUE((*netsam)
+                  ->Sample(belief, object_search::kMoveKind,
+                           model.KindSpace(object_search::kMoveKind), 4096, stopped, rng, &out,
+                           &stats)
+                  .ok());
+  EXPECT_LE(out.size(), 31u);
+  EXPECT_EQ(stats.sampled, static_cast<int>(out.size()));
 }
 
 TEST(TrainTest, ScheduleOptionsNameTheBadField) {

@@ -211,12 +211,13 @@ int main(int argc, char** argv) {
       double t0 = ThreadCpuMillis();  // CPU time: the figures hold on a loaded machine
       const Prediction p = (*filter)->Predict(scene, context.queries, context.scores, q);
       const double ms = ThreadCpuMillis() - t0;
+      const TerminationCondition unlimited(Budget::Time(60'000.0));  // a fresh one each run
       t0 = ThreadCpuMillis();
       std::vector<ActionVec> out;
       CandidateStats stats;
-      if (Status st =
-              (*sampler)->Sample(belief, object_search::kMoveKind,
-                                 model.KindSpace(object_search::kMoveKind), 256, rng, &out, &stats);
+      if (Status st = (*sampler)->Sample(belief, object_search::kMoveKind,
+                                         model.KindSpace(object_search::kMoveKind), 256, unlimited,
+                                         rng, &out, &stats);
           !st.ok()) {
         return Fail(st);
       }

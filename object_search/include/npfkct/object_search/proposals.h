@@ -52,10 +52,10 @@ struct ProposalOptions {
 enum class ProposalSource : uint8_t { kTarget, kObject, kUniform };
 
 /// `count` move configurations: aimed at the target candidate, at other known objects' faces, or
-/// uniform, by the shares of `options`.
+/// uniform, by the shares of `options`. Fewer when `stop` (if given) says the search must stop.
 void ProposeMoves(const ObjectSearchModel& model, const ProposalOptions& options, int count,
-                  Rng& rng, std::vector<RobotConfig>* configs,
-                  std::vector<ProposalSource>* sources);
+                  Rng& rng, std::vector<RobotConfig>* configs, std::vector<ProposalSource>* sources,
+                  const TerminationCondition* stop = nullptr);
 
 /// NPF-kCT's candidate sampler without the neural filter: aimed proposals for the move kind,
 /// uniform points for any other continuous kind. `model` must outlive it.
@@ -64,7 +64,8 @@ class AimedCandidateSampler final : public CandidateSampler<State> {
   explicit AimedCandidateSampler(const ObjectSearchModel& model, ProposalOptions options = {})
       : model_(model), options_(options) {}
   Status Sample(const ParticleBelief<State>& belief, int kind, const BoxSpace& box, int count,
-                Rng& rng, std::vector<ActionVec>* out, CandidateStats* stats) override;
+                const TerminationCondition& stop, Rng& rng, std::vector<ActionVec>* out,
+                CandidateStats* stats) override;
 
  private:
   const ObjectSearchModel& model_;

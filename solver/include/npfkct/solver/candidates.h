@@ -4,6 +4,7 @@
 #include <vector>
 
 #include "npfkct/solver/belief.h"
+#include "npfkct/solver/planner.h"
 #include "npfkct/solver/rng.h"
 #include "npfkct/solver/spaces.h"
 #include "npfkct/solver/status.h"
@@ -24,10 +25,12 @@ template <class State>
 class CandidateSampler {
  public:
   virtual ~CandidateSampler() = default;
-  /// Appends up to `count` candidate points of `box` (the box of action `kind`) to `out`.
+  /// Appends up to `count` candidate points of `box` (the box of action `kind`) to `out`. Once
+  /// `stop` says the search must stop (its budget, a cancellation, a resource limit), returns
+  /// early with the points found so far, possibly none.
   virtual Status Sample(const ParticleBelief<State>& belief, int kind, const BoxSpace& box,
-                        int count, Rng& rng, std::vector<ActionVec>* out,
-                        CandidateStats* stats) = 0;
+                        int count, const TerminationCondition& stop, Rng& rng,
+                        std::vector<ActionVec>* out, CandidateStats* stats) = 0;
 };
 
 /// Candidates drawn uniformly from the box: NPF-kCT without the neural filter.
@@ -35,7 +38,8 @@ template <class State>
 class UniformCandidateSampler final : public CandidateSampler<State> {
  public:
   Status Sample(const ParticleBelief<State>& /*belief*/, int /*kind*/, const BoxSpace& box,
-                int count, Rng& rng, std::vector<ActionVec>* out, CandidateStats* stats) override {
+                int count, const TerminationCondition& /*stop*/, Rng& rng,
+                std::vector<ActionVec>* out, CandidateStats* stats) override {
     for (int i = 0; i < count; ++i) out->push_back(box.SampleUniform(rng));
     if (stats != nullptr) {
       stats->sampled += count;

@@ -255,7 +255,9 @@ class KCenterTree {
     std::vector<int> kinds;
     model_.ActionKinds(belief_.Sample(rng), &kinds);
     for (int kind : kinds) {
-      if (Status s = EnsureSpheres(kind, rng); !s.ok()) return Fail(std::move(d), std::move(s));
+      if (Status s = EnsureSpheres(kind, rng, stop); !s.ok()) {
+        return Fail(std::move(d), std::move(s));
+      }
     }
     ResolveParameters();
     const int threads = static_cast<int>(workers_.size());
@@ -266,6 +268,7 @@ class KCenterTree {
       w.refinements = 0;
       w.simulations = 0;
       w.status = OkStatus();
+      w.stop = &stop;
       if (w.tree.root < 0) {
         w.tree.root = w.tree.NewObsNode();
       } else {
@@ -443,6 +446,7 @@ class KCenterTree {
     int last_entry = -1;
     Status status;
     std::vector<int> scratch;
+    const TerminationCondition* stop = nullptr;  // this worker's, while Plan() runs
   };
 
   static Decision<Action> Fail(Decision<Action> d, Status s) {
@@ -461,6 +465,7 @@ class KCenterTree {
   }
 
   void RunEpisodes(Worker& w, const TerminationCondition& stop) {
+    w.stop = &stop;
     int64_t sims = 0;
     while (!stop.ShouldStop(sims)) {
       const State& s = belief_.Sample(w.rng);
@@ -471,6 +476,7 @@ class KCenterTree {
       ++sims;
     }
     w.simulations = sims;
+    w.stop = nullptr;
   }
 
   // w2 and C_r by appendix J's rules from this step's initial spheres, unless set.
@@ -520,7 +526,9 @@ class KCenterTree {
     }
   }
 
-  Status EnsureSpheres(int kind, Rng& rng) {
+  // The candidates and initial spheres of a kind, once per Plan(). Sampling ends early, with the
+  // points found so far, when `stop` says the search must stop; a cancellation ends the plan.
+  Status EnsureSpheres(int kind, Rng& rng, const TerminationCondition& stop) {
     std::lock_guard<std::mutex> lock(spheres_mutex_);
     if (spheres_.count(kind)) return OkStatus();
     const BoxSpace& box = model_.KindSpace(kind);
@@ -529,27 +537,33 @@ class KCenterTree {
     // Candidates that fail the reasonability check are dropped; a few rounds top them up.
     std::vector<ActionVec> points;
     const auto t0 = Clock::now();
-    for (int round = 0; round < 4 && static_cast<int>(points.size()) < options_.num_candidates;
+    bool stopped = false;
+    for (int round = 0;
+         round < 4 && !stopped && static_cast<int>(points.size()) < options_.num_candidates;
          ++round) {
       std::vector<ActionVec> batch;
-      Status s = sampler_->Sample(belief_, kind, box, options_.num_candidates, rng, &batch,
+      Status s = sampler_->Sample(belief_, kind, box, options_.num_candidates, stop, rng, &batch,
                                   &candidate_stats_);
       if (!s.ok()) {
         candidate_stats_.elapsed_ms += MillisSince(t0);
         return s;
       }
-      for (const ActionVec& p : batch) {
+      for (size_t i = 0; i < batch.size(); ++i) {
+        const ActionVec& p = batch[i];
         if (!box.Contains(p)) {
           return InternalError("candidate sampler returned a point outside the action box");
         }
+        if (i % 64 == 63 && stop.ShouldStop(0)) break;
         if (IsFeasibleAction(model_, belief_.Sample(rng), HybridAction{kind, p})) {
           points.push_back(p);
         }
       }
+      stopped = stop.ShouldStop(0);
       // A sampler that returns fewer than asked (the neural filter) has nothing more to offer.
       if (static_cast<int>(batch.size()) < options_.num_candidates) break;
     }
     candidate_stats_.elapsed_ms += MillisSince(t0);
+    if (stop.cancelled()) return CancelledError("planning was cancelled");
     if (points.empty()) {
       // Nothing usable: fall back to one sphere around the whole box.
       out.push_back({kind, box.Clamp((box.lower() + box.upper()) / 2.0),
@@ -565,8 +579,8 @@ class KCenterTree {
   }
 
   // The spheres of a kind, under the lock (a deep node may ask for a kind first seen there).
-  std::vector<Hypersphere> SpheresOf(int kind, Rng& rng, Status* status) {
-    *status = EnsureSpheres(kind, rng);
+  std::vector<Hypersphere> SpheresOf(const Worker& w, int kind, Rng& rng, Status* status) {
+    *status = EnsureSpheres(kind, rng, *w.stop);
     std::lock_guard<std::mutex> lock(spheres_mutex_);
     return spheres_[kind];
   }
@@ -576,7 +590,7 @@ class KCenterTree {
     const std::vector<int> kinds = w.scratch;
     for (int kind : kinds) {
       Status st;
-      const std::vector<Hypersphere> list = SpheresOf(kind, rng, &st);
+      const std::vector<Hypersphere> list = SpheresOf(w, kind, rng, &st);
       if (!st.ok()) return st;
       if (model_.KindSpace(kind).dim() == 0) {
         HybridAction a;
@@ -641,7 +655,7 @@ class KCenterTree {
         continue;
       }
       Status st;
-      const std::vector<Hypersphere> list = SpheresOf(kind, rng, &st);
+      const std::vector<Hypersphere> list = SpheresOf(w, kind, rng, &st);
       if (!st.ok()) return st;
       for (size_t i = 0; i < list.size(); ++i) {
         AddSphere(w, root, list[i], Origin(kind, static_cast<int>(i)));

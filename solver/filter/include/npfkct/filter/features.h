@@ -87,9 +87,10 @@ struct ScoredConfigs {
 
 /// `n` configurations proposed by object_search::ProposeMoves with the training mix, with their
 /// queries (probing the guessed target at `probe`) and exact scores for the target candidate of
-/// the model's world (the guessed target's against `placements`).
+/// the model's world (the guessed target's against `placements`). Fewer when `stop` (if given)
+/// says the search must stop.
 ScoredConfigs ScoreConfigs(const ObjectSearchModel& model, const State& s,
                            const std::vector<Vec3>& placements, const std::vector<Vec3>& probe,
-                           int n, Rng& rng);
+                           int n, Rng& rng, const TerminationCondition* stop = nullptr);
 
 }  // namespace npfkct::filter

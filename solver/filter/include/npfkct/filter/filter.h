@@ -59,10 +59,12 @@ class NeuralFilter {
   /// Loads a model; a missing, truncated or foreign file is INVALID_ARGUMENT saying why.
   static StatusOr<std::shared_ptr<NeuralFilter>> Load(const std::string& path);
   /// Predicts the scores of `queries` (n x kQueryDim) in `scene`, conditioned on context queries
-  /// (m >= 1 rows of kQueryDim) with their exact scores.
+  /// (m >= 1 rows of kQueryDim) with their exact scores. The queries are scored in blocks of
+  /// 4,096; when `stop` (if given) says the search must stop, the predictions of the first blocks
+  /// only (fewer than n).
   Prediction Predict(const SceneFeatures& scene, const std::vector<float>& context_queries,
-                     const std::vector<float>& context_scores,
-                     const std::vector<float>& queries) const;
+                     const std::vector<float>& context_scores, const std::vector<float>& queries,
+                     const TerminationCondition* stop = nullptr) const;
   const std::string& path() const { return path_; }
 
   struct Impl;
