@@ -932,6 +932,8 @@ def test_a_growing_search_tree_stops_at_the_heap_bound(tmp_path):
 
     start = rss_mib()
     big = create(url, rec, planner={"name": "pomcp-joint"})
+    other = create(url, rec)
+    pending = planned(url, rec)
     t = time.monotonic()
     r = http("POST", f"{url}/v1/sessions/{big}:plan", rec, json={"budget": {"timeMs": 5000}})
     assert r.status_code == 200, r.text
@@ -939,12 +941,19 @@ def test_a_growing_search_tree_stops_at_the_heap_bound(tmp_path):
     stats = r.json()["stats"]
     assert stats["budgetExhausted"] is False and stats["simulations"] > 0, stats
     assert rss_mib() - start < 600, (start, rss_mib())
-    other = create(url, rec)
-    r = http("POST", f"{url}/v1/sessions/{other}:plan", rec, json={"budget": {"timeMs": 200}})
-    assert r.status_code == 429 and "max-heap-mb" in r.json()["error"]["message"], r.text
-    rec.add(429)
+    # Past the bound nothing that grows the heap starts: plans, observations, new sessions.
+    for method, path, body in [("POST", f"/v1/sessions/{other}:plan", {"budget": {"timeMs": 200}}),
+                               ("POST", f"/v1/sessions/{pending[0]}:observe",
+                                observation(pending[1])),
+                               ("POST", "/v1/sessions", {"world": world_of("loose1")})]:
+        r = http(method, url + path, rec, json=body)
+        assert r.status_code == 429 and "max-heap-mb" in r.json()["error"]["message"], r.text
+        assert path != "/v1/sessions" or r.headers["Retry-After"] == "5", r.headers
     assert http("DELETE", f"{url}/v1/sessions/{big}", rec).status_code == 200
     r = http("POST", f"{url}/v1/sessions/{other}:plan", rec, json={"budget": {"timeMs": 200}})
     assert r.status_code == 200, r.text
+    r = http("POST", f"{url}/v1/sessions/{pending[0]}:observe", rec, json=observation(pending[1]))
+    assert r.status_code == 200, r.text
+    create(url, rec)
     rec.check()
     assert_clean_exit(server)

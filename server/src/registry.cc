@@ -321,6 +321,8 @@ Status Registry::FullError() const {
 }
 
 Status Registry::CheckCapacity() {
+  // A session holds its particles and tree: none is created past the heap bound.
+  if (Status heap = CheckHeap(session_limits_, "create a session"); !heap.ok()) return heap;
   std::unique_lock lock(mutex_);
   return MakeRoomLocked(1) ? OkStatus() : FullError();
 }

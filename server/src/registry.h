@@ -57,8 +57,8 @@ class Registry {
                                                std::string* next) const;
   /// Sessions held in memory.
   int size() const;
-  /// OK when a new session can be held (in a fleet, by dropping an idle one from memory);
-  /// RESOURCE_EXHAUSTED otherwise.
+  /// OK when a new session can be held (in a fleet, by dropping an idle one from memory) and the
+  /// heap is within its bound; RESOURCE_EXHAUSTED otherwise.
   Status CheckCapacity();
   /// Saves and adds a new session; RESOURCE_EXHAUSTED when the server (or store) is full.
   StatusOr<std::shared_ptr<Session>> Add(std::unique_ptr<Session> session);

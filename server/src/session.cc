@@ -12,13 +12,8 @@
 #include "npfkct/perception/perception.h"
 
 namespace npfkct::server {
-namespace {
 
-// Bytes the allocator has handed out and not had back, over every arena.
-int64_t HeapInUse() {
-  const struct mallinfo2 m = mallinfo2();
-  return static_cast<int64_t>(m.uordblks + m.hblkhd);
-}
+namespace {
 
 using object_search::World;
 
@@ -45,7 +40,22 @@ Status Busy() {
                 "another request is working on this session; retry when it has finished");
 }
 
+Status HeapBoundError(const SessionLimits& limits, const std::string& what) {
+  return ResourceExhaustedError("the server's heap is past its bound (--max-heap-mb " +
+                                std::to_string(limits.max_heap_bytes >> 20) +
+                                "): delete sessions or " + what + " later");
+}
+
 }  // namespace
+
+int64_t HeapBytesInUse() {
+  const struct mallinfo2 m = mallinfo2();
+  return static_cast<int64_t>(m.uordblks + m.hblkhd);
+}
+
+Status CheckHeap(const SessionLimits& limits, const std::string& what) {
+  return HeapBytesInUse() <= limits.max_heap_bytes ? OkStatus() : HeapBoundError(limits, what);
+}
 
 Session::~Session() = default;
 
@@ -155,7 +165,7 @@ StatusOr<api::PlanReply> Session::Plan(const Budget& asked,
     // heap bound the search ends early and its best action stands.
     TerminationCondition stop(
         budget, [&] { return cancel_.load() || (client_gone && client_gone()); }, 2.0);
-    stop.StopAtLimit([this] { return HeapInUse() > limits_.max_heap_bytes; });
+    stop.StopAtLimit([this] { return HeapBytesInUse() > limits_.max_heap_bytes; });
     {
       std::lock_guard<std::mutex> lock(running_mutex_);
       running_ = &stop;
@@ -168,9 +178,7 @@ StatusOr<api::PlanReply> Session::Plan(const Budget& asked,
     }
     cancelled = stop.cancelled();
     if (!cancelled && stop.limit_reached() && d.status.ok() && d.stats.simulations == 0) {
-      d.status = ResourceExhaustedError("the server's heap is past its bound (--max-heap-mb " +
-                                        std::to_string(limits_.max_heap_bytes >> 20) +
-                                        "): delete sessions or plan later");
+      d.status = HeapBoundError(limits_, "plan");
     }
   }
   std::unique_lock<std::mutex> state(state_mutex_);
@@ -212,6 +220,8 @@ StatusOr<api::PlanReply> Session::Plan(const Budget& asked,
 StatusOr<api::ObserveReply> Session::Observe(api::ObserveRequest req, SessionStore* store) {
   std::unique_lock<std::mutex> op(op_mutex_, std::try_to_lock);
   if (!op.owns_lock()) return Busy();
+  // An observation grows every particle by the objects it adds.
+  if (Status heap = CheckHeap(limits_, "observe"); !heap.ok()) return heap;
   std::shared_ptr<const World> world;
   HybridAction action;
   {

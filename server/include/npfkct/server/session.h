@@ -40,13 +40,22 @@ struct SessionConfig {
 struct SessionLimits {
   /// Planning a session may spend over its life (wall-clock seconds).
   double max_plan_seconds = 3600.0;
-  /// Heap in use (bytes) past which a running plan stops with its best action so far.
+  /// Heap in use (bytes) past which a running plan stops with its best action so far, and
+  /// plans, observations and new sessions are refused (RESOURCE_EXHAUSTED).
   int64_t max_heap_bytes = int64_t{4096} << 20;
   /// Points of the prior map perception would build; larger worlds cannot take raw data.
   int64_t max_perception_map_points = 4'000'000;
   /// Pixels of a target photo (checked again from the header when perception decodes them).
   int64_t max_photo_pixels = 4'194'304;
 };
+
+/// Bytes the allocator has handed out and not had back, over every arena (glibc's mallinfo2; not
+/// the allocator of a sanitizer build).
+int64_t HeapBytesInUse();
+
+/// RESOURCE_EXHAUSTED naming --max-heap-mb when the heap in use is past `limits`' bound, for work
+/// that would grow it (`what`: "plan", "observe", "create a session").
+Status CheckHeap(const SessionLimits& limits, const std::string& what);
 
 /// A session. Thread-safe.
 class Session {
