@@ -468,6 +468,12 @@ def test_heads_httplib_would_read_otherwise_and_connection_tokens(hostile_server
         reply = raw_exchange(port, b"POST /v1/sessions HTTP/1.1\r\n" + head + b"\r\nhello")
         assert status_of(reply) == 400 and why in reply, (head, reply[:300])
         rec.add(400)
+    # A header line httplib would not read (over 8 KiB) in a head within its 16 KiB: 431, as the
+    # head limit, not httplib's 400.
+    reply = raw_exchange(port, b"GET /healthz HTTP/1.1\r\nAuthorization: Bearer " + b"k" * 10000
+                         + b"\r\n\r\n")
+    assert status_of(reply) == 431 and b"8192" in reply, reply[:300]
+    rec.add(431)
     # Connection is a case-insensitive token list; HTTP/1.0 closes unless asked to keep alive.
     # The second, pipelined request is never answered and the server closes at once.
     second = b"GET /healthz HTTP/1.1\r\nHost: x\r\n\r\n"

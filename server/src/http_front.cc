@@ -31,6 +31,10 @@ std::string Lower(std::string s) {
   return s;
 }
 
+// The longest header line httplib reads (its CPPHTTPLIB_HEADER_MAX_LENGTH); it would answer a
+// longer one with 400.
+constexpr size_t kMaxHeaderLine = 8192;
+
 // A header field name: one or more tchar (RFC 9110 5.6.2).
 bool IsToken(const std::string& s) {
   static constexpr std::string_view kSymbols = "!#$%&'*+-.^_`|~";
@@ -483,6 +487,11 @@ void HttpFront::Reactor() {
         const size_t next = c->buf.find("\r\n", pos);
         const std::string line = c->buf.substr(pos, next - pos);
         const size_t colon = line.find(':');
+        if (line.size() > kMaxHeaderLine) {
+          refuse(std::move(c), 431,
+                 "a header line is longer than " + std::to_string(kMaxHeaderLine) + " bytes");
+          return -1;
+        }
         if (!line.empty() && (line[0] == ' ' || line[0] == '\t')) {
           refuse(std::move(c), 400, "a header line folded onto the next (obsolete line folding)");
           return -1;

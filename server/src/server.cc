@@ -5,7 +5,9 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <random>
+#include <string_view>
 #include <thread>
 
 #include "admission.h"
@@ -42,6 +44,18 @@ bool Matches(std::string_view route, std::string_view path) {
 }
 
 // UNAVAILABLE (the session store did not answer) is worth retrying in a second.
+// Whether two secrets are equal, in a time that depends on their lengths only (a comparison that
+// stops at the first difference tells a timing client how much of its guess was right).
+bool SameSecret(std::string_view a, std::string_view b) {
+  size_t diff = a.size() ^ b.size();
+  const size_t n = std::max(a.size(), b.size());
+  for (size_t i = 0; i < n; ++i) {
+    const unsigned char x = i < a.size() ? a[i] : 0, y = i < b.size() ? b[i] : 0;
+    diff |= x ^ y;
+  }
+  return diff == 0;
+}
+
 void Fail(Response& res, const Status& s, int http_status = 0, int retry_after = 0) {
   if (retry_after == 0 && s.code() == StatusCode::kUnavailable) retry_after = 1;
   const int code = http_status > 0 ? http_status : api::HttpStatusOf(s.code());
@@ -333,7 +347,7 @@ struct Server::Impl {
         return R::Handled;
       }
       if (route->auth && !options.api_key.empty() &&
-          req.get_header_value("Authorization") != "Bearer " + options.api_key) {
+          !SameSecret(req.get_header_value("Authorization"), "Bearer " + options.api_key)) {
         Fail(res, Status(StatusCode::kUnauthenticated,
                          "missing or wrong bearer token (Authorization header)"));
         return R::Handled;
