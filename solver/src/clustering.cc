@@ -30,7 +30,7 @@ void Finalize(const BoxSpace& space, const std::vector<ActionVec>& points, Clust
 }  // namespace
 
 std::vector<Cluster> KMeans(const BoxSpace& space, const std::vector<ActionVec>& points, int k,
-                            Rng& rng, int max_iterations) {
+                            Rng& rng, int max_iterations, const std::function<bool()>& stop) {
   const int n = static_cast<int>(points.size());
   if (n == 0 || k < 1) return {};
   k = std::min(k, n);
@@ -75,7 +75,7 @@ std::vector<Cluster> KMeans(const BoxSpace& space, const std::vector<ActionVec>&
         changed = true;
       }
     }
-    if (!changed) break;
+    if (!changed || (stop && stop())) break;
     std::vector<std::vector<int>> members(kk);
     for (int i = 0; i < n; ++i) members[assign[i]].push_back(i);
     for (int c = 0; c < kk; ++c) {
@@ -116,15 +116,16 @@ int ElbowK(const std::vector<double>& sse) {
 }
 
 std::vector<Cluster> ClusterByElbow(const BoxSpace& space, const std::vector<ActionVec>& points,
-                                    int k_max, Rng& rng) {
+                                    int k_max, Rng& rng, const std::function<bool()>& stop) {
   std::vector<std::vector<Cluster>> runs;
   std::vector<double> sse;
   for (int k = 1; k <= k_max; ++k) {
-    runs.push_back(KMeans(space, points, k, rng));
+    runs.push_back(KMeans(space, points, k, rng, 50, stop));
     double total = 0.0;
     for (const Cluster& c : runs.back()) total += c.sse;
     sse.push_back(total);
     if (static_cast<int>(runs.back().size()) < k) break;  // no more distinct points
+    if (stop && stop()) break;
   }
   if (runs.empty()) return {};
   const int k = std::min(ElbowK(sse), static_cast<int>(runs.size()));

@@ -80,6 +80,13 @@ TEST(ElbowTest, ClusterByElbowRecoversTheBlobCount) {
                    80, 0.4, rng);
   auto clusters = ClusterByElbow(box, pts, 8, rng);
   EXPECT_EQ(clusters.size(), 4u);
+  // A search that must stop ends the runs after k = 1 (one Lloyd iteration): the elbow of what
+  // there is.
+  int polls = 0;
+  auto cut = ClusterByElbow(box, pts, 8, rng, [&polls] { return ++polls > 0; });
+  EXPECT_EQ(cut.size(), 1u);
+  EXPECT_EQ(polls, 2);  // after k-means' first iteration, then after k = 1
+  EXPECT_EQ(cut[0].members.size(), pts.size());
 }
 
 }  // namespace

@@ -570,7 +570,10 @@ class KCenterTree {
                      std::max(box.Diameter() / 2.0, options_.d_lim), nullptr});
       return OkStatus();
     }
-    for (const Cluster& c : ClusterByElbow(box, points, options_.max_initial_clusters, rng)) {
+    const std::vector<Cluster> clusters = ClusterByElbow(
+        box, points, options_.max_initial_clusters, rng, [&stop] { return stop.ShouldStop(0); });
+    if (stop.cancelled()) return CancelledError("planning was cancelled");
+    for (const Cluster& c : clusters) {
       auto members = std::make_shared<std::vector<ActionVec>>();
       for (int m : c.members) members->push_back(points[m]);
       out.push_back({kind, c.center, std::max(c.radius, options_.d_lim), std::move(members)});
@@ -815,7 +818,9 @@ class KCenterTree {
     for (int r = 0; r < n; ++r) {
       for (int i = 0; i < dim; ++i) points[r][i] = data.points[static_cast<size_t>(r) * dim + i];
     }
-    std::vector<Cluster> clusters = KMeans(box, points, options_.k, w.rng);
+    // Cut short (a coarser split) when the search must stop.
+    std::vector<Cluster> clusters =
+        KMeans(box, points, options_.k, w.rng, 50, [&w] { return w.stop->ShouldStop(0); });
     if (clusters.size() < 2) return;
     std::vector<std::vector<uint32_t>> ids(clusters.size());
     for (size_t j = 0; j < clusters.size(); ++j) {
