@@ -52,6 +52,7 @@ constexpr OptionBound kOptionBounds[] = {
     {"maxAttemptsPerParticle", 1000},
     {"diameterSamples", 300},
     {"walkSteps", 10000},
+    {"splitCoefficient", 1000},
     {"maxTries", 10000},
     {"priorCount", 1000000},
     {"candidates", 100000},

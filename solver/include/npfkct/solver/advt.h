@@ -117,11 +117,13 @@ class Advt {
     max_depth_ = 0;
     d.stats.reused_visits = tree_.obs[tree_.root].n;
     int64_t sims = 0;
+    stop_ = &stop;
     while (!stop.ShouldStop(sims)) {
       const State& s = belief_.Sample(rng);
       if (!IsTerminalState(model_, s)) Simulate(s, tree_.root, 0, rng);
       ++sims;
     }
+    stop_ = nullptr;
     d.stats.simulations = sims;
     d.stats.budget_exhausted = true;
     if (tree_.obs[tree_.root].actions.empty()) InitCells(tree_.root, belief_.Sample(rng), rng);
@@ -279,11 +281,15 @@ class Advt {
     for (int t = 1;
          t < options_.feasibility_tries && !IsFeasibleAction(model_, s, HybridAction{kind, x});
          ++t) {
+      if (stop_ != nullptr && stop_->ShouldStop(0)) break;  // each walk: walk_steps steps
       x = SampleInCell(box, cell, rep, rng);
     }
     return x;
   }
 
+  // Splits while the cell is large for its visits (up to 64 times). Each split walks walk_steps
+  // steps over a constraint list that grows with the splits, so the search's condition is polled
+  // before each one.
   void MaybeSplit(int node, int ai, const State& s, Rng& rng) {
     for (int depth = 0; depth < 64; ++depth) {
       const BoxSpace& box = model_.KindSpace(tree_.act[ai].action.kind);
@@ -295,6 +301,7 @@ class Advt {
       if (options_.split_coefficient * static_cast<double>(tree_.act[ai].n) * ratio * ratio < 1.0) {
         return;
       }
+      if (stop_ != nullptr && stop_->ShouldStop(0)) return;
       const ActionVec rep = tree_.act[ai].action.x;
       const ActionVec fresh =
           SampleFeasibleInCell(s, box, tree_.act[ai].data, rep, tree_.act[ai].action.kind, rng);
@@ -379,6 +386,7 @@ class Advt {
   Tree tree_;
   int max_depth_ = 0;
   std::vector<int> scratch_;
+  const TerminationCondition* stop_ = nullptr;  // the running Plan()'s
 };
 
 }  // namespace npfkct
