@@ -877,13 +877,9 @@ def test_multipart_bodies_odd_methods_and_option_spellings(hostile_server):
     assert_alive_and_intact(hostile_server, before, rec)
 
 
-def test_work_inside_a_simulation_or_before_it_stops_with_the_plan(hostile_server):
-    # A sparse world at its limits (1M map cells, 100 small tables, 64 small base regions) and the
-    # options at their caps. Before every part polled the plan's condition: npfkct's candidate
-    # sampling (100,000 filter candidates) took 13 s whatever the budget, kct's clustering of
-    # 8,192 candidates made a 300 ms plan 0.85 s, and advt's cell splits (64 per visit, each up to
-    # 10,000 walks of 10,000 steps) ran a 50 ms plan for minutes; none stopped at a DELETE.
-    url, rec = hostile_server.url, Recorder()
+def sparse_world():
+    """A world at its limits: a 20 x 20 m room at 2 cm (1M map cells), 100 small tables and 64
+    small base regions, so that aiming a view takes many tries."""
     world = world_of("loose1")
     world["room"] = {"min": [-10, -10], "max": [10, 10]}
     world["mapResolution"] = 0.02
@@ -894,6 +890,44 @@ def test_work_inside_a_simulation_or_before_it_stops_with_the_plan(hostile_serve
                             for i in range(64)]
     world["start"] = {"x": 0.0, "y": 0.0, "yaw": 0.0, "lift": 0.2, "pan": 0.0, "tilt": 0.3}
     world.pop("discretePoses", None)
+    return world
+
+
+def test_belief_pictures_are_admitted_like_plans(hostile_server):
+    # A picture of a large world takes up to half a second of CPU; 40 at once used to occupy the
+    # request threads, and a session list waited seconds behind them. Now they take planning
+    # slots (2 here, 4 waiting): the rest get 429 with Retry-After and other requests go on.
+    url, rec = hostile_server.url, Recorder()
+    sid = create(url, rec, world=sparse_world())
+    codes, lists = [], []
+
+    def picture():
+        r = http("GET", f"{url}/v1/sessions/{sid}/belief?format=png", rec)
+        codes.append((r.status_code, r.headers.get("Retry-After")))
+
+    pictures = [threading.Thread(target=picture) for _ in range(40)]
+    for t in pictures:
+        t.start()
+    for _ in range(5):
+        t = time.monotonic()
+        assert http("GET", f"{url}/v1/sessions", rec).status_code == 200
+        lists.append(time.monotonic() - t)
+    for t in pictures:
+        t.join()
+    assert sorted(set(codes)) == [(200, None), (429, "1")], codes
+    assert sum(code == 200 for code, _ in codes) >= 6, codes
+    assert max(lists) < 1.0, lists
+    rec.check()
+
+
+def test_work_inside_a_simulation_or_before_it_stops_with_the_plan(hostile_server):
+    # A sparse world at its limits (1M map cells, 100 small tables, 64 small base regions) and the
+    # options at their caps. Before every part polled the plan's condition: npfkct's candidate
+    # sampling (100,000 filter candidates) took 13 s whatever the budget, kct's clustering of
+    # 8,192 candidates made a 300 ms plan 0.85 s, and advt's cell splits (64 per visit, each up to
+    # 10,000 walks of 10,000 steps) ran a 50 ms plan for minutes; none stopped at a DELETE.
+    url, rec = hostile_server.url, Recorder()
+    world = sparse_world()
     caps = {"numCandidates": 4096, "maxInitialClusters": 16, "k": 16}
     planners = [
         ("npfkct", 10000, dict(caps, **{"filter.candidates": 100000, "filter.context": 256,

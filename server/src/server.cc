@@ -233,6 +233,10 @@ struct Server::Impl {
     const auto world = s->Belief();
     const api::SessionView view = s->View();
     if (*f == api::BeliefFormat::kJson) return Json(res, 200, api::RenderBelief(*world, &view));
+    // Rendering a picture is CPU work (up to half a second for a large world): admitted like a
+    // plan, so that pictures cannot occupy every request thread.
+    auto ticket = admission.Enter([] { return HttpFront::ClientGone(); });
+    if (!ticket.ok()) return Fail(res, ticket.status(), 0, 1);
     auto png = api::RenderBeliefPng(*world, &view);
     if (!png.ok()) return Fail(res, png.status());
     res.status = 200;
