@@ -123,6 +123,12 @@ TEST_F(ServerTest, BadInputGetsClearErrorsNamingTheField) {
       {{{"world", world}, {"planner", {{"name", "magic"}}}}, "planner.name"},
       {{{"world", world}, {"planner", {{"options", {{"k", 1}}}}}}, "planner.options"},
       {{{"world", world}, {"planner", {{"options", {{"notAnOption", 1}}}}}}, "planner.options"},
+      // Only kCT plans on several threads: refused at creation, not at every plan after it.
+      {{{"world", world}, {"planner", {{"name", "advt"}, {"options", {{"search.threads", 2}}}}}},
+       "planner.options.search.threads"},
+      {{{"world", world},
+        {"planner", {{"name", "pomcp-joint"}, {"options", {{"search.threads", 4}}}}}},
+       "planner.options.search.threads"},
       {{{"world", world}, {"planner", {{"particles", 0}}}}, "planner.particles"},
       {{{"world", world}, {"seed", -3}}, "seed"},
       {{{"world", world}, {"ttlSeconds", 1e12}}, "ttlSeconds"},

@@ -280,6 +280,13 @@ struct SearchOptions {
     if (Status s = belief.Validate(); !s.ok()) return Status(s.code(), "belief." + s.message());
     return OkStatus();
   }
+  /// INVALID_ARGUMENT naming search.threads unless it is 1: for the planners that search on one
+  /// thread (only kCT plans on several).
+  Status RequireOneThread() const {
+    if (threads == 1) return OkStatus();
+    return InvalidArgumentError(
+        "search.threads: only kCT plans on several threads; this planner needs 1");
+  }
 };
 
 /// Prefixes a non-OK status message with `field.` so that it names the option's full path.

@@ -41,6 +41,7 @@ struct PomcpowOptions {
   /// Checks every option; the message names the offending one.
   Status Validate() const {
     if (Status s = search.Validate(); !s.ok()) return Prefixed("search", s);
+    if (Status s = search.RequireOneThread(); !s.ok()) return s;
     if (!std::isnan(exploration_c) && !(exploration_c >= 0.0 && std::isfinite(exploration_c))) {
       return InvalidArgumentError("exploration_c must be >= 0 (or NaN for the reward range)");
     }
@@ -96,10 +97,6 @@ requires HasObservationLikelihood<M> &&
     d.stats.budget_exhausted = false;
     if (Status s = options_.Validate(); !s.ok()) return Fail(std::move(d), std::move(s));
     if (Status s = stop.budget().Validate(); !s.ok()) return Fail(std::move(d), std::move(s));
-    if (options_.search.threads != 1) {
-      return Fail(std::move(d), InvalidArgumentError("search.threads: only kCT plans on several "
-                                                     "threads; this planner needs 1"));
-    }
     if (belief_.empty()) return Fail(std::move(d), FailedPreconditionError("belief is empty"));
     if (!options_.search.reuse_tree && tree_.root >= 0) {
       const auto t0 = Clock::now();
