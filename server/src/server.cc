@@ -43,7 +43,6 @@ bool Matches(std::string_view route, std::string_view path) {
   return id.find_first_of("/:") == std::string_view::npos;
 }
 
-// UNAVAILABLE (the session store did not answer) is worth retrying in a second.
 // Whether two secrets are equal, in a time that depends on their lengths only (a comparison that
 // stops at the first difference tells a timing client how much of its guess was right).
 bool SameSecret(std::string_view a, std::string_view b) {
@@ -56,6 +55,7 @@ bool SameSecret(std::string_view a, std::string_view b) {
   return diff == 0;
 }
 
+// UNAVAILABLE (the session store did not answer) is worth retrying in a second.
 void Fail(Response& res, const Status& s, int http_status = 0, int retry_after = 0) {
   if (retry_after == 0 && s.code() == StatusCode::kUnavailable) retry_after = 1;
   const int code = http_status > 0 ? http_status : api::HttpStatusOf(s.code());
