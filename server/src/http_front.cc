@@ -503,42 +503,40 @@ void HttpFront::Reactor() {
                      : "a header name that is not a token (no spaces before the colon)");
           return -1;
         }
-        {
-          const std::string name = Lower(line.substr(0, colon));
-          const std::string value = Trim(line.substr(colon + 1));
-          if (name == "content-length") {
-            if (content_length_count++ > 0 && value != content_length) {
-              refuse(std::move(c), 400, "conflicting Content-Length headers");
-              return -1;
-            }
-            content_length = value;
-          } else if (name == "transfer-encoding") {
-            if (!transfer_encoding.empty()) transfer_encoding.push_back(',');
-            transfer_encoding.append(Lower(value));
-          } else if (name == "content-encoding") {
-            content_encoding = Lower(value);
-          } else if (name == "connection") {
-            // A list of case-insensitive tokens (RFC 9110 7.6.1); httplib matches "close" alone.
-            for (size_t a = 0; a <= value.size();) {
-              const size_t b = std::min(value.find(',', a), value.size());
-              const std::string option = Lower(Trim(value.substr(a, b - a)));
-              c->close_asked = c->close_asked || option == "close";
-              keep_alive_asked = keep_alive_asked || option == "keep-alive";
-              a = b + 1;
-            }
-          } else if (name == "expect" && Lower(value) == "100-continue") {
-            expect_continue = true;
-            hidden.emplace_back(pos, next + 2 - pos);
-          } else if (name == "range") {
-            // httplib 0.11.4 cuts every response to the ranges asked for, error bodies included,
-            // and answers N ranges with N copies: several ranges are refused, one is ignored
-            // (RFC 9110 14.2 allows it) and the whole response sent.
-            if (value.find(',') != std::string::npos) {
-              refuse(std::move(c), 416, "Range: at most one range, and it is ignored");
-              return -1;
-            }
-            hidden.emplace_back(pos, next + 2 - pos);
+        const std::string name = Lower(line.substr(0, colon));
+        const std::string value = Trim(line.substr(colon + 1));
+        if (name == "content-length") {
+          if (content_length_count++ > 0 && value != content_length) {
+            refuse(std::move(c), 400, "conflicting Content-Length headers");
+            return -1;
           }
+          content_length = value;
+        } else if (name == "transfer-encoding") {
+          if (!transfer_encoding.empty()) transfer_encoding.push_back(',');
+          transfer_encoding.append(Lower(value));
+        } else if (name == "content-encoding") {
+          content_encoding = Lower(value);
+        } else if (name == "connection") {
+          // A list of case-insensitive tokens (RFC 9110 7.6.1); httplib matches "close" alone.
+          for (size_t a = 0; a <= value.size();) {
+            const size_t b = std::min(value.find(',', a), value.size());
+            const std::string option = Lower(Trim(value.substr(a, b - a)));
+            c->close_asked = c->close_asked || option == "close";
+            keep_alive_asked = keep_alive_asked || option == "keep-alive";
+            a = b + 1;
+          }
+        } else if (name == "expect" && Lower(value) == "100-continue") {
+          expect_continue = true;
+          hidden.emplace_back(pos, next + 2 - pos);
+        } else if (name == "range") {
+          // httplib 0.11.4 cuts every response to the ranges asked for, error bodies included,
+          // and answers N ranges with N copies: several ranges are refused, one is ignored
+          // (RFC 9110 14.2 allows it) and the whole response sent.
+          if (value.find(',') != std::string::npos) {
+            refuse(std::move(c), 416, "Range: at most one range, and it is ignored");
+            return -1;
+          }
+          hidden.emplace_back(pos, next + 2 - pos);
         }
         pos = next + 2;
       }

@@ -2,7 +2,6 @@
 
 #include <malloc.h>
 
-#include <atomic>
 #include <cmath>
 #include <random>
 #include <set>
@@ -12,7 +11,6 @@
 #include "npfkct/perception/perception.h"
 
 namespace npfkct::server {
-
 namespace {
 
 using object_search::World;
@@ -40,6 +38,13 @@ Status Busy() {
                 "another request is working on this session; retry when it has finished");
 }
 
+// Whether the bytes the allocator has handed out and not had back, over every arena, are past
+// the bound.
+bool HeapPastBound(const SessionLimits& limits) {
+  const struct mallinfo2 m = mallinfo2();
+  return static_cast<int64_t>(m.uordblks + m.hblkhd) > limits.max_heap_bytes;
+}
+
 Status HeapBoundError(const SessionLimits& limits, const std::string& what) {
   return ResourceExhaustedError("the server's heap is past its bound (--max-heap-mb " +
                                 std::to_string(limits.max_heap_bytes >> 20) +
@@ -48,13 +53,8 @@ Status HeapBoundError(const SessionLimits& limits, const std::string& what) {
 
 }  // namespace
 
-int64_t HeapBytesInUse() {
-  const struct mallinfo2 m = mallinfo2();
-  return static_cast<int64_t>(m.uordblks + m.hblkhd);
-}
-
 Status CheckHeap(const SessionLimits& limits, const std::string& what) {
-  return HeapBytesInUse() <= limits.max_heap_bytes ? OkStatus() : HeapBoundError(limits, what);
+  return HeapPastBound(limits) ? HeapBoundError(limits, what) : OkStatus();
 }
 
 Session::~Session() = default;
@@ -165,7 +165,7 @@ StatusOr<api::PlanReply> Session::Plan(const Budget& asked,
     // heap bound the search ends early and its best action stands.
     TerminationCondition stop(
         budget, [&] { return cancel_.load() || (client_gone && client_gone()); }, 2.0);
-    stop.StopAtLimit([this] { return HeapBytesInUse() > limits_.max_heap_bytes; });
+    stop.StopAtLimit([this] { return HeapPastBound(limits_); });
     {
       std::lock_guard<std::mutex> lock(running_mutex_);
       running_ = &stop;

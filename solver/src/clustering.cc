@@ -30,7 +30,7 @@ void Finalize(const BoxSpace& space, const std::vector<ActionVec>& points, Clust
 }  // namespace
 
 std::vector<Cluster> KMeans(const BoxSpace& space, const std::vector<ActionVec>& points, int k,
-                            Rng& rng, int max_iterations, const std::function<bool()>& stop) {
+                            Rng& rng, const std::function<bool()>& stop, int max_iterations) {
   const int n = static_cast<int>(points.size());
   if (n == 0 || k < 1) return {};
   k = std::min(k, n);
@@ -120,7 +120,7 @@ std::vector<Cluster> ClusterByElbow(const BoxSpace& space, const std::vector<Act
   std::vector<std::vector<Cluster>> runs;
   std::vector<double> sse;
   for (int k = 1; k <= k_max; ++k) {
-    runs.push_back(KMeans(space, points, k, rng, 50, stop));
+    runs.push_back(KMeans(space, points, k, rng, stop));
     double total = 0.0;
     for (const Cluster& c : runs.back()) total += c.sse;
     sse.push_back(total);

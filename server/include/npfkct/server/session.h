@@ -49,12 +49,9 @@ struct SessionLimits {
   int64_t max_photo_pixels = 4'194'304;
 };
 
-/// Bytes the allocator has handed out and not had back, over every arena (glibc's mallinfo2; not
-/// the allocator of a sanitizer build).
-int64_t HeapBytesInUse();
-
-/// RESOURCE_EXHAUSTED naming --max-heap-mb when the heap in use is past `limits`' bound, for work
-/// that would grow it (`what`: "plan", "observe", "create a session").
+/// RESOURCE_EXHAUSTED naming --max-heap-mb when the heap in use (the bytes glibc's allocator has
+/// handed out; not a sanitizer build's allocator) is past `limits`' bound, for work that would
+/// grow it (`what`: "plan", "observe", "create a session").
 Status CheckHeap(const SessionLimits& limits, const std::string& what);
 
 /// A session. Thread-safe.

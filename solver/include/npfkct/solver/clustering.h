@@ -22,8 +22,8 @@ struct Cluster {
 /// true after an iteration. Returns min(k, #distinct points) non-empty clusters; an empty input
 /// gives no clusters.
 std::vector<Cluster> KMeans(const BoxSpace& space, const std::vector<ActionVec>& points, int k,
-                            Rng& rng, int max_iterations = 50,
-                            const std::function<bool()>& stop = {});
+                            Rng& rng, const std::function<bool()>& stop = {},
+                            int max_iterations = 50);
 
 /// The elbow of a decreasing curve sse[0..n-1] (sse[i] for k = i + 1): the k whose point lies
 /// farthest from the chord between the first and last points, after normalising both axes.

@@ -537,9 +537,7 @@ class KCenterTree {
     // Candidates that fail the reasonability check are dropped; a few rounds top them up.
     std::vector<ActionVec> points;
     const auto t0 = Clock::now();
-    bool stopped = false;
-    for (int round = 0;
-         round < 4 && !stopped && static_cast<int>(points.size()) < options_.num_candidates;
+    for (int round = 0; round < 4 && static_cast<int>(points.size()) < options_.num_candidates;
          ++round) {
       std::vector<ActionVec> batch;
       Status s = sampler_->Sample(belief_, kind, box, options_.num_candidates, stop, rng, &batch,
@@ -558,9 +556,8 @@ class KCenterTree {
           points.push_back(p);
         }
       }
-      stopped = stop.ShouldStop(0);
       // A sampler that returns fewer than asked (the neural filter) has nothing more to offer.
-      if (static_cast<int>(batch.size()) < options_.num_candidates) break;
+      if (static_cast<int>(batch.size()) < options_.num_candidates || stop.ShouldStop(0)) break;
     }
     candidate_stats_.elapsed_ms += MillisSince(t0);
     if (stop.cancelled()) return CancelledError("planning was cancelled");
@@ -820,7 +817,7 @@ class KCenterTree {
     }
     // Cut short (a coarser split) when the search must stop.
     std::vector<Cluster> clusters =
-        KMeans(box, points, options_.k, w.rng, 50, [&w] { return w.stop->ShouldStop(0); });
+        KMeans(box, points, options_.k, w.rng, [&w] { return w.stop->ShouldStop(0); });
     if (clusters.size() < 2) return;
     std::vector<std::vector<uint32_t>> ids(clusters.size());
     for (size_t j = 0; j < clusters.size(); ++j) {
