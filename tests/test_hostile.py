@@ -926,6 +926,7 @@ def test_work_inside_a_simulation_or_before_it_stops_with_the_plan(hostile_serve
     # sampling (100,000 filter candidates) took 13 s whatever the budget, kct's clustering of
     # 8,192 candidates made a 300 ms plan 0.85 s, and advt's cell splits (64 per visit, each up to
     # 10,000 walks of 10,000 steps) ran a 50 ms plan for minutes; none stopped at a DELETE.
+    # pomcpow and vomcpow, whose new actions draw feasible points, are held to the same.
     url, rec = hostile_server.url, Recorder()
     world = sparse_world()
     caps = {"numCandidates": 4096, "maxInitialClusters": 16, "k": 16}
@@ -936,6 +937,11 @@ def test_work_inside_a_simulation_or_before_it_stops_with_the_plan(hostile_serve
                             **{"search.threads": 4}), 300),
         ("advt", 100, {"walkSteps": 10000, "splitCoefficient": 1000, "feasibilityTries": 10000,
                        "diameterSamples": 300}, 50),
+        # Each new action of these takes up to 10,000 feasibility checks or Voronoi proposals.
+        ("pomcpow", 10000, {"feasibilityTries": 10000, "voo.maxTries": 10000, "useVoo": True,
+                            "search.maxDepth": 100}, 50),
+        ("vomcpow", 10000, {"feasibilityTries": 10000, "voo.maxTries": 10000,
+                            "search.maxDepth": 100}, 50),
     ]
     for name, particles, options, budget_ms in planners:
         spec = {"name": name, "particles": particles, "options": options}
