@@ -44,8 +44,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "create: %s\n", session.status().message().c_str());
     return 1;
   }
-  std::printf("client: session %s plans with model '%s'\n",
-              session->value("id", "").c_str(),
+  std::printf("client: session %s plans with model '%s'\n", session->value("id", "").c_str(),
               (*session)["planner"].value("model", "").c_str());
   return 0;
 }
