@@ -68,6 +68,7 @@ def main():
         write("observe_response",
               requests.post(url + f"/v1/sessions/{sid}:observe", json=body).json())
         robot.close()
+        write("steps_response", requests.get(url + f"/v1/sessions/{sid}/steps").json())
         write("belief", requests.get(url + f"/v1/sessions/{sid}/belief").json())
         write("list_sessions_response", requests.get(url + "/v1/sessions?pageSize=1").json())
         write("error", requests.post(url + f"/v1/sessions/{sid}:plan",

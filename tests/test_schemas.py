@@ -46,7 +46,7 @@ def test_every_schema_is_valid_draft_2020_12():
 
 def test_examples_validate():
     examples = os.listdir(os.path.join(SCHEMAS, "examples"))
-    assert len(examples) >= 13
+    assert len(examples) >= 14
     for name in examples:
         message = name[: -len(".json")]
         if message.endswith("_raw"):  # the raw-sensor-data variant of a message
@@ -75,8 +75,8 @@ def test_openapi_document_references_resolve():
         doc = yaml.safe_load(f)
     assert doc["openapi"].startswith("3.1")
     assert {"/v1/sessions", "/v1/sessions/{id}", "/v1/sessions/{id}:plan",
-            "/v1/sessions/{id}:observe", "/v1/sessions/{id}/belief", "/healthz",
-            "/metrics"} <= set(doc["paths"])
+            "/v1/sessions/{id}:observe", "/v1/sessions/{id}/belief", "/v1/sessions/{id}/steps",
+            "/healthz", "/metrics"} <= set(doc["paths"])
     refs = []
 
     def walk(node):
@@ -138,6 +138,10 @@ def test_real_responses_validate(server):
     assert perceived > 0
     v("session", requests.get(url + f"/v1/sessions/{raw_session['id']}").json())
     v("belief", requests.get(url + f"/v1/sessions/{session['id']}/belief").json())
+    steps = requests.get(url + f"/v1/sessions/{session['id']}/steps").json()
+    v("steps_response", steps)
+    assert [s["step"] for s in steps["steps"]] == list(range(1, len(steps["steps"]) + 1))
+    assert steps["steps"] and all("outcome" in s for s in steps["steps"])  # every step observed
     v("list_sessions_response", requests.get(url + "/v1/sessions").json())
     for bad in [("post", f"/v1/sessions/{session['id']}:plan", {"budget": {"simulations": -1}}),
                 ("get", "/v1/sessions/" + "f" * 32, None), ("post", "/v1/sessions", {"x": 1})]:
