@@ -357,6 +357,82 @@ def test_sift_work_per_frame_is_bounded(hostile_server):
     assert_alive_and_intact(hostile_server, before, rec)
 
 
+def jpeg_segments(data):
+    """A JPEG's segments after its start-of-image marker up to the end-of-image marker, each scan
+    with its entropy-coded data (which runs to the next marker that is neither a stuffed zero
+    nor a restart marker)."""
+    out, i = [], 2
+    while data[i + 1] != 0xD9:
+        end = i + 2 + struct.unpack(">H", data[i + 2:i + 4])[0]
+        if data[i + 1] == 0xDA:
+            while not (data[end] == 0xFF and data[end + 1] != 0 and
+                       not 0xD0 <= data[end + 1] <= 0xD7):
+                end += 1
+        out.append(data[i:end])
+        i = end
+    return out
+
+
+def cpu_seconds(pid):
+    with open(f"/proc/{pid}/stat", encoding="utf-8") as f:
+        fields = f.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def test_images_that_decode_slowly_for_their_size(hostile_server):
+    """Found by an outside attack: (1) a flat 2048 x 2048 progressive JPEG whose 16-byte
+    refinement scan is repeated 2,000 times (57 kB): libjpeg passes over the whole image per
+    scan, 5.8 s of CPU as a target photo, and as much as the image of an observation on a session
+    that does not exist (images are decoded while the body is read, before the lookup). (2) A
+    16 x 16 PNG with 300 zTXt chunks each inflating to 7 MB of zeros (2 MB): libpng inflated every
+    one, 8.7 s. Now a JPEG of more than 32 scans is refused naming the field, and a PNG's text
+    chunks are never read. tests/data/flat_progressive_2048.jpg is cv::imencode of a flat grey
+    2048 x 2048 image with IMWRITE_JPEG_PROGRESSIVE and quality 50 (10 scans)."""
+    url, rec = hostile_server.url, Recorder()
+    with open(os.path.join(ROOT, "tests", "data", "flat_progressive_2048.jpg"), "rb") as f:
+        progressive = f.read()
+    segments = jpeg_segments(progressive)
+    scans = [s for s in segments if s[1] == 0xDA]
+    assert len(scans) == 10
+    head = b"".join(s for s in segments if s[1] != 0xDA)
+    refinement = scans[5]  # a 16-byte refinement scan of the luma (libjpeg: 3 ms each)
+
+    def jpeg(extra_scans):
+        return b"\xff\xd8" + head + b"".join(scans) + refinement * extra_scans + b"\xff\xd9"
+
+    def photos(*images):
+        return {"description": "x", "photos": [base64.b64encode(i).decode() for i in images]}
+
+    pid = hostile_server.proc.pid
+    before = cpu_seconds(pid)
+    # Within the limit the photo is taken (the decoder makes 32 passes)...
+    create(url, rec, target=photos(jpeg(22)))
+    # ... beyond it refused, at creation and in an observation.
+    r = http("POST", url + "/v1/sessions", rec,
+             json={"world": world_of("loose1"), "target": photos(progressive, jpeg(2000))})
+    assert r.status_code == 400 and field_of(r) == "target.photos[1]", r.text
+    assert "more than 32 scans" in r.text
+    body = dict(raw_observation("a1-000000", [(1.0, 0.0, 1.0)]),
+                camera={"width": 2048, "height": 2048, "fx": 1000, "fy": 1000, "cx": 1024,
+                        "cy": 1024},
+                image={"encoding": "jpeg", "data": base64.b64encode(jpeg(2000)).decode()})
+    r = http("POST", f"{url}/v1/sessions/{'f' * 32}:observe", rec, json=body)
+    assert r.status_code == 400 and field_of(r) == "image.data", r.text
+
+    def chunk(kind, payload):
+        return (struct.pack(">I", len(payload)) + kind + payload +
+                struct.pack(">I", zlib.crc32(kind + payload)))
+    zeros = zlib.compress(b"\x00" * 7_000_000, 9)
+    text = b"".join(chunk(b"zTXt", b"k%d\x00\x00" % i + zeros) for i in range(300))
+    png = flat_png(16, 16)
+    noisy = png[:33] + text + png[33:]
+    sid = create(url, rec, target=photos(noisy))
+    assert http("GET", f"{url}/v1/sessions/{sid}", rec).status_code == 200
+    used = cpu_seconds(pid) - before
+    assert used < 3.0, f"{used:.1f} s of CPU"
+    rec.check()
+
+
 # ---- 2. grid and map overflows ----
 
 def test_worlds_whose_cells_overflow_are_refused_before_allocation(tmp_path):

@@ -1,5 +1,6 @@
 #include "npfkct/api/wire.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <opencv2/imgcodecs.hpp>
@@ -94,14 +95,20 @@ StatusOr<ImageInfo> ProbeImage(std::string_view bytes, const std::string& field)
     info.width = BigEndian32(p + 16);
     info.height = BigEndian32(p + 20);
   } else if (n >= 3 && p[0] == 0xff && p[1] == 0xd8 && p[2] == 0xff) {
-    // Walk the markers to the first start-of-frame (SOF0..SOF15 but DHT, JPG and DAC).
+    // Walk every marker: the size from the first start-of-frame (SOF0..SOF15 but DHT, JPG and
+    // DAC), and the scans counted, since the decoder makes a pass over the whole image per scan.
     info.format = ImageInfo::Format::kJpeg;
     size_t i = 2;
     bool found = false;
+    int scans = 0;
     while (i + 4 <= n) {
-      if (p[i] != 0xff) return InvalidFieldError(field, "a JPEG with a broken marker");
+      if (p[i] != 0xff) {
+        if (!found) return InvalidFieldError(field, "a JPEG with a broken marker");
+        ++i;  // bytes between segments, which the decoder skips to the next marker as well
+        continue;
+      }
       const unsigned char marker = p[i + 1];
-      if (marker == 0xff) {  // fill byte
+      if (marker == 0xff || marker == 0x00) {  // fill byte; a stuffed zero is no marker
         ++i;
         continue;
       }
@@ -109,17 +116,29 @@ StatusOr<ImageInfo> ProbeImage(std::string_view bytes, const std::string& field)
         i += 2;
         continue;
       }
-      if (marker == 0xd9 || marker == 0xda) break;  // end of image, start of scan
+      if (marker == 0xd9) break;  // end of image
       const size_t length = (size_t{p[i + 2]} << 8) | p[i + 3];
       if (length < 2) return InvalidFieldError(field, "a JPEG with a broken segment");
-      if (marker >= 0xc0 && marker <= 0xcf && marker != 0xc4 && marker != 0xc8 && marker != 0xcc) {
+      if (!found && marker >= 0xc0 && marker <= 0xcf && marker != 0xc4 && marker != 0xc8 &&
+          marker != 0xcc) {
         if (i + 9 > n) break;
         info.height = (int64_t{p[i + 5]} << 8) | p[i + 6];
         info.width = (int64_t{p[i + 7]} << 8) | p[i + 8];
         found = true;
-        break;
       }
       i += 2 + length;
+      if (marker != 0xda) continue;
+      if (!found) break;  // data before any frame header: refused below
+      if (++scans > kMaxJpegScans) {
+        return InvalidFieldError(field, "a JPEG of more than " + std::to_string(kMaxJpegScans) +
+                                            " scans (a progressive one has about 10)");
+      }
+      // The scan's entropy-coded data runs to the next marker: 0xff followed by neither a
+      // stuffed zero nor a restart marker.
+      while (i + 1 < n &&
+             !(p[i] == 0xff && p[i + 1] != 0x00 && !(p[i + 1] >= 0xd0 && p[i + 1] <= 0xd7))) {
+        ++i;
+      }
     }
     if (!found) return InvalidFieldError(field, "a JPEG without a frame header before its data");
   } else {
@@ -129,6 +148,28 @@ StatusOr<ImageInfo> ProbeImage(std::string_view bytes, const std::string& field)
     return InvalidFieldError(field, "the image header gives no size");
   }
   return info;
+}
+
+std::string PngDecodingChunks(std::string_view bytes) {
+  // Critical chunks and the ancillary ones that say how to read the pixels; text (tEXt, zTXt,
+  // iTXt), profiles, animation and private chunks are dropped.
+  static constexpr std::string_view kKept[] = {"IHDR", "PLTE", "IDAT", "IEND", "tRNS",
+                                               "gAMA", "cHRM", "sRGB", "sBIT", "bKGD"};
+  std::string out(bytes.substr(0, std::min<size_t>(bytes.size(), 8)));
+  const auto* p = reinterpret_cast<const unsigned char*>(bytes.data());
+  size_t i = 8;
+  while (i + 12 <= bytes.size()) {
+    const size_t length = BigEndian32(p + i);
+    const std::string_view type = bytes.substr(i + 4, 4);
+    if (length > bytes.size() - i - 12) break;  // cut short: the decoder reports it
+    if (std::find(std::begin(kKept), std::end(kKept), type) != std::end(kKept)) {
+      out.append(bytes.substr(i, 12 + length));
+    }
+    i += 12 + length;
+    if (type == "IEND") return out;
+  }
+  out.append(bytes.substr(std::min(i, bytes.size())));
+  return out;
 }
 
 StatusOr<cv::Mat> DecodeImage(std::string_view bytes, int64_t max_pixels,
@@ -143,6 +184,13 @@ StatusOr<cv::Mat> DecodeImage(std::string_view bytes, int64_t max_pixels,
   }
   if (bytes.size() > static_cast<size_t>(INT32_MAX)) {
     return InvalidFieldError(field, "too many bytes");
+  }
+  // libpng inflates every compressed text chunk (up to 8 MB each, a thousand per image): a few
+  // kilobytes of zTXt cost a second of CPU. Decoding reads only the chunks that hold pixels.
+  std::string png;
+  if (info->format == ImageInfo::Format::kPng) {
+    png = PngDecodingChunks(bytes);
+    bytes = png;
   }
   cv::Mat image;
   try {

@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstring>
 #include <opencv2/imgcodecs.hpp>
 
@@ -70,6 +71,94 @@ TEST(DecodeImage, RefusesAPixelBombBeforeDecoding) {
   // Garbage after a PNG signature and IHDR does not decode, and is an error, not a crash.
   std::string broken = Png(16, 16).substr(0, 40) + std::string(100, 'x');
   EXPECT_FALSE(DecodeImage(broken, 4'194'304, "image.data").ok());
+}
+
+// The JPEG's segments up to its end-of-image marker, each scan with its entropy-coded data.
+std::vector<std::string> JpegSegments(const std::string& jpeg) {
+  std::vector<std::string> out;
+  const auto at = [&](size_t k) { return static_cast<unsigned char>(jpeg[k]); };
+  size_t i = 2;
+  while (i + 4 <= jpeg.size() && at(i + 1) != 0xd9) {
+    size_t end = i + 2 + ((size_t{at(i + 2)} << 8) | at(i + 3));
+    if (at(i + 1) == 0xda) {
+      while (end + 1 < jpeg.size() &&
+             !(at(end) == 0xff && at(end + 1) != 0 && (at(end + 1) < 0xd0 || at(end + 1) > 0xd7))) {
+        ++end;
+      }
+    }
+    out.push_back(jpeg.substr(i, end - i));
+    i = end;
+  }
+  return out;
+}
+
+TEST(ProbeImage, RefusesAJpegOfMoreScansThanAProgressiveOneHas) {
+  // A progressive JPEG decodes in ~10 scans; repeating one of its refinement scans makes the
+  // decoder pass over the whole image again each time (2048 x 2048: 3 ms per 16-byte scan), so
+  // a few kilobytes cost seconds.
+  cv::Mat gradient(96, 128, CV_8UC3);
+  for (int r = 0; r < gradient.rows; ++r) {
+    for (int c = 0; c < gradient.cols; ++c) gradient.at<cv::Vec3b>(r, c) = cv::Vec3b(r, c, r + c);
+  }
+  std::vector<uchar> encoded;
+  ASSERT_TRUE(cv::imencode(".jpg", gradient, encoded, {cv::IMWRITE_JPEG_PROGRESSIVE, 1}));
+  const std::string progressive(encoded.begin(), encoded.end());
+  const std::vector<std::string> segments = JpegSegments(progressive);
+  std::vector<std::string> scans;
+  std::string head;
+  for (const std::string& s : segments) {
+    if (static_cast<unsigned char>(s[1]) == 0xda) {
+      scans.push_back(s);
+    } else {
+      head += s;
+    }
+  }
+  ASSERT_GE(scans.size(), 6u);
+  ASSERT_LE(scans.size(), static_cast<size_t>(kMaxJpegScans));
+  ASSERT_TRUE(DecodeImage(progressive, 4'194'304, "image.data").ok());
+  auto with_scans = [&](size_t total) {
+    std::string out = "\xff\xd8" + head;
+    for (size_t k = 0; k < total; ++k) out += scans[std::min(k, scans.size() - 1)];
+    return out + "\xff\xd9";
+  };
+  EXPECT_TRUE(ProbeImage(with_scans(kMaxJpegScans), "image.data").ok());
+  auto r = DecodeImage(with_scans(kMaxJpegScans + 1), 4'194'304, "target.photos[2]");
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().field_violations().at(0).field, "target.photos[2]");
+  EXPECT_NE(r.status().message().find("more than 32 scans"), std::string::npos);
+  // Stuffed zeros and restart markers inside a scan are not markers; bytes between segments
+  // are skipped as the decoder skips them.
+  std::vector<uchar> restarts;
+  ASSERT_TRUE(cv::imencode(".jpg", gradient, restarts, {cv::IMWRITE_JPEG_RST_INTERVAL, 1}));
+  std::string baseline(restarts.begin(), restarts.end());
+  EXPECT_TRUE(ProbeImage(baseline, "p").ok());
+  baseline.insert(baseline.find("\xff\xda"), "xyz");  // before the scan, after the frame
+  EXPECT_TRUE(ProbeImage(baseline, "p").ok());
+  EXPECT_TRUE(DecodeImage(baseline, 4'194'304, "p").ok());
+}
+
+TEST(DecodeImage, ReadsOnlyThePngChunksThatHoldPixels) {
+  // libpng inflates each zTXt chunk (up to 8 MB each): decoding reads none of them.
+  const std::string png = Png(16, 16);
+  auto chunk = [](const std::string& type, const std::string& data) {
+    std::string out(4, '\0');
+    for (int k = 0; k < 4; ++k) out[k] = static_cast<char>((data.size() >> (24 - 8 * k)) & 0xff);
+    return out + type + data + std::string(4, '\0');  // the CRC is not read here
+  };
+  const size_t after_ihdr = 8 + 12 + 13;
+  const std::string text = chunk("zTXt", std::string("k\0\0", 3) + std::string(64, 'x')) +
+                           chunk("tEXt", "key\0value") + chunk("prIv", std::string(1000, 'p'));
+  const std::string noisy = png.substr(0, after_ihdr) + text + png.substr(after_ihdr);
+  EXPECT_EQ(PngDecodingChunks(noisy), png);
+  EXPECT_EQ(PngDecodingChunks(png), png);
+  auto decoded = DecodeImage(noisy, 4'194'304, "image.data");
+  ASSERT_TRUE(decoded.ok()) << decoded.status().ToString();
+  EXPECT_EQ(decoded->cols, 16);
+  // A chunk cut short keeps the bytes after it, and the decoder refuses them.
+  const std::string cut =
+      png.substr(0, after_ihdr) + chunk("IDAT", std::string(50, 'd')).substr(0, 30);
+  EXPECT_EQ(PngDecodingChunks(cut), cut);
+  EXPECT_FALSE(DecodeImage(cut, 4'194'304, "image.data").ok());
 }
 
 TEST(DecodeCloud, BoundsPointsAndCoordinatesBeforePclSeesThem) {

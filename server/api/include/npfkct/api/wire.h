@@ -28,11 +28,19 @@ struct ImageInfo {
   int64_t width = 0;
   int64_t height = 0;
 };
+/// Scans a JPEG may have: the decoder makes a pass over the whole image per scan, and a scan
+/// can take 16 bytes.
+inline constexpr int kMaxJpegScans = 32;
 /// Reads the format and size of PNG or JPEG bytes from the header alone (PNG IHDR, JPEG SOFn);
-/// INVALID_ARGUMENT naming `field` when they are neither or the header is cut short.
+/// INVALID_ARGUMENT naming `field` when they are neither, the header is cut short, or a JPEG
+/// has more than kMaxJpegScans scans.
 StatusOr<ImageInfo> ProbeImage(std::string_view bytes, const std::string& field);
+/// The PNG with only the chunks that decoding its pixels needs (critical chunks, tRNS, gAMA,
+/// cHRM, sRGB, sBIT, bKGD), in their order; bytes after a cut-short chunk are kept as they are.
+std::string PngDecodingChunks(std::string_view bytes);
 /// Decodes PNG or JPEG bytes to 8-bit BGR after checking from the header that the image has at
-/// most `max_pixels` pixels (INVALID_ARGUMENT naming `field` otherwise).
+/// most `max_pixels` pixels (INVALID_ARGUMENT naming `field` otherwise); a PNG's other chunks
+/// are not read (PngDecodingChunks).
 StatusOr<cv::Mat> DecodeImage(std::string_view bytes, int64_t max_pixels, const std::string& field);
 /// Encodes an 8-bit image as PNG.
 StatusOr<std::string> EncodePng(const cv::Mat& image);
