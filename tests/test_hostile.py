@@ -433,6 +433,37 @@ def test_images_that_decode_slowly_for_their_size(hostile_server):
     rec.check()
 
 
+def test_a_second_server_cannot_take_the_port(tmp_path):
+    """httplib bound with SO_REUSEPORT alone: a second server on the same port (an overlapping
+    restart, two replicas, or any process of the same user) started without an error and took
+    about half of the connections (21 of 40 GETs of a session answered 404). Now it cannot bind
+    and says so; after the first one stops, a new one binds the port at once although the old
+    connections linger in TIME_WAIT."""
+    first = ServerProcess("--state-dir", str(tmp_path / "a"))
+    url, rec = first.url, Recorder()
+    sid = create(url, rec)
+    second = subprocess.run([SERVER_BIN, "--port", str(first.port), "--log-level", "warn",
+                             "--state-dir", str(tmp_path / "b")],
+                            capture_output=True, text=True, timeout=60)
+    assert second.returncode != 0 and f"cannot bind 127.0.0.1:{first.port}" in second.stderr, (
+        second.returncode, second.stderr[-500:])
+    for _ in range(20):  # each on a connection of its own, which the server closes
+        r = http("GET", f"{url}/v1/sessions/{sid}", rec, headers={"Connection": "close"})
+        assert r.status_code == 200
+    assert_clean_exit(first)
+    again = subprocess.Popen([SERVER_BIN, "--port", str(first.port), "--log-level", "warn",
+                              "--state-dir", str(tmp_path / "a")],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        line = again.stdout.readline()
+        assert line.startswith("listening on"), (line, again.stderr.read() if again.poll() else "")
+        assert http("GET", f"{url}/v1/sessions/{sid}", rec).status_code == 200  # restored
+    finally:
+        again.terminate()
+        assert again.wait(timeout=30) == 0
+    rec.check()
+
+
 # ---- 2. grid and map overflows ----
 
 def test_worlds_whose_cells_overflow_are_refused_before_allocation(tmp_path):

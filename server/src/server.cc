@@ -4,6 +4,7 @@
 #include "npfkct/server/server.h"
 
 #include <spdlog/spdlog.h>
+#include <sys/socket.h>
 
 #include <algorithm>
 #include <random>
@@ -399,6 +400,13 @@ Status Server::Start() {
   im.http->set_payload_max_length(o.max_body_bytes);
   im.http->set_keep_alive_max_count(front.keep_alive_max);
   im.http->set_keep_alive_timeout(static_cast<time_t>(std::max(1.0, o.idle_timeout_seconds)));
+  // httplib's default sets SO_REUSEPORT alone: a second server (or any process of the same user)
+  // could bind the same port and take a share of the connections. SO_REUSEADDR only lets a
+  // restart bind while the old connections linger in TIME_WAIT.
+  im.http->set_socket_options([](socket_t sock) {
+    int yes = 1;
+    setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
+  });
   im.Register();
   port_ = o.port == 0 ? im.http->bind_to_any_port(o.host)
                       : (im.http->bind_to_port(o.host, o.port) ? o.port : -1);
