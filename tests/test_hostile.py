@@ -441,15 +441,19 @@ def test_a_second_server_cannot_take_the_port(tmp_path):
     connections linger in TIME_WAIT."""
     first = ServerProcess("--state-dir", str(tmp_path / "a"))
     url, rec = first.url, Recorder()
-    sid = create(url, rec)
-    second = subprocess.run([SERVER_BIN, "--port", str(first.port), "--log-level", "warn",
-                             "--state-dir", str(tmp_path / "b")],
-                            capture_output=True, text=True, timeout=60)
-    assert second.returncode != 0 and f"cannot bind 127.0.0.1:{first.port}" in second.stderr, (
-        second.returncode, second.stderr[-500:])
-    for _ in range(20):  # each on a connection of its own, which the server closes
-        r = http("GET", f"{url}/v1/sessions/{sid}", rec, headers={"Connection": "close"})
-        assert r.status_code == 200
+    try:
+        sid = create(url, rec)
+        second = subprocess.run([SERVER_BIN, "--port", str(first.port), "--log-level", "warn",
+                                 "--state-dir", str(tmp_path / "b")],
+                                capture_output=True, text=True, timeout=60)
+        assert second.returncode != 0, "a second server started on the same port"
+        assert f"cannot bind 127.0.0.1:{first.port}" in second.stderr, second.stderr[-500:]
+        for _ in range(20):  # each on a connection of its own, which the server closes
+            r = http("GET", f"{url}/v1/sessions/{sid}", rec, headers={"Connection": "close"})
+            assert r.status_code == 200
+    except BaseException:
+        first.kill()
+        raise
     assert_clean_exit(first)
     again = subprocess.Popen([SERVER_BIN, "--port", str(first.port), "--log-level", "warn",
                               "--state-dir", str(tmp_path / "a")],
