@@ -43,6 +43,18 @@ inline std::string String(const json& j, const char* key, const std::string& fal
   auto it = j.find(key);
   return it != j.end() && it->is_string() ? it->get<std::string>() : fallback;
 }
+/// The first `max_chars` characters (UTF-8 code points, as the schemas' maxLength counts them)
+/// of `s`: a value the API accepted comes back whole, however many bytes its characters take.
+inline std::string Utf8Prefix(std::string s, size_t max_chars) {
+  size_t chars = 0;
+  for (size_t i = 0; i < s.size(); ++i) {
+    if ((static_cast<unsigned char>(s[i]) & 0xc0) != 0x80 && chars++ == max_chars) {
+      s.resize(i);
+      break;
+    }
+  }
+  return s;
+}
 /// j[key] as a bool, `fallback` when absent or not a bool.
 inline bool Bool(const json& j, const char* key, bool fallback = false) {
   if (!j.is_object()) return fallback;

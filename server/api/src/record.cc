@@ -95,7 +95,8 @@ StatusOr<SessionRecord> DecodeRecord(std::string_view bytes, const Limits& limit
   SessionRecord r;
   r.id = internal::String(j, "id");
   if (!IsSessionId(r.id)) return Lost("bad id");
-  r.display_name = internal::String(j, "displayName").substr(0, limits.max_display_name);
+  r.display_name =
+      internal::Utf8Prefix(internal::String(j, "displayName"), limits.max_display_name);
   const json p = j.value("planner", json::object());
   r.planner.name = internal::String(p, "name", "npfkct");
   r.planner.particles = static_cast<int>(internal::Integer(p, "particles", 300));
@@ -134,7 +135,8 @@ StatusOr<SessionRecord> DecodeRecord(std::string_view bytes, const Limits& limit
   r.planning_seconds_used = std::max(0.0, internal::Number(j, "planningSecondsUsed"));
   r.create_time_ms = internal::Integer(j, "createTimeMs");
   r.update_time_ms = internal::Integer(j, "updateTimeMs");
-  r.last_action_id = internal::String(j, "lastActionId").substr(0, limits.max_id_length);
+  r.last_action_id =
+      internal::Utf8Prefix(internal::String(j, "lastActionId"), limits.max_id_length);
   if (r.state == SessionState::kActionPending) {
     r.pending_action_id = internal::String(j, "pendingActionId");
     const json pa = j.value("pendingAction", json::object());
@@ -163,7 +165,8 @@ StatusOr<SessionRecord> DecodeRecord(std::string_view bytes, const Limits& limit
   }
   if (j.contains("target")) {
     const json& t = j.at("target");
-    r.target.description = internal::String(t, "description").substr(0, limits.max_description);
+    r.target.description =
+        internal::Utf8Prefix(internal::String(t, "description"), limits.max_description);
     if (t.contains("photos")) {
       const json& photos = t.at("photos");
       if (!photos.is_array() || static_cast<int64_t>(photos.size()) > limits.max_photos) {
@@ -193,7 +196,7 @@ StatusOr<SessionRecord> DecodeRecord(std::string_view bytes, const Limits& limit
         return Lost("perception track");
       }
       perception::TrackState t;
-      t.id = internal::String(tj, "id").substr(0, limits.max_id_length);
+      t.id = internal::Utf8Prefix(internal::String(tj, "id"), limits.max_id_length);
       t.surface = static_cast<int>(internal::Integer(tj, "surface", -1));
       auto bytes = Base64Decode(tj.at("points").get<std::string>(), "points",
                                 static_cast<size_t>(limits.max_points) * 12);

@@ -2,6 +2,8 @@
 
 #include <ctime>
 
+#include "npfkct/api/limits.h"
+
 namespace npfkct::api::internal {
 namespace {
 
@@ -41,7 +43,7 @@ bool ReadAction(const json& j, ActionView* a) {
       a->configuration = ReadConfig(j.at("configuration"));
       return true;
     }
-    a->object_id = String(j, "objectId").substr(0, 256);
+    a->object_id = Utf8Prefix(String(j, "objectId"), HardLimits().max_id_length);
     if (j.contains("objectBox")) {
       object_search::Box box;
       if (!ReadBox(j.at("objectBox"), &box)) return false;
@@ -102,7 +104,7 @@ bool ReadStep(const json& j, StepRecord* s) {
     return false;
   }
   s->step = static_cast<int>(std::clamp<int64_t>(Integer(j, "step"), 0, 1'000'000'000));
-  s->action_id = String(j, "actionId").substr(0, 128);
+  s->action_id = Utf8Prefix(String(j, "actionId"), HardLimits().max_id_length);
   s->expected_value = Number(j, "expectedValue");
   s->plan_time_ms = Integer(j, "planTimeMs");
   const json stats = j.value("stats", json::object());

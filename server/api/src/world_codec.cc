@@ -365,7 +365,7 @@ StatusOr<World> WorldFromJson(const json& j, const Limits& limits) {
   std::vector<object_search::Workspace> workspaces;
   for (const json& ws : g.at("workspaces")) {
     object_search::Workspace s;
-    s.name = String(ws, "name").substr(0, 128);
+    s.name = Utf8Prefix(String(ws, "name"), HardLimits().max_id_length);  // as furniture names
     if (!ws.is_object() || !ws.contains("center") || !ReadVec(ws.at("center"), &s.center)) {
       return Lost("grid workspace");
     }
@@ -404,7 +404,7 @@ StatusOr<World> WorldFromJson(const json& j, const Limits& limits) {
         o.at("odds").size() != 8 || !o.contains("box") || !ReadBox(o.at("box"), &k.box)) {
       return Lost("object");
     }
-    k.key = String(o, "id").substr(0, 256);
+    k.key = Utf8Prefix(String(o, "id"), HardLimits().max_id_length);
     k.moveability = Number(o, "moveability", 1.0);
     for (int i = 0; i < 8; ++i) {
       if (!o.at("odds")[i].is_number()) return Lost("object odds");

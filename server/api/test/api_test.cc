@@ -378,6 +378,27 @@ TEST(Records, RoundTripAndRefuseCorruptOrOversizedSnapshots) {
   r.world = BuildWorld(req->world, kLimits).value();
   r.world.grid.set_log_odds(7, -1.5f);
   r.perception = std::make_pair(3, std::vector<perception::TrackState>{{"obj-1", 0, {1, 2, 3}}});
+  // Strings at the API's limits, in characters of several bytes each, come back whole (ids were
+  // cut at 256 bytes: a second object appeared when the restored session saw the first again).
+  auto repeat = [](const std::string& c, int n) {
+    std::string out;
+    for (int i = 0; i < n; ++i) out += c;
+    return out;
+  };
+  r.display_name = repeat("\u20ac", kLimits.max_display_name);
+  r.target.description = repeat("\u20ac", kLimits.max_description);
+  object_search::ObjectKnowledge known;
+  known.key = repeat("\U0001F600", kLimits.max_id_length);
+  known.box.center = {1.0, 0.0, 0.8};
+  known.box.size = {0.1, 0.1, 0.1};
+  r.world.objects.push_back(known);
+  r.perception->second.push_back({repeat("\u00e9", kLimits.max_id_length), 1, {4, 5, 6}});
+  StepRecord step;
+  step.step = 1;
+  step.action_id = "a1-abcdef";
+  step.action.type = ActionView::Type::kRemove;
+  step.action.object_id = known.key;
+  r.history.push_back(step);
   const std::string bytes = EncodeRecord(r);
   auto back = DecodeRecord(bytes, kLimits);
   ASSERT_TRUE(back.ok()) << back.status().ToString();
@@ -386,7 +407,13 @@ TEST(Records, RoundTripAndRefuseCorruptOrOversizedSnapshots) {
   EXPECT_EQ(back->world.grid.all_log_odds(), r.world.grid.all_log_odds());
   EXPECT_EQ(back->world.occupancy.cells(), r.world.occupancy.cells());
   EXPECT_EQ(back->perception->second[0].points, (std::vector<float>{1, 2, 3}));
+  EXPECT_EQ(back->world.objects.back().key, known.key);
+  EXPECT_EQ(back->display_name, r.display_name);
   EXPECT_EQ(EncodeRecord(*back), bytes);
+  // Past the limits a hostile snapshot is cut at a character boundary.
+  json long_name = json::parse(bytes);
+  long_name["displayName"] = repeat("\u20ac", kLimits.max_display_name + 5);
+  EXPECT_EQ(DecodeRecord(long_name.dump(), kLimits)->display_name, r.display_name);
 
   EXPECT_EQ(DecodeRecord(bytes.substr(0, bytes.size() / 2), kLimits).status().code(),
             StatusCode::kDataLoss);
