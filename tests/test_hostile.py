@@ -468,6 +468,39 @@ def test_a_second_server_cannot_take_the_port(tmp_path):
     rec.check()
 
 
+def test_a_plan_takes_a_planning_slot_per_search_thread(hostile_server):
+    """Slots are one per core (2 here): a kct plan on 4 search threads held one slot and kept 4
+    cores busy (0.18 s of CPU in 0.11 s with a 50 ms cpuMs budget). It now takes every slot it
+    can, and a plan of another session waits for them."""
+    url, rec = hostile_server.url, Recorder()
+    wide = create(url, rec, planner={"name": "kct", "options": {"search.threads": 4}})
+    narrow = create(url, rec)
+    done = {}
+
+    def plan(sid, key, ms):
+        r = http("POST", f"{url}/v1/sessions/{sid}:plan", rec, json={"budget": {"timeMs": ms}})
+        done[key] = (r.status_code, time.monotonic())
+
+    wide_plan = threading.Thread(target=plan, args=(wide, "wide", 1500))
+    wide_plan.start()
+    busy = 0
+    for _ in range(100):
+        metrics = http("GET", f"{url}/metrics", rec).text
+        busy = int(next(line.split()[1] for line in metrics.splitlines()
+                        if line.startswith("npfkct_planning_slots_busy")))
+        if busy:
+            break
+        time.sleep(0.01)
+    assert busy == 2, busy
+    started = time.monotonic()
+    plan(narrow, "narrow", 50)
+    wide_plan.join()
+    assert done["wide"][0] == 200 and done["narrow"][0] == 200, done
+    assert done["narrow"][1] >= done["wide"][1] - 0.05, "the narrow plan did not wait"
+    assert done["narrow"][1] - started > 0.5
+    rec.check()
+
+
 # ---- 2. grid and map overflows ----
 
 def test_worlds_whose_cells_overflow_are_refused_before_allocation(tmp_path):

@@ -33,12 +33,16 @@ template <class P, class Options>
 class HybridPlanner final : public SearchPlanner {
  public:
   HybridPlanner(std::string name, const ObjectSearchModel& model, Options options)
-      : name_(std::move(name)), planner_(model, options), reuse_(options.search.reuse_tree) {}
+      : name_(std::move(name)),
+        planner_(model, options),
+        reuse_(options.search.reuse_tree),
+        threads_(options.search.threads) {}
   HybridPlanner(std::string name, const ObjectSearchModel& model, Options options,
                 std::shared_ptr<CandidateSampler<State>> sampler)
       : name_(std::move(name)),
         planner_(model, options, std::move(sampler)),
-        reuse_(options.search.reuse_tree) {}
+        reuse_(options.search.reuse_tree),
+        threads_(options.search.threads) {}
 
   const std::string& name() const override { return name_; }
   void SetBelief(ParticleBelief<State> belief) override { planner_.SetBelief(std::move(belief)); }
@@ -52,6 +56,7 @@ class HybridPlanner final : public SearchPlanner {
   }
   int64_t TreeSize() const override { return planner_.TreeSize(); }
   bool ReusesTree() const override { return reuse_; }
+  int SearchThreads() const override { return threads_; }
   CandidateStats candidate_stats() const override {
     if constexpr (requires { planner_.candidate_stats(); }) {
       return planner_.candidate_stats();
@@ -64,6 +69,7 @@ class HybridPlanner final : public SearchPlanner {
   std::string name_;
   P planner_;
   bool reuse_;
+  int threads_;
 };
 
 // POMCP-family planners over a manual discrete action set.

@@ -13,7 +13,7 @@
 
 namespace npfkct::server {
 
-/// Planning slots and their queue. Thread-safe.
+/// Planning slots and their queue: a plan takes one slot per thread it searches on. Thread-safe.
 class Admission {
  public:
   /// `slots` plans at once, at most `queue` more waiting.
@@ -23,8 +23,10 @@ class Admission {
   class Ticket {
    public:
     Ticket() = default;
-    explicit Ticket(Admission* a) : admission_(a) {}
-    Ticket(Ticket&& o) noexcept : admission_(o.admission_) { o.admission_ = nullptr; }
+    Ticket(Admission* a, int slots) : admission_(a), slots_(slots) {}
+    Ticket(Ticket&& o) noexcept : admission_(o.admission_), slots_(o.slots_) {
+      o.admission_ = nullptr;
+    }
     Ticket& operator=(Ticket&& o) noexcept;
     Ticket(const Ticket&) = delete;
     Ticket& operator=(const Ticket&) = delete;
@@ -32,20 +34,23 @@ class Admission {
 
    private:
     Admission* admission_ = nullptr;
+    int slots_ = 0;
   };
 
-  /// Takes a slot, waiting in the queue while none is free. RESOURCE_EXHAUSTED when the queue is
-  /// full; CANCELLED when `give_up` (polled every 10 ms while waiting: the client left, the
-  /// session was deleted, the server stops) returns true first.
-  StatusOr<Ticket> Enter(const std::function<bool()>& give_up);
+  /// Takes `threads` slots (at most all of them), waiting in the queue while too few are free.
+  /// RESOURCE_EXHAUSTED when the queue is full; CANCELLED when `give_up` (polled every 10 ms
+  /// while waiting: the client left, the session was deleted, the server stops) returns true
+  /// first.
+  StatusOr<Ticket> Enter(const std::function<bool()>& give_up, int threads = 1);
 
+  /// Slots held.
   int running() const;
   int waiting() const;
   int slots() const { return slots_; }
   int queue() const { return queue_; }
 
  private:
-  void Release();
+  void Release(int slots);
 
   const int slots_;
   const int queue_;

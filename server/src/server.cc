@@ -187,7 +187,8 @@ struct Server::Impl {
       budget.time_ms = options.limits.default_plan_ms;
     }
     if (budget.time_ms == 0.0) budget.time_ms = options.limits.max_plan_ms;
-    auto ticket = admission.Enter([] { return HttpFront::ClientGone(); });
+    // A plan of several search threads takes a slot for each (at most all of them).
+    auto ticket = admission.Enter([] { return HttpFront::ClientGone(); }, s->SearchThreads());
     if (!ticket.ok()) return Fail(res, ticket.status(), 0, 1);
     StatusOr<api::PlanReply> reply = Status(StatusCode::kInternal, "not planned");
     {

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <chrono>
 #include <thread>
 
 namespace npfkct::server {
@@ -46,6 +47,37 @@ TEST(Admission, AWaiterGivesUp) {
   t.join();
   EXPECT_EQ(a.waiting(), 0);
   EXPECT_EQ(a.running(), 1);
+}
+
+TEST(Admission, APlanOfSeveralThreadsTakesASlotForEach) {
+  // One slot per core: a plan searching on 3 threads of 4 slots leaves room for one more
+  // single-threaded plan; a 2-thread plan waits until the 3 come back.
+  Admission a(4, 2);
+  auto three = a.Enter(nullptr, 3);
+  ASSERT_TRUE(three.ok());
+  EXPECT_EQ(a.running(), 3);
+  auto one = a.Enter(nullptr, 1);
+  ASSERT_TRUE(one.ok());
+  EXPECT_EQ(a.running(), 4);
+  std::atomic<bool> entered{false};
+  std::thread two([&] {
+    auto t = a.Enter(nullptr, 2);
+    EXPECT_TRUE(t.ok());
+    EXPECT_EQ(a.running(), 2);
+    entered = true;
+  });
+  while (a.waiting() == 0) std::this_thread::yield();
+  { auto released = std::move(one).value(); }  // 1 free: not enough for 2
+  std::this_thread::sleep_for(std::chrono::milliseconds(30));
+  EXPECT_FALSE(entered);
+  { auto released = std::move(three).value(); }
+  two.join();
+  EXPECT_TRUE(entered);
+  EXPECT_EQ(a.running(), 0);
+  // More threads than slots take them all, and never wait forever.
+  auto all = a.Enter(nullptr, 64);
+  ASSERT_TRUE(all.ok());
+  EXPECT_EQ(a.running(), 4);
 }
 
 }  // namespace

@@ -39,6 +39,8 @@ class SearchPlanner {
   virtual int64_t TreeSize() const = 0;
   /// Whether the planner keeps its tree across real steps.
   virtual bool ReusesTree() const = 0;
+  /// Threads a Plan() searches on (search.threads; 1 but for kCT).
+  virtual int SearchThreads() const { return 1; }
   /// What the candidate sampler did in the last Plan() (NPF-kCT only).
   virtual CandidateStats candidate_stats() const { return {}; }
 };

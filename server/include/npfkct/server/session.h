@@ -95,6 +95,8 @@ class Session {
   std::shared_ptr<const object_search::World> Belief() const;
   /// The steps so far (the last api::kMaxHistorySteps), oldest first.
   std::vector<api::StepRecord> Steps() const;
+  /// Threads each of its plans searches on (search.threads): the planning slots a plan takes.
+  int SearchThreads() const { return search_threads_; }
 
   /// The API resource of a stored record (a session this server does not hold).
   static api::SessionView ViewOf(const api::SessionRecord& record);
@@ -142,6 +144,7 @@ class Session {
   Rng rng_;
   std::unique_ptr<object_search::ObjectSearchModel> model_;
   std::unique_ptr<object_search::SearchPlanner> planner_;
+  int search_threads_ = 1;
   std::unique_ptr<perception::Perception> perception_;
 
   // The state readers see (state_mutex_).
