@@ -239,8 +239,13 @@ def test_any_replica_lists_and_deletes_and_held_copies_follow(postgres, store):
         ids = sorted(create(a.url, seed=i) for i in range(3))  # A holds 2: one was dropped
         assert metric(a.url, "npfkct_sessions") == 2
         assert metric(a.url, "npfkct_sessions_evicted_total") == 1
+        loads = metric(b.url, "npfkct_store_operation_seconds_count", 'op="load"')
         listed = requests.get(f"{b.url}/v1/sessions").json()["sessions"]
         assert [s["id"] for s in listed] == ids
+        # Listed from the summaries beside the records: no record was read (records hold
+        # worlds and photos: a page of 20 sessions with 8 large photos each took 6 s of CPU).
+        assert metric(b.url, "npfkct_store_operation_seconds_count", 'op="load"') == loads
+        assert listed == [requests.get(f"{a.url}/v1/sessions/{i}").json() for i in ids]
         page = requests.get(f"{c.url}/v1/sessions?pageSize=2").json()
         assert [s["id"] for s in page["sessions"]] == ids[:2] and page["nextPageToken"]
         # Deleted through C: A, which holds it, must not serve it any more.
@@ -276,12 +281,13 @@ def test_the_stored_snapshot_is_the_directory_format(postgres, store, tmp_path):
         sid = create(a.url)
         assert requests.post(f"{a.url}/v1/sessions/{sid}:plan",
                              json={"budget": {"cpuMs": 20}}).status_code == 200
-        assert postgres.psql("SELECT max(version) FROM npfkct_schema", db=db) == [["1"]]
+        assert postgres.psql("SELECT max(version) FROM npfkct_schema", db=db) == [["2"]]
         columns = postgres.psql("SELECT column_name, data_type FROM information_schema.columns "
                                 "WHERE table_name = 'npfkct_sessions' ORDER BY ordinal_position",
                                 db=db)
         assert [c[0] for c in columns] == ["id", "version", "snapshot", "ttl_seconds",
-                                           "expires_at", "created_at", "updated_at", "updated_by"]
+                                           "expires_at", "created_at", "updated_at", "updated_by",
+                                           "summary"]
         hexdump = postgres.psql(f"SELECT encode(snapshot, 'hex'), version FROM npfkct_sessions "
                                 f"WHERE id = '{sid}'", db=db)[0]
         snapshot = bytes.fromhex(hexdump[0])
@@ -300,6 +306,41 @@ def test_the_stored_snapshot_is_the_directory_format(postgres, store, tmp_path):
             stop_all(single)
     finally:
         stop_all(a)
+
+
+def test_a_database_of_schema_version_1_is_migrated(postgres, store):
+    """Version 2 keeps each session's API view beside its record for lists. A database made by a
+    server of version 1 (no summary column) gets the column at start-up; its rows are listed
+    from their records until they are saved again."""
+    db = store.rsplit("/", 1)[1]
+    a = start_replica(store)
+    try:
+        old, new = sorted(create(a.url, seed=i) for i in range(2))
+    finally:
+        stop_all(a)
+    postgres.psql("ALTER TABLE npfkct_sessions DROP COLUMN summary;"
+                  " UPDATE npfkct_schema SET version = 1", db=db)
+    b = start_replica(store)
+    try:
+        assert postgres.psql("SELECT max(version) FROM npfkct_schema", db=db) == [["2"]]
+        assert postgres.psql("SELECT id, octet_length(summary) FROM npfkct_sessions ORDER BY id",
+                             db=db) == [[old, "0"], [new, "0"]]
+        listed = requests.get(f"{b.url}/v1/sessions").json()["sessions"]
+        assert [s["id"] for s in listed] == [old, new]
+        assert requests.post(f"{b.url}/v1/sessions/{new}:plan",
+                             json={"budget": {"cpuMs": 20}}).status_code == 200
+        summaries = postgres.psql("SELECT id, octet_length(summary) > 0 FROM npfkct_sessions"
+                                  " ORDER BY id", db=db)
+        assert summaries == [[old, "f"], [new, "t"]]
+        listed = requests.get(f"{b.url}/v1/sessions").json()["sessions"]
+        assert [s["state"] for s in listed] == ["READY", "ACTION_PENDING"]
+    finally:
+        stop_all(b)
+    # A database of a later version than this server knows is refused, not changed.
+    postgres.psql("UPDATE npfkct_schema SET version = 3", db=db)
+    refused = subprocess.run([SERVER_BIN, "--port", "0", "--store", store, "--store-wait", "2"],
+                             capture_output=True, text=True, timeout=60)
+    assert refused.returncode != 0 and "version is 3" in refused.stderr, refused.stderr[-500:]
 
 
 def test_bad_store_flags_are_clear_errors_at_start(postgres):

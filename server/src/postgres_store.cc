@@ -92,7 +92,9 @@ struct ConnDeleter {
 using Conn = std::unique_ptr<PGconn, ConnDeleter>;
 
 constexpr char kTable[] = "npfkct_sessions";
-constexpr int kSchemaVersion = 1;
+// Version 2 added `summary`: each session's API view beside its record, which lists read
+// instead of the records. A database of version 1 is migrated at start-up.
+constexpr int kSchemaVersion = 2;
 
 // libpq's messages end in newlines and may hold several lines.
 std::string Clean(const char* message) {
@@ -330,10 +332,18 @@ class PostgresStore : public SessionStore {
         "  expires_at timestamptz NOT NULL,"
         "  created_at timestamptz NOT NULL DEFAULT now(),"
         "  updated_at timestamptz NOT NULL DEFAULT now(),"
-        "  updated_by text NOT NULL DEFAULT '');"
+        "  updated_by text NOT NULL DEFAULT '',"
+        "  summary bytea NOT NULL DEFAULT ''::bytea);"
         " CREATE INDEX IF NOT EXISTS npfkct_sessions_expires_at ON " +
         kTable +
         " (expires_at);"
+        // Version 1 to 2: rows saved before have an empty summary and are listed from their
+        // records until saved again (a server of version 1 still running keeps writing them).
+        " DO $$ BEGIN IF (SELECT max(version) FROM npfkct_schema) = 1 THEN"
+        " ALTER TABLE " +
+        kTable +
+        " ADD COLUMN IF NOT EXISTS summary bytea NOT NULL DEFAULT ''::bytea;"
+        " UPDATE npfkct_schema SET version = 2 WHERE version = 1; END IF; END $$;"
         " COMMIT; SELECT max(version)::text FROM npfkct_schema;";
     auto r = Query(kSchema, {}, false, /*simple=*/true);
     if (!r.ok()) return r.status();
@@ -358,20 +368,22 @@ class PostgresStore : public SessionStore {
     char ttl[64];
     std::snprintf(ttl, sizeof ttl, "%.17g", record.ttl_seconds);
     const std::string& id = record.id;
+    Param summary{SummaryOf(record), true};
     if (expected == 0) {
       // A new session: inserted only when the id is free and the table below its limit.
-      auto r = Query(
-          std::string("INSERT INTO ") + kTable +
-              " (id, version, snapshot, ttl_seconds, expires_at, updated_by)"
-              " SELECT $1::text, 1, $2::bytea, $3::float8,"
-              " now() + $3::float8 * interval '1 second', $4::text WHERE (SELECT count(*) FROM " +
-              kTable + ") < $5::bigint ON CONFLICT (id) DO NOTHING RETURNING 1",
-          {{id},
-           std::move(snapshot),
-           {ttl},
-           {options_.replica},
-           {std::to_string(options_.max_sessions)}},
-          false);
+      auto r = Query(std::string("INSERT INTO ") + kTable +
+                         " (id, version, snapshot, ttl_seconds, expires_at, updated_by, summary)"
+                         " SELECT $1::text, 1, $2::bytea, $3::float8,"
+                         " now() + $3::float8 * interval '1 second', $4::text, $6::bytea"
+                         " WHERE (SELECT count(*) FROM " +
+                         kTable + ") < $5::bigint ON CONFLICT (id) DO NOTHING RETURNING 1",
+                     {{id},
+                      std::move(snapshot),
+                      {ttl},
+                      {options_.replica},
+                      {std::to_string(options_.max_sessions)},
+                      std::move(summary)},
+                     false);
       if (!r.ok()) return r.status();
       if (PQntuples(r->get()) == 1) return version;
       auto exists = Query(std::string("SELECT 1 FROM ") + kTable + " WHERE id = $1", {{id}}, true);
@@ -388,14 +400,15 @@ class PostgresStore : public SessionStore {
     auto r = Query(std::string("UPDATE ") + kTable +
                        " SET version = $3::bigint, snapshot = $2::bytea, ttl_seconds = $4::float8,"
                        " expires_at = now() + $4::float8 * interval '1 second',"
-                       " updated_at = now(), updated_by = $5::text"
+                       " updated_at = now(), updated_by = $5::text, summary = $7::bytea"
                        " WHERE id = $1::text AND version = $6::bigint RETURNING 1",
                    {{id},
                     std::move(snapshot),
                     {std::to_string(version)},
                     {ttl},
                     {options_.replica},
-                    {std::to_string(expected)}},
+                    {std::to_string(expected)},
+                    std::move(summary)},
                    false);
     if (!r.ok()) return r.status();
     if (PQntuples(r->get()) == 1) return version;
@@ -429,6 +442,25 @@ class PostgresStore : public SessionStore {
     std::vector<std::string> ids;
     for (int i = 0; i < PQntuples(r->get()); ++i) ids.emplace_back(Value(r->get(), i, 0));
     return ids;
+  }
+
+  StatusOr<std::vector<Listed>> ListViews(size_t limit, const std::string& after) override {
+    auto r =
+        Query(std::string("SELECT id, CASE WHEN octet_length(summary) <= $3::bigint"
+                          " THEN summary END FROM ") +
+                  kTable + " WHERE id > $1 AND expires_at > now() ORDER BY id LIMIT $2::bigint",
+              {{after}, {std::to_string(limit)}, {std::to_string(api::kMaxSummaryBytes)}}, true);
+    if (!r.ok()) return r.status();
+    std::vector<Listed> out;
+    for (int i = 0; i < PQntuples(r->get()); ++i) {
+      Listed l{std::string(Value(r->get(), i, 0)), std::nullopt};
+      if (!PQgetisnull(r->get(), i, 1) && PQgetlength(r->get(), i, 1) > 0) {
+        auto view = api::DecodeSessionSummary(Value(r->get(), i, 1), limits_);
+        if (view.ok() && view->id == l.id) l.view = std::move(view).value();  // else: the record
+      }
+      out.push_back(std::move(l));
+    }
+    return out;
   }
 
   StatusOr<Loaded> Load(const std::string& id) override {

@@ -36,6 +36,9 @@ class InstrumentedStore : public SessionStore {
   StatusOr<std::vector<std::string>> List(size_t limit, const std::string& after) override {
     return Timed("list", [&] { return store_->List(limit, after); });
   }
+  StatusOr<std::vector<Listed>> ListViews(size_t limit, const std::string& after) override {
+    return Timed("list", [&] { return store_->ListViews(limit, after); });
+  }
   StatusOr<Loaded> Load(const std::string& id) override {
     return Timed("load", [&] { return store_->Load(id); });
   }
@@ -295,17 +298,23 @@ StatusOr<std::vector<api::SessionView>> Registry::Page(const std::string& token,
     if (it != sessions_.end() && !page.empty()) *next = page.back().id;
     return page;
   }
-  // Fleet: the store's sessions, each read from its record (a page is at most 100 of them).
+  // Fleet: the store's sessions from the summaries it keeps beside the records (a page is at
+  // most 100 of them). A record is read only for a row without one (saved by a server of schema
+  // version 1): records hold worlds and photos, megabytes each.
   size = std::min(size, 100);
-  auto ids = store_->List(static_cast<size_t>(size) + 1, token);
-  if (!ids.ok()) return ids.status();
-  for (size_t i = 0; i < ids->size() && static_cast<int>(i) < size; ++i) {
-    auto loaded = store_->Load((*ids)[i]);
+  auto listed = store_->ListViews(static_cast<size_t>(size) + 1, token);
+  if (!listed.ok()) return listed.status();
+  for (size_t i = 0; i < listed->size() && static_cast<int>(i) < size; ++i) {
+    if ((*listed)[i].view) {
+      page.push_back(std::move(*(*listed)[i].view));
+      continue;
+    }
+    auto loaded = store_->Load((*listed)[i].id);
     if (loaded.status().code() == StatusCode::kNotFound) continue;  // deleted meanwhile
     if (!loaded.ok()) return loaded.status();
     page.push_back(Session::ViewOf(loaded->record));
   }
-  if (static_cast<int>(ids->size()) > size) *next = (*ids)[size - 1];
+  if (static_cast<int>(listed->size()) > size) *next = (*listed)[size - 1].id;
   return page;
 }
 

@@ -27,12 +27,6 @@ std::string RandomHex(int bytes) {
   return out;
 }
 
-int64_t UnixMillis() {
-  return std::chrono::duration_cast<std::chrono::milliseconds>(
-             std::chrono::system_clock::now().time_since_epoch())
-      .count();
-}
-
 Status Busy() {
   return Status(StatusCode::kAborted,
                 "another request is working on this session; retry when it has finished");
@@ -209,7 +203,8 @@ StatusOr<api::PlanReply> Session::Plan(const Budget& asked,
   reply.candidates = planner_->candidate_stats();
   reply.budget = budget;
   history_.push_back({static_cast<int>(actions_), reply.action_id, reply.action, d.value, d.stats,
-                      reply.candidates, UnixMillis(), std::nullopt});
+                      reply.candidates, api::UnixMillis(std::chrono::system_clock::now()),
+                      std::nullopt});
   if (history_.size() > static_cast<size_t>(api::kMaxHistorySteps))
     history_.erase(history_.begin());
   state.unlock();
@@ -350,7 +345,7 @@ StatusOr<api::ObserveReply> Session::Observe(api::ObserveRequest req, SessionSto
                                  static_cast<int>(fresh.size()),
                                  req.frame.has_value(),
                                  done,
-                                 UnixMillis()};
+                                 api::UnixMillis(std::chrono::system_clock::now())};
     }
   }
   Reseed();

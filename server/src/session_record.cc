@@ -10,14 +10,6 @@ namespace {
 
 using object_search::World;
 
-int64_t Millis(std::chrono::system_clock::time_point t) {
-  return std::chrono::duration_cast<std::chrono::milliseconds>(t.time_since_epoch()).count();
-}
-
-std::chrono::system_clock::time_point FromMillis(int64_t ms) {
-  return std::chrono::system_clock::time_point(std::chrono::milliseconds(ms));
-}
-
 }  // namespace
 
 StatusOr<std::unique_ptr<Session>> Session::Restore(api::SessionRecord r, int64_t version,
@@ -31,8 +23,8 @@ StatusOr<std::unique_ptr<Session>> Session::Restore(api::SessionRecord r, int64_
   s->seed_ = r.seed;
   s->ttl_seconds_ = r.ttl_seconds;
   s->limits_ = limits;
-  s->create_time_ = FromMillis(r.create_time_ms);
-  s->update_time_ = FromMillis(r.update_time_ms);
+  s->create_time_ = api::FromUnixMillis(r.create_time_ms);
+  s->update_time_ = api::FromUnixMillis(r.update_time_ms);
   s->last_used_ = std::chrono::steady_clock::now();
   s->world_ = std::make_shared<const World>(std::move(r.world));
   s->state_ = r.state;
@@ -113,8 +105,8 @@ api::SessionView Session::ViewOf(const api::SessionRecord& r) {
   v.id = r.id;
   v.display_name = r.display_name;
   v.state = r.state;
-  v.create_time = FromMillis(r.create_time_ms);
-  v.update_time = FromMillis(r.update_time_ms);
+  v.create_time = api::FromUnixMillis(r.create_time_ms);
+  v.update_time = api::FromUnixMillis(r.update_time_ms);
   v.ttl_seconds = r.ttl_seconds;
   v.planner = r.planner;
   v.seed = r.seed;
@@ -130,6 +122,10 @@ api::SessionView Session::ViewOf(const api::SessionRecord& r) {
   v.total_simulations = r.total_simulations;
   v.planning_seconds_used = r.planning_seconds_used;
   return v;
+}
+
+std::string SummaryOf(const api::SessionRecord& record) {
+  return api::EncodeSessionSummary(Session::ViewOf(record));
 }
 
 api::SessionView Session::View() const {
@@ -155,13 +151,13 @@ api::SessionRecord Session::RecordLocked() const {
   r.seed = seed_;
   r.ttl_seconds = ttl_seconds_;
   r.target = target_;
-  r.create_time_ms = Millis(create_time_);
+  r.create_time_ms = api::UnixMillis(create_time_);
   std::lock_guard<std::mutex> lock(state_mutex_);
   r.state = state_;
   r.actions = actions_;
   r.total_simulations = total_simulations_;
   r.planning_seconds_used = planning_seconds_;
-  r.update_time_ms = Millis(update_time_);
+  r.update_time_ms = api::UnixMillis(update_time_);
   r.last_action_id = last_action_id_;
   r.pending_action_id = pending_action_id_;
   r.pending_action = pending_action_;

@@ -91,6 +91,14 @@ StatusOr<SessionStore::Refreshed> SessionStore::Refresh(const std::string&, int6
   return Status(StatusCode::kUnimplemented, "not a shared store");
 }
 Status SessionStore::KeepAlive(const std::vector<std::string>&) { return OkStatus(); }
+StatusOr<std::vector<SessionStore::Listed>> SessionStore::ListViews(size_t limit,
+                                                                    const std::string& after) {
+  auto ids = List(limit, after);
+  if (!ids.ok()) return ids.status();
+  std::vector<Listed> out;
+  for (std::string& id : *ids) out.push_back({std::move(id), std::nullopt});
+  return out;
+}
 StatusOr<std::vector<std::string>> SessionStore::DeleteExpired(size_t) {
   return std::vector<std::string>{};
 }

@@ -1,4 +1,6 @@
 // Session records as snapshot bytes.
+#include <algorithm>
+#include <chrono>
 #include <cstring>
 
 #include "json_util.h"
@@ -14,6 +16,7 @@ namespace {
 using internal::json;
 
 constexpr int kRecordVersion = 2;
+constexpr int kSummaryVersion = 1;
 
 const char* StateName(SessionState s) {
   return s == SessionState::kDone            ? "DONE"
@@ -29,6 +32,55 @@ std::string FloatsBase64(const std::vector<float>& v) {
 
 Status Lost(const std::string& what) { return Status(StatusCode::kDataLoss, "snapshot: " + what); }
 
+json PlannerJson(const PlannerSpec& p) {
+  json options = json::array();
+  for (size_t i = 0; i < p.options.size(); ++i) {
+    options.push_back({{"key", p.options[i].first},
+                       {"value", p.options[i].second},
+                       {"bool", i < p.option_is_bool.size() && p.option_is_bool[i]}});
+  }
+  return {{"name", p.name}, {"particles", p.particles}, {"model", p.model}, {"options", options}};
+}
+
+Status ReadPlanner(const json& j, const Limits& limits, PlannerSpec* out) {
+  const json p = j.value("planner", json::object());
+  out->name = internal::String(p, "name", "npfkct");
+  out->particles = static_cast<int>(internal::Integer(p, "particles", 300));
+  if (out->particles < 1 || out->particles > limits.max_particles) return Lost("planner particles");
+  out->model = internal::String(p, "model");
+  if (!out->model.empty() && !IsModelName(out->model)) return Lost("planner model");
+  if (p.contains("options")) {
+    const json& options = p.at("options");
+    if (!options.is_array() || static_cast<int64_t>(options.size()) > limits.max_planner_options) {
+      return Lost("planner options");
+    }
+    for (const json& o : options) {
+      const std::string key = internal::String(o, "key");
+      const double value = internal::Number(o, "value", std::nan(""));
+      if (key.empty() || key.size() > 64 || !std::isfinite(value)) return Lost("planner option");
+      out->options.emplace_back(key, value);
+      out->option_is_bool.push_back(internal::Bool(o, "bool"));
+    }
+  }
+  return OkStatus();
+}
+
+StatusOr<uint64_t> ReadSeed(const json& j) {
+  const std::string seed = internal::String(j, "seed", "0");
+  if (seed.empty() || seed.size() > 20 ||
+      seed.find_first_not_of("0123456789") != std::string::npos) {
+    return Lost("seed");
+  }
+  return std::strtoull(seed.c_str(), nullptr, 10);
+}
+
+SessionState ReadState(const json& j) {
+  const std::string state = internal::String(j, "state", "READY");
+  return state == "DONE"             ? SessionState::kDone
+         : state == "ACTION_PENDING" ? SessionState::kActionPending
+                                     : SessionState::kReady;
+}
+
 }  // namespace
 
 std::string EncodeRecord(const SessionRecord& r) {
@@ -36,17 +88,7 @@ std::string EncodeRecord(const SessionRecord& r) {
   j["version"] = kRecordVersion;
   j["id"] = r.id;
   j["displayName"] = r.display_name;
-  json options = json::array();
-  for (size_t i = 0; i < r.planner.options.size(); ++i) {
-    options.push_back(
-        {{"key", r.planner.options[i].first},
-         {"value", r.planner.options[i].second},
-         {"bool", i < r.planner.option_is_bool.size() && r.planner.option_is_bool[i]}});
-  }
-  j["planner"] = {{"name", r.planner.name},
-                  {"particles", r.planner.particles},
-                  {"model", r.planner.model},
-                  {"options", options}};
+  j["planner"] = PlannerJson(r.planner);
   j["seed"] = std::to_string(r.seed);
   j["ttlSeconds"] = r.ttl_seconds;
   j["state"] = StateName(r.state);
@@ -97,39 +139,13 @@ StatusOr<SessionRecord> DecodeRecord(std::string_view bytes, const Limits& limit
   if (!IsSessionId(r.id)) return Lost("bad id");
   r.display_name =
       internal::Utf8Prefix(internal::String(j, "displayName"), limits.max_display_name);
-  const json p = j.value("planner", json::object());
-  r.planner.name = internal::String(p, "name", "npfkct");
-  r.planner.particles = static_cast<int>(internal::Integer(p, "particles", 300));
-  if (r.planner.particles < 1 || r.planner.particles > limits.max_particles) {
-    return Lost("planner particles");
-  }
-  r.planner.model = internal::String(p, "model");
-  if (!r.planner.model.empty() && !IsModelName(r.planner.model)) return Lost("planner model");
-  if (p.contains("options")) {
-    const json& options = p.at("options");
-    if (!options.is_array() || static_cast<int64_t>(options.size()) > limits.max_planner_options) {
-      return Lost("planner options");
-    }
-    for (const json& o : options) {
-      const std::string key = internal::String(o, "key");
-      const double value = internal::Number(o, "value", std::nan(""));
-      if (key.empty() || key.size() > 64 || !std::isfinite(value)) return Lost("planner option");
-      r.planner.options.emplace_back(key, value);
-      r.planner.option_is_bool.push_back(internal::Bool(o, "bool"));
-    }
-  }
-  const std::string seed = internal::String(j, "seed", "0");
-  if (seed.empty() || seed.size() > 20 ||
-      seed.find_first_not_of("0123456789") != std::string::npos) {
-    return Lost("seed");
-  }
-  r.seed = std::strtoull(seed.c_str(), nullptr, 10);
+  if (Status s = ReadPlanner(j, limits, &r.planner); !s.ok()) return s;
+  auto seed = ReadSeed(j);
+  if (!seed.ok()) return seed.status();
+  r.seed = *seed;
   r.ttl_seconds = internal::Number(j, "ttlSeconds", 3600.0);
   if (!(r.ttl_seconds > 0.0)) return Lost("ttlSeconds");
-  const std::string state = internal::String(j, "state", "READY");
-  r.state = state == "DONE"             ? SessionState::kDone
-            : state == "ACTION_PENDING" ? SessionState::kActionPending
-                                        : SessionState::kReady;
+  r.state = ReadState(j);
   r.actions = std::max<int64_t>(0, internal::Integer(j, "actions"));
   r.total_simulations = std::max<int64_t>(0, internal::Integer(j, "totalSimulations"));
   r.planning_seconds_used = std::max(0.0, internal::Number(j, "planningSecondsUsed"));
@@ -222,6 +238,74 @@ StatusOr<SessionRecord> DecodeRecord(std::string_view bytes, const Limits& limit
     }
   }
   return r;
+}
+
+std::string EncodeSessionSummary(const SessionView& v) {
+  json j;
+  j["version"] = kSummaryVersion;
+  j["id"] = v.id;
+  j["displayName"] = v.display_name;
+  j["state"] = StateName(v.state);
+  j["createTimeMs"] = UnixMillis(v.create_time);
+  j["updateTimeMs"] = UnixMillis(v.update_time);
+  j["ttlSeconds"] = v.ttl_seconds;
+  j["planner"] = PlannerJson(v.planner);
+  j["seed"] = std::to_string(v.seed);
+  j["targetDescription"] = v.target_description;
+  j["photoCount"] = v.photo_count;
+  if (v.perception_tracks) j["perceptionTracks"] = *v.perception_tracks;
+  j["step"] = v.step;
+  j["robot"] = internal::ConfigJson(v.robot);
+  j["objectCount"] = v.object_count;
+  if (v.pending) {
+    j["pendingActionId"] = v.pending->first;
+    j["pendingAction"] = internal::ActionJson(v.pending->second);
+  }
+  j["totalSimulations"] = v.total_simulations;
+  j["planningSecondsUsed"] = v.planning_seconds_used;
+  return internal::Dump(j);
+}
+
+StatusOr<SessionView> DecodeSessionSummary(std::string_view bytes, const Limits& limits) {
+  if (bytes.size() > kMaxSummaryBytes) return Lost("summary too long");
+  auto parsed = internal::ParseBody(bytes, limits.max_json_depth, limits.max_json_values, false);
+  if (!parsed.ok()) return Lost(parsed.status().message());
+  const json& j = *parsed;
+  if (internal::Integer(j, "version") != kSummaryVersion) return Lost("unknown summary version");
+  SessionView v;
+  v.id = internal::String(j, "id");
+  if (!IsSessionId(v.id)) return Lost("bad id");
+  v.display_name =
+      internal::Utf8Prefix(internal::String(j, "displayName"), limits.max_display_name);
+  v.state = ReadState(j);
+  v.create_time = FromUnixMillis(internal::Integer(j, "createTimeMs"));
+  v.update_time = FromUnixMillis(internal::Integer(j, "updateTimeMs"));
+  v.ttl_seconds = internal::Number(j, "ttlSeconds", 3600.0);
+  if (Status s = ReadPlanner(j, limits, &v.planner); !s.ok()) return s;
+  auto seed = ReadSeed(j);
+  if (!seed.ok()) return seed.status();
+  v.seed = *seed;
+  v.target_description =
+      internal::Utf8Prefix(internal::String(j, "targetDescription"), limits.max_description);
+  v.photo_count = static_cast<int>(
+      std::clamp<int64_t>(internal::Integer(j, "photoCount"), 0, limits.max_photos));
+  if (j.contains("perceptionTracks")) {
+    v.perception_tracks =
+        static_cast<int>(std::clamp<int64_t>(internal::Integer(j, "perceptionTracks"), 0, 1 << 20));
+  }
+  v.step = static_cast<int>(std::clamp<int64_t>(internal::Integer(j, "step"), 0, 1'000'000'000));
+  v.robot = internal::ReadConfig(j.value("robot", json::object()));
+  v.object_count = static_cast<int>(
+      std::clamp<int64_t>(internal::Integer(j, "objectCount"), 0, limits.max_objects));
+  if (j.contains("pendingAction")) {
+    ActionView a;
+    if (!internal::ReadAction(j.at("pendingAction"), &a)) return Lost("pending action");
+    v.pending = std::make_pair(
+        internal::Utf8Prefix(internal::String(j, "pendingActionId"), limits.max_id_length), a);
+  }
+  v.total_simulations = std::max<int64_t>(0, internal::Integer(j, "totalSimulations"));
+  v.planning_seconds_used = std::max(0.0, internal::Number(j, "planningSecondsUsed"));
+  return v;
 }
 
 }  // namespace npfkct::api

@@ -437,6 +437,54 @@ TEST(Records, RoundTripAndRefuseCorruptOrOversizedSnapshots) {
   EXPECT_EQ(DecodeRecord(j.dump(), kLimits).status().code(), StatusCode::kDataLoss);
 }
 
+TEST(Records, SessionSummariesRenderAsTheViewTheyWereMadeOf) {
+  SessionView v;
+  v.id = std::string(32, 'b');
+  v.display_name = "kitchen \u20ac";
+  v.state = SessionState::kActionPending;
+  v.create_time = FromUnixMillis(1'764'000'000'123);
+  v.update_time = FromUnixMillis(1'764'000'100'456);
+  v.ttl_seconds = 1800;
+  v.planner.name = "npfkct";
+  v.planner.particles = 300;
+  v.planner.model = "filter.pt";
+  v.planner.options = {{"k", 4}, {"search.reuseTree", 1}, {"w1", 1.5}};
+  v.planner.option_is_bool = {false, true, false};
+  v.seed = 18446744073709551615ull;
+  v.target_description = "blue box";
+  v.photo_count = 2;
+  v.perception_tracks = 3;
+  v.step = 7;
+  v.robot.x = 1.25;
+  v.robot.tilt = -0.3;
+  v.object_count = 5;
+  ActionView a;
+  a.type = ActionView::Type::kDeclareObstacle;
+  a.object_id = "box-3";
+  v.pending = std::make_pair("a7-abcdef", a);
+  v.total_simulations = 123456;
+  v.planning_seconds_used = 12.5;
+  const std::string summary = EncodeSessionSummary(v);
+  EXPECT_LT(summary.size(), 1000u);
+  auto back = DecodeSessionSummary(summary, kLimits);
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  EXPECT_EQ(RenderSession(*back), RenderSession(v));
+  v.pending.reset();
+  v.perception_tracks.reset();
+  EXPECT_EQ(RenderSession(DecodeSessionSummary(EncodeSessionSummary(v), kLimits).value()),
+            RenderSession(v));
+  // Corrupt or oversized summaries are DATA_LOSS (the store then reads the record).
+  EXPECT_EQ(DecodeSessionSummary("{", kLimits).status().code(), StatusCode::kDataLoss);
+  EXPECT_EQ(DecodeSessionSummary(std::string(kMaxSummaryBytes + 1, ' '), kLimits).status().code(),
+            StatusCode::kDataLoss);
+  json j = json::parse(summary);
+  j["id"] = "../x";
+  EXPECT_EQ(DecodeSessionSummary(j.dump(), kLimits).status().code(), StatusCode::kDataLoss);
+  j = json::parse(summary);
+  j["planner"]["particles"] = 1'000'000'000;
+  EXPECT_EQ(DecodeSessionSummary(j.dump(), kLimits).status().code(), StatusCode::kDataLoss);
+}
+
 TEST(Replies, ErrorsCarryFieldViolationsAndRetryInfo) {
   Status s = InvalidFieldError("budget.timeMs", "must be <= 60000");
   s.WithFieldViolation("budget.cpuMs", "must be <= 60000");

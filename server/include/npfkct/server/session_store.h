@@ -52,6 +52,16 @@ class SessionStore {
   /// A stored session; NOT_FOUND when absent, DATA_LOSS when unreadable.
   virtual StatusOr<Loaded> Load(const std::string& id) = 0;
 
+  /// One session of ListViews: its API view when the store keeps one (SummaryOf), else none
+  /// (the caller loads the record).
+  struct Listed {
+    std::string id;
+    std::optional<api::SessionView> view;
+  };
+  /// As List, with each session's view where the store keeps summaries beside the records (the
+  /// PostgreSQL store), so that a page of sessions reads no records; this default gives ids.
+  virtual StatusOr<std::vector<Listed>> ListViews(size_t limit, const std::string& after = "");
+
   // ---- shared stores (several replicas write them) ----
 
   /// Whether other processes write this store too: a held session may be stale, and the store
@@ -79,6 +89,10 @@ std::string EncodeSnapshot(const api::SessionRecord& record, int64_t version);
 /// are truncated or corrupted (checksum), break a limit, or hold another session.
 StatusOr<SessionStore::Loaded> DecodeSnapshot(std::string_view bytes, const std::string& id,
                                               const api::Limits& limits);
+
+/// What a store that lists from summaries keeps beside `record`: its API view
+/// (api::EncodeSessionSummary of Session::ViewOf), a few hundred bytes.
+std::string SummaryOf(const api::SessionRecord& record);
 
 /// A store that keeps nothing (sessions live in memory only).
 std::unique_ptr<SessionStore> MakeMemoryStore();

@@ -86,6 +86,13 @@ std::string EncodeRecord(const SessionRecord& record);
 /// Reads snapshot bytes; malformed, truncated or out-of-limit records are DATA_LOSS, never a
 /// crash or an allocation beyond the limits.
 StatusOr<SessionRecord> DecodeRecord(std::string_view bytes, const Limits& limits);
+/// Longest summary DecodeSessionSummary reads.
+inline constexpr size_t kMaxSummaryBytes = 64 * 1024;
+/// A session's API resource as the few hundred bytes a shared store keeps beside its record, so
+/// that a list of sessions reads no records.
+std::string EncodeSessionSummary(const SessionView& session);
+/// Reads EncodeSessionSummary's bytes; malformed or out-of-limit ones are DATA_LOSS.
+StatusOr<SessionView> DecodeSessionSummary(std::string_view bytes, const Limits& limits);
 
 /// lowerCamelCase to snake_case per dot-separated segment ("search.maxDepth" ->
 /// "search.max_depth"), for planner option keys.

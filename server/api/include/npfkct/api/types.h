@@ -19,6 +19,15 @@
 
 namespace npfkct::api {
 
+/// Milliseconds since the Unix epoch, as records keep times.
+inline int64_t UnixMillis(std::chrono::system_clock::time_point t) {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(t.time_since_epoch()).count();
+}
+/// The time `ms` milliseconds after the Unix epoch.
+inline std::chrono::system_clock::time_point FromUnixMillis(int64_t ms) {
+  return std::chrono::system_clock::time_point(std::chrono::milliseconds(ms));
+}
+
 using object_search::Box;
 using object_search::RobotConfig;
 using object_search::Vec2;
