@@ -383,11 +383,14 @@ def test_images_that_decode_slowly_for_their_size(hostile_server):
     """Found by an outside attack: (1) a flat 2048 x 2048 progressive JPEG whose 16-byte
     refinement scan is repeated 2,000 times (57 kB): libjpeg passes over the whole image per
     scan, 5.8 s of CPU as a target photo, and as much as the image of an observation on a session
-    that does not exist (images are decoded while the body is read, before the lookup). (2) A
+    that does not exist (images were decoded while the body was read, before the lookup). (2) A
     16 x 16 PNG with 300 zTXt chunks each inflating to 7 MB of zeros (2 MB): libpng inflated every
-    one, 8.7 s. Now a JPEG of more than 32 scans is refused naming the field, and a PNG's text
-    chunks are never read. tests/data/flat_progressive_2048.jpg is cv::imencode of a flat grey
-    2048 x 2048 image with IMWRITE_JPEG_PROGRESSIVE and quality 50 (10 scans)."""
+    one, 8.7 s. (3) An arithmetic-coded CMYK JPEG of 32 four-component scans: 725 bytes, 0.8 s.
+    Now a JPEG whose scans cover more than 40 components in all, or an arithmetic-coded one, is
+    refused naming the field, an observation's image is decoded only for a session that exists,
+    and a PNG's text chunks are never read. tests/data/flat_progressive_2048.jpg is
+    cv::imencode of a flat grey 2048 x 2048 image with IMWRITE_JPEG_PROGRESSIVE and quality 50
+    (10 scans covering 14 components)."""
     url, rec = hostile_server.url, Recorder()
     with open(os.path.join(ROOT, "tests", "data", "flat_progressive_2048.jpg"), "rb") as f:
         progressive = f.read()
@@ -405,18 +408,25 @@ def test_images_that_decode_slowly_for_their_size(hostile_server):
 
     pid = hostile_server.proc.pid
     before = cpu_seconds(pid)
-    # Within the limit the photo is taken (the decoder makes 32 passes)...
+    # Within the limit the photo is taken (the decoder makes 36 passes)...
     create(url, rec, target=photos(jpeg(22)))
     # ... beyond it refused, at creation and in an observation.
     r = http("POST", url + "/v1/sessions", rec,
              json={"world": world_of("loose1"), "target": photos(progressive, jpeg(2000))})
     assert r.status_code == 400 and field_of(r) == "target.photos[1]", r.text
-    assert "more than 32 scans" in r.text
+    assert "cover more than 40 components" in r.text
+    arithmetic = progressive.replace(b"\xff\xc2", b"\xff\xca", 1)  # SOF10: arithmetic-coded
+    r = http("POST", url + "/v1/sessions", rec,
+             json={"world": world_of("loose1"), "target": photos(arithmetic)})
+    assert r.status_code == 400 and "arithmetic-coded" in r.text, r.text
     body = dict(raw_observation("a1-000000", [(1.0, 0.0, 1.0)]),
                 camera={"width": 2048, "height": 2048, "fx": 1000, "fy": 1000, "cx": 1024,
                         "cy": 1024},
                 image={"encoding": "jpeg", "data": base64.b64encode(jpeg(2000)).decode()})
     r = http("POST", f"{url}/v1/sessions/{'f' * 32}:observe", rec, json=body)
+    assert r.status_code == 404, r.text  # not decoded for a session that does not exist
+    sid, action_id = planned(url, rec)
+    r = http("POST", f"{url}/v1/sessions/{sid}:observe", rec, json=dict(body, actionId=action_id))
     assert r.status_code == 400 and field_of(r) == "image.data", r.text
 
     def chunk(kind, payload):

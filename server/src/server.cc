@@ -208,10 +208,12 @@ struct Server::Impl {
   }
 
   void Observe(const Request& req, Response& res, const std::string& body) {
-    auto observe = api::ParseObserve(body, options.limits);
-    if (!observe.ok()) return Fail(res, observe.status());
+    // The session first: parsing decodes raw images, CPU work not spent on a session that
+    // does not exist.
     auto s = Find(req, res);
     if (!s) return;
+    auto observe = api::ParseObserve(body, options.limits);
+    if (!observe.ok()) return Fail(res, observe.status());
     // Raw sensor data run perception: CPU work, admitted like a plan.
     std::optional<Admission::Ticket> ticket;
     if (observe->frame) {

@@ -96,11 +96,12 @@ StatusOr<ImageInfo> ProbeImage(std::string_view bytes, const std::string& field)
     info.height = BigEndian32(p + 20);
   } else if (n >= 3 && p[0] == 0xff && p[1] == 0xd8 && p[2] == 0xff) {
     // Walk every marker: the size from the first start-of-frame (SOF0..SOF15 but DHT, JPG and
-    // DAC), and the scans counted, since the decoder makes a pass over the whole image per scan.
+    // DAC), and the components of every scan counted, since the decoder passes over each
+    // component of the scan in the whole image.
     info.format = ImageInfo::Format::kJpeg;
     size_t i = 2;
     bool found = false;
-    int scans = 0;
+    int component_scans = 0;
     while (i + 4 <= n) {
       if (p[i] != 0xff) {
         if (!found) return InvalidFieldError(field, "a JPEG with a broken marker");
@@ -119,6 +120,11 @@ StatusOr<ImageInfo> ProbeImage(std::string_view bytes, const std::string& field)
       if (marker == 0xd9) break;  // end of image
       const size_t length = (size_t{p[i + 2]} << 8) | p[i + 3];
       if (length < 2) return InvalidFieldError(field, "a JPEG with a broken segment");
+      if (marker >= 0xc9 && marker <= 0xcf) {  // SOF9..SOF15 and DAC (0xcc)
+        return InvalidFieldError(field,
+                                 "an arithmetic-coded JPEG (rare, and its scans decode five times "
+                                 "slower than Huffman-coded ones)");
+      }
       if (!found && marker >= 0xc0 && marker <= 0xcf && marker != 0xc4 && marker != 0xc8 &&
           marker != 0xcc) {
         if (i + 9 > n) break;
@@ -126,12 +132,15 @@ StatusOr<ImageInfo> ProbeImage(std::string_view bytes, const std::string& field)
         info.width = (int64_t{p[i + 7]} << 8) | p[i + 8];
         found = true;
       }
+      const int scan_components = marker == 0xda && i + 4 < n ? p[i + 4] : 0;
       i += 2 + length;
       if (marker != 0xda) continue;
       if (!found) break;  // data before any frame header: refused below
-      if (++scans > kMaxJpegScans) {
-        return InvalidFieldError(field, "a JPEG of more than " + std::to_string(kMaxJpegScans) +
-                                            " scans (a progressive one has about 10)");
+      component_scans += std::max(scan_components, 1);
+      if (component_scans > kMaxJpegComponentScans) {
+        return InvalidFieldError(
+            field, "a JPEG whose scans cover more than " + std::to_string(kMaxJpegComponentScans) +
+                       " components in all (a progressive colour one covers 14)");
       }
       // The scan's entropy-coded data runs to the next marker: 0xff followed by neither a
       // stuffed zero nor a restart marker.

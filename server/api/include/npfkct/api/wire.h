@@ -28,12 +28,13 @@ struct ImageInfo {
   int64_t width = 0;
   int64_t height = 0;
 };
-/// Scans a JPEG may have: the decoder makes a pass over the whole image per scan, and a scan
-/// can take 16 bytes.
-inline constexpr int kMaxJpegScans = 32;
+/// Components a JPEG's scans may cover in all (a scan counts each component it codes): the
+/// decoder passes over each of them in the whole image, and a scan can take a few bytes. A
+/// progressive colour JPEG has 10 scans covering 14; a sequential one 1 or 3.
+inline constexpr int kMaxJpegComponentScans = 40;
 /// Reads the format and size of PNG or JPEG bytes from the header alone (PNG IHDR, JPEG SOFn);
-/// INVALID_ARGUMENT naming `field` when they are neither, the header is cut short, or a JPEG
-/// has more than kMaxJpegScans scans.
+/// INVALID_ARGUMENT naming `field` when they are neither, the header is cut short, or a JPEG is
+/// arithmetic-coded or its scans cover more than kMaxJpegComponentScans components.
 StatusOr<ImageInfo> ProbeImage(std::string_view bytes, const std::string& field);
 /// The PNG with only the chunks that decoding its pixels needs (critical chunks, tRNS, gAMA,
 /// cHRM, sRGB, sBIT, bKGD), in their order; bytes after a cut-short chunk are kept as they are.
