@@ -511,6 +511,41 @@ def test_a_plan_takes_a_planning_slot_per_search_thread(hostile_server):
     rec.check()
 
 
+def test_plans_whose_save_failed_still_count_against_the_session(tmp_path):
+    """A full disk (here the process's file size limit, SIGXFSZ ignored, so that writes past it
+    fail with EFBIG as on a full file system): a plan whose snapshot cannot be written answers
+    503 and the session goes back to its last snapshot, which had not counted the plan's CPU,
+    so plans on a failing store never used up --max-session-plan-seconds. Now the reloaded
+    session keeps what its copy spent, and the fourth 0.4 s plan of a 1 s budget is refused."""
+    def create_in(server):
+        r = http("POST", server.url + "/v1/sessions", None,
+                 json={"world": world_of("loose1"), "seed": 3, "planner": {"name": "kct"}})
+        assert r.status_code == 200, r.text
+        return r.json()["id"]
+
+    probe = ServerProcess("--state-dir", str(tmp_path / "probe"))
+    size = os.path.getsize(tmp_path / "probe" / f"{create_in(probe)}.snap")
+    assert_clean_exit(probe)
+
+    def disk_full_after_create():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (size + 200, size + 200))  # a plan adds ~780
+
+    server = ServerProcess("--state-dir", str(tmp_path / "state"), "--max-session-plan-seconds",
+                           "1", preexec_fn=disk_full_after_create)
+    url, rec = server.url, Recorder()
+    sid = create_in(server)
+    codes = []
+    for _ in range(4):
+        r = http("POST", f"{url}/v1/sessions/{sid}:plan", rec, json={"budget": {"cpuMs": 400}})
+        codes.append(r.status_code)
+    assert codes == [503, 503, 503, 429], codes
+    assert field_of(r) == "budget", r.text
+    used = http("GET", f"{url}/v1/sessions/{sid}", rec).json()["planningSecondsUsed"]
+    assert used >= 1.0, used
+    assert_clean_exit(server)
+
+
 # ---- 2. grid and map overflows ----
 
 def test_worlds_whose_cells_overflow_are_refused_before_allocation(tmp_path):

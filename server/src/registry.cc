@@ -239,6 +239,8 @@ StatusOr<std::shared_ptr<Session>> Registry::Install(SessionStore::Loaded loaded
     return restored.status();
   }
   std::shared_ptr<Session> session = std::move(restored).value();
+  // A held copy whose save failed planned meanwhile: the stored record does not count that.
+  if (replaced) session->KeepUsage(*replaced);
   metrics_->CountLoaded();
   std::unique_lock lock(mutex_);
   auto it = sessions_.find(id);

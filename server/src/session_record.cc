@@ -1,5 +1,7 @@
 // How a session is restored from its record, recorded and shown: the parts of Session that
 // turn its state into the API layer's types and back (session.cc has the state machine).
+#include <algorithm>
+
 #include "npfkct/api/api.h"
 #include "npfkct/api/wire.h"
 #include "npfkct/perception/perception.h"
@@ -122,6 +124,19 @@ api::SessionView Session::ViewOf(const api::SessionRecord& r) {
   v.total_simulations = r.total_simulations;
   v.planning_seconds_used = r.planning_seconds_used;
   return v;
+}
+
+void Session::KeepUsage(const Session& replaced) {
+  double seconds = 0.0;
+  int64_t simulations = 0;
+  {
+    std::lock_guard<std::mutex> lock(replaced.state_mutex_);
+    seconds = replaced.planning_seconds_;
+    simulations = replaced.total_simulations_;
+  }
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  planning_seconds_ = std::max(planning_seconds_, seconds);
+  total_simulations_ = std::max(total_simulations_, simulations);
 }
 
 std::string SummaryOf(const api::SessionRecord& record) {

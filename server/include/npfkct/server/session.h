@@ -97,6 +97,10 @@ class Session {
   std::vector<api::StepRecord> Steps() const;
   /// Threads each of its plans searches on (search.threads): the planning slots a plan takes.
   int SearchThreads() const { return search_threads_; }
+  /// Keeps the planning time and simulations `replaced` (an earlier copy of this session, e.g.
+  /// one whose save failed) used where they exceed this copy's: reloading a session from its
+  /// last snapshot never gives back planning budget that was spent.
+  void KeepUsage(const Session& replaced);
 
   /// The API resource of a stored record (a session this server does not hold).
   static api::SessionView ViewOf(const api::SessionRecord& record);
