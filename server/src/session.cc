@@ -97,7 +97,6 @@ Status Session::Init(const SamplerFactory& samplers) {
         planner.status().message());
   }
   planner_ = std::move(planner).value();
-  search_threads_ = planner_->SearchThreads();
   planner_->SetBelief(FreshBelief());
   return OkStatus();
 }

@@ -96,7 +96,7 @@ class Session {
   /// The steps so far (the last api::kMaxHistorySteps), oldest first.
   std::vector<api::StepRecord> Steps() const;
   /// Threads each of its plans searches on (search.threads): the planning slots a plan takes.
-  int SearchThreads() const { return search_threads_; }
+  int SearchThreads() const { return planner_->SearchThreads(); }
   /// Keeps the planning time and simulations `replaced` (an earlier copy of this session, e.g.
   /// one whose save failed) used where they exceed this copy's: reloading a session from its
   /// last snapshot never gives back planning budget that was spent.
@@ -148,7 +148,6 @@ class Session {
   Rng rng_;
   std::unique_ptr<object_search::ObjectSearchModel> model_;
   std::unique_ptr<object_search::SearchPlanner> planner_;
-  int search_threads_ = 1;
   std::unique_ptr<perception::Perception> perception_;
 
   // The state readers see (state_mutex_).
