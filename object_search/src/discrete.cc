@@ -1,5 +1,7 @@
 #include "npfkct/object_search/discrete.h"
 
+#include <algorithm>
+
 namespace npfkct::object_search {
 
 DiscreteObjectSearch::DiscreteObjectSearch(const ObjectSearchModel& model, DiscreteActionSet set)
@@ -19,6 +21,11 @@ RobotConfig DiscreteObjectSearch::MoveTarget(int a, const RobotConfig& from) con
   const auto lifts = w.ManualLifts();
   const auto heads = w.ManualHeads();
   RobotConfig c = from;
+  // The joints a primitive move keeps are the robot's as reported, within its limits: a move
+  // never asks for a lift or head angle the robot cannot take.
+  c.lift = std::clamp(c.lift, w.robot.lift_min, w.robot.lift_max);
+  c.pan = std::clamp(c.pan, w.robot.pan_min, w.robot.pan_max);
+  c.tilt = std::clamp(c.tilt, w.robot.tilt_min, w.robot.tilt_max);
   if (set_ == DiscreteActionSet::kJoint) {
     const RobotConfig& pose = poses_[a / 27];
     c.x = pose.x;

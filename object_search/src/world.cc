@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <random>
 
 namespace npfkct::object_search {
 namespace {
@@ -303,6 +305,37 @@ std::vector<Workspace> PriorMap::Workspaces() const {
   return out;
 }
 
+namespace {
+
+// Whether some point of the base regions is feasible for the base (inside a region, its
+// footprint and clearance free), by 4,096 draws spread over the regions by their areas, always
+// the same ones: a world whose regions lie inside furniture leaves every planner proposing
+// configurations the robot cannot take.
+bool AnyBaseFeasible(const World& world) {
+  std::vector<double> cumulative;
+  double total = 0.0;
+  for (const BaseRegion& r : world.base_regions) {
+    total += (r.max.x() - r.min.x()) * (r.max.y() - r.min.y());
+    cumulative.push_back(total);
+  }
+  if (!(total > 0.0)) return false;
+  std::mt19937_64 gen(20261127);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (int i = 0; i < 4096; ++i) {
+    const double pick = u(gen) * total;
+    const size_t k = std::min<size_t>(
+        std::lower_bound(cumulative.begin(), cumulative.end(), pick) - cumulative.begin(),
+        cumulative.size() - 1);
+    const BaseRegion& r = world.base_regions[k];
+    const double x = r.min.x() + u(gen) * (r.max.x() - r.min.x());
+    const double y = r.min.y() + u(gen) * (r.max.y() - r.min.y());
+    if (world.BaseFeasible(x, y)) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
 StatusOr<World> BuildWorld(const PriorMap& prior) {
   auto robot = RobotPreset::ByName(prior.robot);
   if (!robot.ok()) return InvalidFieldError("robot", robot.status().message());
@@ -312,11 +345,34 @@ StatusOr<World> BuildWorld(const PriorMap& prior) {
     map.AddBox(f.box);
     furniture.push_back(f.box);
   }
+  // The base stands in the room: each region is cut to it (a region kilometres wide made every
+  // draw of a base pose fall outside), and one with no part in it is refused.
+  std::vector<BaseRegion> regions = prior.base_regions;
+  if (!map.cells().empty()) {
+    for (size_t i = 0; i < regions.size(); ++i) {
+      BaseRegion& r = regions[i];
+      if (!r.min.allFinite() || !r.max.allFinite()) continue;  // Validate() names it
+      r.min = r.min.cwiseMax(map.min());
+      r.max = r.max.cwiseMin(map.max());
+      if (!(r.min.x() < r.max.x() && r.min.y() < r.max.y())) {
+        return InvalidFieldError("baseRegions[" + std::to_string(i) + "]", "lies outside the room");
+      }
+    }
+  }
   World world =
-      World::Make(*robot, prior.params, std::move(furniture), std::move(map), prior.base_regions,
+      World::Make(*robot, prior.params, std::move(furniture), std::move(map), std::move(regions),
                   GridWorld(prior.Workspaces(), kGridResolution), prior.start);
   world.discrete_poses = prior.discrete_poses;
   if (Status s = world.Validate(); !s.ok()) return s;
+  if (!AnyBaseFeasible(world)) {
+    char radius[32];
+    std::snprintf(radius, sizeof radius, "%.2f",
+                  world.robot.footprint_radius + world.params.base_clearance);
+    return InvalidFieldError("baseRegions",
+                             "no point of the base regions leaves the robot's footprint (" +
+                                 std::string(radius) +
+                                 " m with its clearance) free of the furniture and the walls");
+  }
   // The start need not be in a base region, but the footprint must be free.
   if (!world.occupancy.DiscFree(prior.start.x, prior.start.y, world.robot.footprint_radius)) {
     return InvalidFieldError("start", "the robot's footprint collides with the map");

@@ -600,5 +600,25 @@ TEST(WorldTest, BuildWorldNamesThePartOfThePriorMap) {
   EXPECT_EQ(BuildWorld(prior).status().field_violations()[0].field, "robot");
 }
 
+TEST(WorldTest, BaseRegionsAreCutToTheRoomAndMustLeaveRoomForTheBase) {
+  PriorMap prior;  // the room is [-3, 3] x [-3, 3]
+  prior.furniture.push_back({"table", {Vec3(1.5, 0, 0.375), 0.0, Vec3(1, 1, 0.75)}, true});
+  prior.base_regions.push_back({Vec2(-1e4, -1e4), Vec2(0.5, 1e4)});
+  auto w = BuildWorld(prior);
+  ASSERT_TRUE(w.ok()) << w.status().ToString();
+  EXPECT_EQ(w->base_regions[0].min, Vec2(-3, -3));
+  EXPECT_EQ(w->base_regions[0].max, Vec2(0.5, 3));
+  prior.base_regions.push_back({Vec2(5, 5), Vec2(6, 6)});  // outside the room
+  auto outside = BuildWorld(prior);
+  ASSERT_FALSE(outside.ok());
+  EXPECT_EQ(outside.status().field_violations()[0].field, "baseRegions[1]");
+  prior.base_regions = {{Vec2(1.2, -0.3), Vec2(1.8, 0.3)}};  // inside the table
+  auto blocked = BuildWorld(prior);
+  ASSERT_FALSE(blocked.ok());
+  EXPECT_EQ(blocked.status().field_violations()[0].field, "baseRegions");
+  prior.base_regions.push_back({Vec2(-2.5, 1.0), Vec2(-2.4, 1.1)});  // a small free corner
+  EXPECT_TRUE(BuildWorld(prior).ok());
+}
+
 }  // namespace
 }  // namespace npfkct::object_search

@@ -53,13 +53,48 @@ void Label(cv::Mat& img, const std::string& text, cv::Point at, double scale,
   cv::putText(img, text, at, kFont, scale, color, thickness, cv::LINE_AA);
 }
 
+// The part [t0, t1] (in units of the segment's length, within [0, 1]) of the segment a-b inside
+// `r` (Liang-Barsky); false when none of it is.
+bool ClipSegment(cv::Point2d a, cv::Point2d b, const cv::Rect2d& r, double* t0, double* t1) {
+  const cv::Point2d d = b - a;
+  *t0 = 0.0;
+  *t1 = 1.0;
+  const double p[4] = {-d.x, d.x, -d.y, d.y};
+  const double q[4] = {a.x - r.x, r.x + r.width - a.x, a.y - r.y, r.y + r.height - a.y};
+  for (int i = 0; i < 4; ++i) {
+    if (p[i] == 0.0) {
+      if (q[i] < 0.0) return false;
+      continue;
+    }
+    const double t = q[i] / p[i];
+    if (p[i] < 0.0) {
+      *t0 = std::max(*t0, t);
+    } else {
+      *t1 = std::min(*t1, t);
+    }
+  }
+  return *t0 <= *t1;
+}
+
+// Dashes of `dash` pixels from a to b, drawn only where they cross the image: an outline
+// millions of pixels long (a base region far outside a small room) costs what its visible part
+// costs.
 void DashedLine(cv::Mat& img, cv::Point2d a, cv::Point2d b, const cv::Scalar& color, int thickness,
                 double dash = 8.0) {
   const cv::Point2d d = b - a;
   const double length = std::hypot(d.x, d.y);
-  if (length < 1e-9) return;
+  if (!(length >= 1e-9 && length < 1e12)) return;
+  const double margin = thickness + 2.0;
+  double t0 = 0.0, t1 = 1.0;
+  if (!ClipSegment(a, b, cv::Rect2d(-margin, -margin, img.cols + 2 * margin, img.rows + 2 * margin),
+                   &t0, &t1)) {
+    return;
+  }
   const cv::Point2d step = d * (1.0 / length);
-  for (double t = 0.0; t < length; t += 2.0 * dash) {
+  // The first dash that reaches the visible part, in the pattern that starts at a.
+  const double first = std::floor(std::max(0.0, t0 * length - dash) / (2.0 * dash)) * 2.0 * dash;
+  const double end = std::min(length, t1 * length + dash);
+  for (double t = first; t < end; t += 2.0 * dash) {
     const cv::Point2d p = a + step * t, q = a + step * std::min(length, t + dash);
     cv::line(img, cv::Point(cvRound(p.x), cvRound(p.y)), cv::Point(cvRound(q.x), cvRound(q.y)),
              color, thickness, cv::LINE_AA);
@@ -81,9 +116,12 @@ struct Frame {
   cv::Point2d At(double x, double y) const {
     return {origin.x + (x - lo.x()) * ppm, origin.y + (hi.y() - y) * ppm};
   }
+  // Pixels as integers, within a million pixels of the picture (world coordinates up to 1e4 m
+  // at a small room's scale would not fit an int; OpenCV clips what lies outside the image).
   cv::Point Px(double x, double y) const {
     const cv::Point2d p = At(x, y);
-    return {cvRound(p.x), cvRound(p.y)};
+    constexpr double kFar = 1e6;
+    return {cvRound(std::clamp(p.x, -kFar, kFar)), cvRound(std::clamp(p.y, -kFar, kFar))};
   }
   int width() const { return std::max(1, cvRound((hi.x() - lo.x()) * ppm)); }
   int height() const { return std::max(1, cvRound((hi.y() - lo.y()) * ppm)); }

@@ -139,6 +139,40 @@ TEST(Picture, HeatMapFillsTheMapAndCellsLandWhereTheyAre) {
   }
 }
 
+// Base regions reaching 10 km past a small room: their outlines are drawn where they cross the
+// picture, dash by dash only there (drawing 64 such outlines dash by dash took 32 s of CPU).
+TEST(Picture, DrawsTheVisiblePartOfOutlinesFarLargerThanThePicture) {
+  World world = TableWorld();
+  world.robot_config.yaw = M_PI;
+  BeliefPictureOptions options;
+  options.map_pixels = 600;
+  const cv::Mat plain = RenderBelief(world, options);
+  world.base_regions.clear();
+  for (int i = 0; i < 64; ++i) world.base_regions.push_back({Vec2(-0.2, -0.1), Vec2(1e4, 1e4)});
+  const cv::Mat drawn = RenderBelief(world, options);
+  ASSERT_EQ(drawn.size(), plain.size());
+  const auto [lo, hi] = CropBounds(world, std::nullopt, options.margin);
+  const double ppm = 600.0 / std::max(hi.x() - lo.x(), hi.y() - lo.y());
+  const int title_height = 38;
+  // Changed pixels along the left edge (x = -0.2, inside the crop) and the bottom edge
+  // (y = -0.1) up to the picture's right side.
+  auto changed_near = [&](double x, double y) {
+    const cv::Point at(cvRound((x - lo.x()) * ppm), title_height + cvRound((hi.y() - y) * ppm));
+    int n = 0;
+    for (int dy = -3; dy <= 3; ++dy) {
+      for (int dx = -12; dx <= 12; ++dx) {
+        const cv::Point p = at + cv::Point(dx, dy);
+        if (p.x >= 0 && p.y >= 0 && p.x < drawn.cols && p.y < drawn.rows) {
+          n += drawn.at<cv::Vec3b>(p) != plain.at<cv::Vec3b>(p);
+        }
+      }
+    }
+    return n;
+  };
+  EXPECT_GT(changed_near(-0.2, 0.3 * lo.y() + 0.7 * hi.y()), 0);
+  EXPECT_GT(changed_near(hi.x() - 0.1, -0.1), 0);
+}
+
 TEST(Picture, StaysWithinThePixelBudget) {
   const World world = TableWorld();
   BeliefPictureOptions options;

@@ -233,7 +233,9 @@ struct PriorMap {
 /// The robot's initial knowledge of a prior map: the occupancy map of the room with the furniture,
 /// the base regions, the grid world over the workspaces (kGridResolution), no object but the
 /// guessed target, the robot at the start. Errors are INVALID_ARGUMENT; those about one part carry
-/// it as a field violation ("start", "robot").
+/// it as a field violation ("start", "robot"). Each base region is cut to the room; a region with
+/// no part in it ("baseRegions[i]") or regions with no point free for the robot's footprint
+/// ("baseRegions") are refused.
 /// The caller bounds the sizes (cells, pieces) before calling: this allocates what they ask for.
 StatusOr<World> BuildWorld(const PriorMap& prior);
 

@@ -322,17 +322,22 @@ class KCenterTree {
 
     // The decision: merge the root statistics of the workers and pick a sphere (algorithm 1,
     // line 12), then Action_sam + Reasonability_check (lines 13-18).
-    // A sphere none of whose points passes the check is passed over for the next best.
+    // A sphere none of whose points passes the check is passed over for the next best, up to
+    // kMaxFinalEntries of them: in a world where hardly any configuration is feasible, a root of
+    // thousands of spheres cost thousands of times one sphere's draws after the budget (a 200 ms
+    // plan ran 35 s with max_feasibility_tries 10,000). A cancelled plan stops passing over.
     const State& s0 = belief_.Sample(rng);
     int chosen_worker = 0, best = -1;
     std::set<std::pair<int, int>> excluded;
     bool executable = false;
-    while (ChooseRootEntry(excluded, &chosen_worker, &best)) {
+    for (int tried = 0;
+         tried < kMaxFinalEntries && ChooseRootEntry(excluded, &chosen_worker, &best); ++tried) {
       if (SampleExecutable(workers_[chosen_worker], best, s0, rng, &d.action)) {
         executable = true;
         break;
       }
       excluded.insert({chosen_worker, best});
+      if (stop.Interrupted()) break;
     }
     if (!executable && !ChooseRootEntry({}, &chosen_worker, &best)) {
       return Fail(std::move(d), FailedPreconditionError("no legal action at the root"));
@@ -415,6 +420,9 @@ class KCenterTree {
   }
 
  private:
+  // Root entries the decision passes over at most when none of their points is executable.
+  static constexpr int kMaxFinalEntries = 8;
+
   // Per action node: the sphere's range (the center is action.x), where it came from, and the
   // episodes that chose it.
   struct Sphere {
