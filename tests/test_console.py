@@ -84,5 +84,6 @@ def test_the_console_shows_a_live_episode():
     assert seen["stepsWhileWatching"][1] > seen["stepsWhileWatching"][0]
     assert seen["objectsLabelled"], "no object was labelled"
     assert seen["bestGuess"]
+    assert seen["badFragmentListed"]
     for name in ("console-api-key.png", "console-episode.png", "console-done.png"):
         assert os.path.getsize(os.path.join(SHOTS, name)) > 10_000, name

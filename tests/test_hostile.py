@@ -588,7 +588,7 @@ def test_bodies_past_the_limit_in_any_framing_and_ranges(hostile_server):
     before = {keeper: snapshot_of(url, keeper)}
     # Chunked: 2 GiB announced in 1 MiB chunks; refused (413) once 4 MiB have been counted.
     with socket.create_connection(("127.0.0.1", port), timeout=10) as s:
-        s.sendall(b"POST /v1/sessions HTTP/1.1\r\nHost: x\r\nTransfer-Encoding: chunked\r\n\r\n")
+        s.sendall(b"POST /v1/sessions HTTP/1.1\r\nHost: 127.0.0.1\r\nTransfer-Encoding: chunked\r\n\r\n")
         chunk = b"100000\r\n" + b" " * 0x100000 + b"\r\n"
         sent, reply = 0, b""
         try:
@@ -618,7 +618,7 @@ def test_bodies_past_the_limit_in_any_framing_and_ranges(hostile_server):
     assert status_of(reply) == 415, reply[:200]
     # No length, no chunking: no body (answered at once, not read until the client closes).
     t = time.monotonic()
-    reply = raw_exchange(port, b"POST /v1/sessions HTTP/1.1\r\nHost: x\r\n\r\n{\"world\": 1}")
+    reply = raw_exchange(port, b"POST /v1/sessions HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n{\"world\": 1}")
     assert status_of(reply) == 400 and time.monotonic() - t < 5.0
     assert b"expected a JSON object" in reply
     # Both lengths (request smuggling) and other transfer codings.
@@ -665,7 +665,7 @@ def test_heads_httplib_would_read_otherwise_and_connection_tokens(hostile_server
     rec.add(431)
     # Connection is a case-insensitive token list; HTTP/1.0 closes unless asked to keep alive.
     # The second, pipelined request is never answered and the server closes at once.
-    second = b"GET /healthz HTTP/1.1\r\nHost: x\r\n\r\n"
+    second = b"GET /healthz HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"
     for first in [b"GET /v1/sessions HTTP/1.1\r\nConnection: Close\r\n\r\n",
                   b"GET /v1/sessions HTTP/1.1\r\nConnection: keep-alive, close\r\n\r\n",
                   b"GET /v1/sessions HTTP/1.0\r\n\r\n"]:
@@ -680,7 +680,7 @@ def test_heads_httplib_would_read_otherwise_and_connection_tokens(hostile_server
         assert b"Keep-Alive" not in out, out
         rec.add(200)
     # Empty lines before a request line are ignored (RFC 9112 2.2).
-    reply = raw_exchange(port, b"\r\n\r\nGET /healthz HTTP/1.1\r\nHost: x\r\n\r\n")
+    reply = raw_exchange(port, b"\r\n\r\nGET /healthz HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
     assert status_of(reply) == 200, reply[:200]
     rec.add(200)
     # An unknown key of 1 MiB is named, cut, in a short answer (not echoed back twice).
@@ -1044,13 +1044,13 @@ def test_multipart_bodies_odd_methods_and_option_spellings(hostile_server):
     # A multipart body: httplib's plain body reader throws on one (a 500 before this fix).
     part = b"--xx\r\nContent-Disposition: form-data; name=\"a\"\r\n\r\n1\r\n--xx--\r\n"
     for target in (b"/v1/sessions", b"/v1/sessions/" + keeper.encode() + b":plan"):
-        reply = raw_exchange(port, b"POST " + target + b" HTTP/1.1\r\nHost: x\r\n"
+        reply = raw_exchange(port, b"POST " + target + b" HTTP/1.1\r\nHost: 127.0.0.1\r\n"
                              b"Content-Type: multipart/form-data; boundary=xx\r\n"
                              b"Content-Length: " + str(len(part)).encode() + b"\r\n\r\n" + part)
         assert status_of(reply) == 415, reply[:300]
         rec.add(415)
     # A method that is not HTTP's: counted as "other", never copied into /metrics.
-    reply = raw_exchange(port, b'A"},evil="1 /healthz HTTP/1.1\r\nHost: x\r\n\r\n')
+    reply = raw_exchange(port, b'A"},evil="1 /healthz HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n')
     assert status_of(reply) in (400, 404, 405, 501), reply[:200]
     metrics = http("GET", url + "/metrics", rec).text
     assert "evil" not in metrics
@@ -1198,5 +1198,243 @@ def test_a_growing_search_tree_stops_at_the_heap_bound(tmp_path):
     r = http("POST", f"{url}/v1/sessions/{pending[0]}:observe", rec, json=observation(pending[1]))
     assert r.status_code == 200, r.text
     create(url, rec)
+    rec.check()
+    assert_clean_exit(server)
+
+
+# ---- session 18: an outside tester's findings ----
+
+def test_base_regions_are_cut_to_the_room_and_must_leave_room_for_the_robot(hostile_server):
+    # One base region 20 km wide (within the coordinate limit) made every draw of a base pose
+    # fall outside the room: kct's decision then tried the draws of every one of its thousands of
+    # root spheres after the budget (a 200 ms plan ran 35 s with maxFeasibilityTries 10,000, past
+    # a DELETE and SIGTERM) and answered a MOVE kilometres outside the room.
+    url, rec = hostile_server.url, Recorder()
+    world = world_of("loose1")
+    world["baseRegions"] = [{"min": [-1e4, -1e4], "max": [1e4, 1e4]}]
+    for name in ("kct", "npfkct"):
+        sid = create(url, rec, world=world,
+                     planner={"name": name, "particles": 1000,
+                              "options": {"maxFeasibilityTries": 10000}})
+        t = time.monotonic()
+        r = http("POST", f"{url}/v1/sessions/{sid}:plan", rec, json={"budget": {"timeMs": 200}})
+        took = time.monotonic() - t
+        assert r.status_code == 200 and took < 1.5, (name, took, r.text[:300])
+        move = r.json()["action"]["configuration"]
+        assert -3 <= move["x"] <= 4 and -3 <= move["y"] <= 3.5, (name, move)
+    # A region with no part in the room, or regions with no free point for the robot (inside
+    # the table), are refused at creation, naming the field.
+    for regions, field in [([{"min": [10, 10], "max": [11, 11]}], "world.baseRegions[0]"),
+                           (world_of("loose1")["baseRegions"] + [{"min": [-9, 0], "max": [-8, 1]}],
+                            "world.baseRegions[4]"),
+                           ([{"min": [1.2, -0.2], "max": [2.0, 0.2]}], "world.baseRegions")]:
+        bad = dict(world, baseRegions=regions)
+        r = http("POST", url + "/v1/sessions", rec, json={"world": bad})
+        assert r.status_code == 400 and field_of(r) == field, r.text
+    rec.check()
+
+
+def test_a_move_keeps_only_joints_the_robot_can_take(hostile_server):
+    # A robot state with lift, pan and tilt at +-1000 (inside the API's bound on angles) made
+    # pomcp's and gpomcp's base moves ask for the same joints back.
+    url, rec = hostile_server.url, Recorder()
+    for name in ("pomcp", "gpomcp"):
+        sid, action = planned(url, rec, planner={"name": name, "particles": 50})
+        body = observation(action)
+        body["robotState"].update(lift=-1000, pan=1000, tilt=-1000)
+        assert http("POST", f"{url}/v1/sessions/{sid}:observe", rec, json=body).status_code == 200
+        for _ in range(6):
+            r = http("POST", f"{url}/v1/sessions/{sid}:plan", rec,
+                     json={"budget": {"simulations": 200}})
+            assert r.status_code == 200, r.text
+            a = r.json()["action"]
+            if a["type"] == "MOVE":
+                c = a["configuration"]
+                assert 0 <= c["lift"] <= 0.4 and abs(c["pan"]) <= 0.27 and abs(c["tilt"]) <= 0.5, c
+            obs = observation(r.json()["actionId"])
+            obs["robotState"].update(lift=-1000, pan=1000, tilt=-1000)
+            obs["detections"] = []
+            if http("POST", f"{url}/v1/sessions/{sid}:observe", rec, json=obs).json().get("done"):
+                break
+    rec.check()
+
+
+def test_strings_with_nul_pass_no_length_limit(hostile_server):
+    # The schema validator measured strings up to their first NUL: "a\u0000" and 25 MiB more
+    # passed every maxLength, and a restored session came back with its strings cut.
+    url, rec = hostile_server.url, Recorder()
+    for key, value, field in [("displayName", "a\u0000" + "x" * 1000, "displayName"),
+                              ("target", {"description": "\u0000" * 3000}, "target.description")]:
+        r = http("POST", url + "/v1/sessions", rec,
+                 json={"world": world_of("loose1"), key: value})
+        assert r.status_code == 400 and field_of(r) == field, r.text
+    sid, action = planned(url, rec)
+    body = observation(action)
+    body["detections"][0]["id"] = "b\u0000" + "y" * 1000
+    r = http("POST", f"{url}/v1/sessions/{sid}:observe", rec, json=body)
+    assert r.status_code == 400 and field_of(r) == "detections[0].id", r.text
+    rec.check()
+
+
+def test_web_pages_of_other_sites_cannot_use_the_api(tmp_path):
+    # Without an API key on loopback, any page the operator opened could POST to the server (a
+    # text/plain "simple" request needs no preflight) or, after DNS rebinding, read it.
+    server = ServerProcess("--state-dir", str(tmp_path / "state"))
+    url, port, rec = server.url, server.port, Recorder()
+    body = json.dumps({"world": world_of("loose1")})
+    refused = [({"Origin": "http://evil.example", "Content-Type": "text/plain"}, "Origin"),
+               ({"Origin": "null"}, "Origin"),
+               ({"Sec-Fetch-Site": "cross-site"}, "Sec-Fetch-Site"),
+               ({"Host": f"evil.example:{port}"}, "Host")]
+    for headers, field in refused:
+        r = http("POST", url + "/v1/sessions", rec, data=body, headers=headers)
+        assert r.status_code == 403 and field_of(r) == field, (headers, r.text)
+        assert r.headers["X-Content-Type-Options"] == "nosniff"
+    assert http("GET", url + "/v1/sessions", rec).json()["sessions"] == []
+    r = http("GET", url + "/v1/sessions", rec, headers={"Host": "rebound.example"})
+    assert r.status_code == 403, r.text
+    # The console's own calls (same origin), and clients that are not browsers, go through.
+    r = http("POST", url + "/v1/sessions", rec, data=body,
+             headers={"Origin": f"http://127.0.0.1:{port}", "Sec-Fetch-Site": "same-origin",
+                      "Content-Type": "application/json"})
+    assert r.status_code == 200, r.text
+    assert http("GET", url + "/ui", rec, headers={"Sec-Fetch-Site": "cross-site"}).ok
+    # A method that is not HTTP's is named in the error.
+    reply = raw_exchange(port, b"BREW /v1/sessions HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
+    assert status_of(reply) == 400 and b"method BREW is not supported" in reply, reply[:300]
+    rec.check()
+    assert_clean_exit(server)
+
+
+def big_belief_world():
+    """A world whose belief is about 1.2 MB of JSON: one 9.8 m table of 240,000 grid cells."""
+    world = world_of("loose1")
+    world["room"] = {"min": [-6, -6], "max": [6, 6]}
+    world["furniture"] = [{"name": "table", "center": [0, 0], "size": [9.8, 9.8, 0.75],
+                           "workspace": True}]
+    world["baseRegions"] = [{"min": [-5.9, -5.9], "max": [-5.0, 5.9]}]
+    world.pop("discretePoses", None)
+    world["start"] = {"x": -5.5, "y": 0.0, "yaw": 0.0, "lift": 0.2, "pan": 0.0, "tilt": 0.3}
+    return world
+
+
+def test_clients_that_never_read_their_responses_hold_no_request_thread(hostile_server):
+    # Each connection pipelines five GETs of a 1.2 MB belief and never reads: the kernel's
+    # buffers take about three replies, and the worker writing the fourth waited 10 s for the
+    # socket. 16 such connections (about 1 kB sent) held every request thread (10 here) and a
+    # session list waited more than 10 s. Replies the socket does not take now wait in the
+    # reactor, which sends them as the client reads.
+    url, port, rec = hostile_server.url, hostile_server.port, Recorder()
+    sid = create(url, rec, world=big_belief_world())
+    one = f"GET /v1/sessions/{sid}/belief HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n".encode()
+    readers = []
+    try:
+        for _ in range(16):
+            s = socket.socket()
+            s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 2048)
+            s.connect(("127.0.0.1", port))
+            s.sendall(one * 5)
+            readers.append(s)
+        time.sleep(2.0)
+        for _ in range(3):
+            t = time.monotonic()
+            assert http("GET", url + "/v1/sessions", rec).status_code == 200
+            assert time.monotonic() - t < 2.0, time.monotonic() - t
+        # A reader that reads at last gets all five replies, whole.
+        s = readers[0]
+        s.settimeout(30)
+        data = b""
+        while data.count(b"HTTP/1.1 200") < 5 or not data.endswith(b"}"):
+            chunk = s.recv(1 << 20)
+            assert chunk, "closed early"
+            data += chunk
+        assert data.count(b"HTTP/1.1 200 OK") == 5
+    finally:
+        for s in readers:
+            s.close()
+    rec.check()
+
+
+def test_plans_waiting_for_a_slot_are_the_sessions_and_leave_with_it(tmp_path):
+    # A plan waited in the planning queue before it claimed its session: a second plan on the
+    # same session was queued (holding a queue place) instead of refused at once, the TTL reaped
+    # a session whose plan was queued, and a deleted session's plan kept its place until a slot
+    # freed.
+    server = ServerProcess("--state-dir", str(tmp_path / "state"), "--plan-slots", "1",
+                           "--plan-queue", "1", "--session-ttl", "2")
+    url, rec = server.url, Recorder()
+    busy, waiting = create(url, rec), create(url, rec)
+    results = {}
+
+    def plan(name, sid, ms):
+        t = time.monotonic()
+        r = http("POST", f"{url}/v1/sessions/{sid}:plan", rec, json={"budget": {"timeMs": ms}})
+        results[name] = (r, time.monotonic() - t)
+
+    first = threading.Thread(target=plan, args=("busy", busy, 4000))
+    first.start()
+    time.sleep(0.5)
+    queued = threading.Thread(target=plan, args=("waiting", waiting, 200))
+    queued.start()
+    time.sleep(0.5)
+    # The session in the queue answers a second plan at once, without taking the queue place.
+    t = time.monotonic()
+    r = http("POST", f"{url}/v1/sessions/{waiting}:plan", rec, json={"budget": {"timeMs": 200}})
+    assert r.status_code == 409 and time.monotonic() - t < 0.5, r.text
+    # Past its TTL in the queue (2 s), it is still there: in use, not idle.
+    time.sleep(2.5)
+    assert http("GET", f"{url}/v1/sessions", rec).json()["sessions"]
+    queued.join(timeout=30)
+    r, _ = results["waiting"]
+    assert r.status_code == 200, r.text
+    first.join(timeout=30)
+    # A deleted session's queued plan leaves the queue at once.
+    first = threading.Thread(target=plan, args=("busy2", create(url, rec), 3000))
+    first.start()
+    time.sleep(0.5)
+    doomed = create(url, rec)
+    queued = threading.Thread(target=plan, args=("doomed", doomed, 200))
+    queued.start()
+    time.sleep(0.5)
+    t = time.monotonic()
+    assert http("DELETE", f"{url}/v1/sessions/{doomed}", rec).status_code == 200
+    queued.join(timeout=30)
+    r, took = results["doomed"]
+    assert r.status_code == 409 and time.monotonic() - t < 1.0, (r.text, took)
+    first.join(timeout=30)
+    assert results["busy2"][0].status_code == 200, results["busy2"][0].text
+    rec.check()
+    assert_clean_exit(server)
+
+
+def test_a_session_whose_snapshot_cannot_be_removed_is_kept(tmp_path):
+    # DELETE answered 503 (the snapshot could not be removed) after dropping the session from
+    # memory: GET then said 404, and the session came back at the next start. A TTL expiry did
+    # the same. The snapshot stands in the way here as a directory of its name.
+    state = tmp_path / "state"
+    server = ServerProcess("--state-dir", str(state))
+    url, rec = server.url, Recorder()
+    sid = create(url, rec)
+    short = create(url, rec, ttlSeconds=1)
+    for s in (sid, short):
+        snap = state / f"{s}.snap"
+        snap.unlink()
+        (snap / "blocker").mkdir(parents=True)
+    r = http("DELETE", f"{url}/v1/sessions/{sid}", rec)
+    assert r.status_code == 503, r.text
+    rec.add(200)  # the 503 is the answer wanted here
+    rec.codes = [c for c in rec.codes if c[0] != 503]
+    assert http("GET", f"{url}/v1/sessions/{sid}", rec).status_code == 200
+    time.sleep(2.5)
+    listed = {s["id"] for s in http("GET", f"{url}/v1/sessions", rec).json()["sessions"]}
+    assert short in listed, listed
+    for s in (sid, short):
+        (state / f"{s}.snap" / "blocker").rmdir()
+        (state / f"{s}.snap").rmdir()
+    assert http("DELETE", f"{url}/v1/sessions/{sid}", rec).status_code == 200
+    assert http("GET", f"{url}/v1/sessions/{sid}", rec).status_code == 404
+    time.sleep(2.0)
+    listed = {s["id"] for s in http("GET", f"{url}/v1/sessions", rec).json()["sessions"]}
+    assert short not in listed, listed
     rec.check()
     assert_clean_exit(server)

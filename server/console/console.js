@@ -21,9 +21,35 @@ const COLORS = {
 const REFRESH_MS = 1000;
 const SVG_NS = 'http://www.w3.org/2000/svg';
 
+// The session the page's #fragment names ('' when it names none or is not valid percent-encoding:
+// a crafted link must not stop the console).
+function selectedFromHash() {
+  try {
+    return decodeURIComponent(location.hash.replace(/^#/, ''));
+  } catch (e) {
+    return '';
+  }
+}
+
+// Every session, following nextPageToken (a fleet's store answers at most 100 per page), up to
+// MAX_LIST_PAGES pages.
+const MAX_LIST_PAGES = 20;
+async function listSessions() {
+  let sessions = [];
+  let token = '';
+  for (let page = 0; page < MAX_LIST_PAGES; ++page) {
+    const query = token ? `&pageToken=${encodeURIComponent(token)}` : '';
+    const list = await api(`/v1/sessions?pageSize=1000${query}`);
+    sessions = sessions.concat(list.sessions);
+    token = list.nextPageToken || '';
+    if (!token) break;
+  }
+  return sessions;
+}
+
 const state = {
   apiKey: sessionStorage.getItem('npfkct.apiKey') || '',
-  selected: decodeURIComponent(location.hash.replace(/^#/, '')),
+  selected: selectedFromHash(),
   lastSeen: '',        // updateTime + state of the selected session when last drawn
   needsKey: false,
 };
@@ -465,11 +491,10 @@ async function refresh() {
     return;
   }
   try {
-    const list = await api('/v1/sessions?pageSize=1000');
+    const sessions = await listSessions();
     state.needsKey = false;
     $('auth').classList.toggle('hidden', !state.apiKey);
     $('auth-message').textContent = '';
-    const sessions = list.sessions;
     if (!state.selected && sessions.length) {
       // The most recently updated session.
       state.selected = sessions.reduce((a, b) => (a.updateTime >= b.updateTime ? a : b)).id;
@@ -511,7 +536,7 @@ function start() {
     refresh();
   });
   window.addEventListener('hashchange', () => {
-    state.selected = decodeURIComponent(location.hash.replace(/^#/, ''));
+    state.selected = selectedFromHash();
     state.lastSeen = '';
     refresh();
   });

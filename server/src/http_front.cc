@@ -120,6 +120,11 @@ struct HttpFront::Conn {
   size_t body_bytes = 0;    // payload of the chunks consumed so far
   bool health = false;      // GET /healthz or /metrics
   bool registered = false;  // in the epoll set
+  std::string out;          // response bytes the socket has not taken yet, from out_pos
+  size_t out_pos = 0;
+  size_t out_reserved = 0;  // bytes of out counted in the front's pending_out_
+  bool writing = false;     // the reactor sends `out` (watching EPOLLOUT), then reads again
+  bool close_after_out = false;
   Clock::time_point deadline;
   int served = 0;
   size_t accounted = 0;       // bytes counted in the front's in-flight total
@@ -133,8 +138,14 @@ struct HttpFront::Conn {
 // A fixed pool of threads taking connections with complete requests.
 class HttpFront::Pool {
  public:
+  // Throws std::system_error when a thread cannot be started (the threads started are joined).
   Pool(int threads, std::function<void(std::unique_ptr<Conn>)> serve) : serve_(std::move(serve)) {
-    for (int i = 0; i < threads; ++i) threads_.emplace_back([this] { Run(); });
+    try {
+      for (int i = 0; i < threads; ++i) threads_.emplace_back([this] { Run(); });
+    } catch (...) {
+      Stop();
+      throw;
+    }
   }
   ~Pool() { Stop(); }
   void Push(std::unique_ptr<Conn> c) {
@@ -195,14 +206,17 @@ class InlineQueue : public httplib::TaskQueue {
 // deadlines) should httplib read further.
 class BufferedStream : public httplib::Stream {
  public:
-  BufferedStream(HttpFront::Conn& c, size_t& consumed, Clock::duration write_timeout)
-      : c_(c), consumed_(consumed), write_timeout_(write_timeout) {}
+  BufferedStream(HttpFront::Conn& c, size_t& consumed, Clock::duration write_timeout,
+                 std::atomic<size_t>& pending_out, size_t max_pending_out)
+      : c_(c),
+        consumed_(consumed),
+        write_timeout_(write_timeout),
+        pending_out_(pending_out),
+        max_pending_out_(max_pending_out) {}
   bool is_readable() const override { return consumed_ < c_.buf.size() || Poll(POLLIN, 1000); }
-  bool is_writable() const override { return Poll(POLLOUT, 1000); }
+  bool is_writable() const override { return true; }
   ssize_t read(char* ptr, size_t size) override;
-  ssize_t write(const char* ptr, size_t size) override {
-    return WriteAll(Fd(), ptr, size, write_timeout_) ? static_cast<ssize_t>(size) : -1;
-  }
+  ssize_t write(const char* ptr, size_t size) override;
   void get_remote_ip_and_port(std::string& ip, int& port) const override {
     Address(&ip, &port, /*peer=*/true);
   }
@@ -239,10 +253,60 @@ class BufferedStream : public httplib::Stream {
     *ip = host;
   }
 
+  // Counts `n` more bytes in the front's pending output, unless that would pass its bound.
+  bool Reserve(size_t n) {
+    size_t now = pending_out_.load();
+    do {
+      if (now + n > max_pending_out_) return false;
+    } while (!pending_out_.compare_exchange_weak(now, now + n));
+    c_.out_reserved += n;
+    return true;
+  }
+
   HttpFront::Conn& c_;
   size_t& consumed_;
   Clock::duration write_timeout_;
+  std::atomic<size_t>& pending_out_;
+  size_t max_pending_out_;
 };
+
+// What the socket takes now goes; the rest waits in the connection for the reactor, which sends
+// it as the client reads. Past the front's bound on waiting bytes, the worker sends it itself,
+// waiting for the socket up to the write timeout (what waited before it first).
+ssize_t BufferedStream::write(const char* ptr, size_t size) {
+  if (c_.out_pos == c_.out.size()) {
+    size_t sent = 0;
+    while (sent < size) {
+      const ssize_t n = ::send(Fd(), ptr + sent, size - sent, MSG_NOSIGNAL);
+      if (n > 0) {
+        sent += static_cast<size_t>(n);
+      } else if (n < 0 && errno == EINTR) {
+        continue;
+      } else if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) {
+        break;
+      } else {
+        return -1;
+      }
+    }
+    if (sent == size) return static_cast<ssize_t>(size);
+    c_.out.clear();
+    c_.out_pos = 0;
+    ptr += sent;
+    size -= sent;
+  }
+  if (Reserve(size)) {
+    c_.out.append(ptr, size);
+    return static_cast<ssize_t>(size);
+  }
+  if (!WriteAll(Fd(), c_.out.data() + c_.out_pos, c_.out.size() - c_.out_pos, write_timeout_)) {
+    return -1;
+  }
+  pending_out_ -= c_.out_reserved;
+  c_.out_reserved = 0;
+  c_.out.clear();
+  c_.out_pos = 0;
+  return WriteAll(Fd(), ptr, size, write_timeout_) ? static_cast<ssize_t>(size) : -1;
+}
 
 ssize_t BufferedStream::read(char* ptr, size_t size) {
   if (consumed_ < c_.request_end) {
@@ -365,8 +429,31 @@ void HttpFront::ReleaseBytes(Conn* c, size_t n) {
   inflight_ -= n;
 }
 
+bool HttpFront::FlushOut(Conn* c) {
+  while (c->out_pos < c->out.size()) {
+    const ssize_t n =
+        ::send(c->fd, c->out.data() + c->out_pos, c->out.size() - c->out_pos, MSG_NOSIGNAL);
+    if (n > 0) {
+      c->out_pos += static_cast<size_t>(n);
+    } else if (n < 0 && errno == EINTR) {
+      continue;
+    } else {
+      return n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK);
+    }
+  }
+  pending_out_ -= c->out_reserved;
+  c->out_reserved = 0;
+  c->out.clear();
+  c->out.shrink_to_fit();
+  c->out_pos = 0;
+  c->writing = false;
+  return true;
+}
+
 void HttpFront::Close(std::unique_ptr<Conn> c) {
   if (!c || c->fd < 0) return;
+  pending_out_ -= c->out_reserved;
+  c->out_reserved = 0;
   ReleaseBytes(c.get(), c->accounted);
   if (c->registered && epoll_fd_ >= 0) ::epoll_ctl(epoll_fd_, EPOLL_CTL_DEL, c->fd, nullptr);
   ::shutdown(c->fd, SHUT_RDWR);
@@ -385,20 +472,26 @@ void HttpFront::Return(std::unique_ptr<Conn> c) {
 
 void HttpFront::Serve(std::unique_ptr<Conn> c) {
   size_t consumed = 0;
-  bool keep = false;
+  bool keep = false, ok = false;
   {
-    BufferedStream stream(*c, consumed, Seconds(options_.write_timeout_s));
+    BufferedStream stream(*c, consumed, Seconds(options_.write_timeout_s), pending_out_,
+                          options_.max_inflight_bytes);
     c->view.must_close = false;
     c->view.start = Clock::now();
     c->view.route = "-";
     current_connection = &c->view;
     const bool last = ++c->served >= options_.keep_alive_max || stopping_ || c->close_asked;
     bool closed = false;
-    const bool ok = process_request(stream, last, closed, nullptr);
+    ok = process_request(stream, last, closed, nullptr);
     current_connection = nullptr;
     keep = ok && !closed && !last && !c->view.must_close && !stopping_;
   }
-  if (!keep) return Close(std::move(c));
+  if (c->out_pos < c->out.size() && ok && !stopping_) {
+    // The reactor sends the rest as the client reads, then reads the next request or closes.
+    c->close_after_out = !keep;
+    c->writing = true;
+  }
+  if (!keep && !c->writing) return Close(std::move(c));
   // The next request may already be buffered (pipelining).
   ReleaseBytes(c.get(), c->request_end);
   c->buf.erase(0, c->request_end);
@@ -660,6 +753,43 @@ void HttpFront::Reactor() {
     pool->Push(std::move(c));
   };
 
+  // A connection whose response waits for the client to read: watched for EPOLLOUT until sent
+  // (within the write timeout), then closed or read again.
+  auto send_rest = [&](std::unique_ptr<Conn> c) -> std::unique_ptr<Conn> {
+    if (!FlushOut(c.get())) {
+      Close(std::move(c));
+      return nullptr;
+    }
+    if (c->writing) {
+      epoll_event ev{};
+      ev.events = EPOLLOUT;
+      ev.data.fd = c->fd;
+      if (::epoll_ctl(epoll_fd_, c->registered ? EPOLL_CTL_MOD : EPOLL_CTL_ADD, c->fd, &ev) != 0) {
+        Close(std::move(c));
+        return nullptr;
+      }
+      c->registered = true;
+      const int fd = c->fd;
+      conns[fd] = std::move(c);
+      return nullptr;
+    }
+    if (c->close_after_out) {
+      Close(std::move(c));
+      return nullptr;
+    }
+    c->deadline = Clock::now() + Seconds(options_.idle_timeout_s);
+    if (c->registered) {  // read again
+      epoll_event ev{};
+      ev.events = EPOLLIN | EPOLLRDHUP;
+      ev.data.fd = c->fd;
+      if (::epoll_ctl(epoll_fd_, EPOLL_CTL_MOD, c->fd, &ev) != 0) {
+        Close(std::move(c));
+        return nullptr;
+      }
+    }
+    return c;
+  };
+
   // A connection's bytes so far: dispatched when complete, kept (and watched) otherwise.
   auto settle = [&](std::unique_ptr<Conn> c) {
     const int state = advance(c);
@@ -698,6 +828,10 @@ void HttpFront::Reactor() {
       if (it == conns.end()) continue;
       std::unique_ptr<Conn> c = std::move(it->second);
       conns.erase(it);
+      if (c->writing) {
+        if (auto ready = send_rest(std::move(c))) settle(std::move(ready));
+        continue;
+      }
       char chunk[16384];
       if (c->closing) {
         ssize_t got = 0;
@@ -764,6 +898,11 @@ void HttpFront::Reactor() {
       incoming.swap(incoming_);
     }
     for (auto& c : incoming) {
+      if (c->writing) {
+        c->deadline = Clock::now() + Seconds(options_.write_timeout_s);
+        c = send_rest(std::move(c));
+        if (!c) continue;
+      }
       if (c->buf.find_first_not_of("\r\n") == std::string::npos) {
         ReleaseBytes(c.get(), c->buf.size());
         c->buf.clear();
@@ -782,7 +921,7 @@ void HttpFront::Reactor() {
       }
       std::unique_ptr<Conn> c = std::move(it->second);
       it = conns.erase(it);
-      if (c->buf.empty() || c->closing) {
+      if (c->buf.empty() || c->closing || c->writing) {
         Close(std::move(c));
       } else {
         refuse(std::move(c), 408,

@@ -6,10 +6,11 @@
 // as it streams in) with deadlines for the head, the body and keep-alive idleness, answers
 // `Expect: 100-continue`, and refuses what httplib 0.11.4 would let through (a body past the
 // limit in any framing, compressed bodies, Content-Length with Transfer-Encoding, any other
-// transfer coding). Only complete requests reach a worker thread, so slow or idle clients hold
-// a file descriptor, never a thread. GET /healthz and GET /metrics go to their own workers,
-// which nothing else can occupy. While a handler runs, Current() gives its connection, so a
-// long handler can notice that the client went away (ClientGone()).
+// transfer coding). Only complete requests reach a worker thread, and a response the socket
+// does not take at once goes back to the reactor to be sent as the client reads it, so slow or
+// idle clients, sending or reading, hold a file descriptor, never a thread. GET /healthz and GET
+// /metrics go to their own workers, which nothing else can occupy. While a handler runs, Current()
+// gives its connection, so a long handler can notice that the client went away (ClientGone()).
 #pragma once
 
 #include <httplib.h>
@@ -39,7 +40,9 @@ struct HttpFrontOptions {
   size_t max_head_bytes = 16384;     ///< Request line and headers.
   size_t max_body_bytes = 32 << 20;  ///< Request body, in any framing.
   /// Request bytes buffered across all connections (read but not yet answered); a request that
-  /// would go past it is refused (429).
+  /// would go past it is refused (429). Response bytes waiting for slow readers have a bound of
+  /// the same size of their own: within it a worker hands what the socket does not take to the
+  /// reactor and goes on; past it the worker waits for the socket (up to write_timeout_s).
   size_t max_inflight_bytes = 128 << 20;
   int keep_alive_max = 100;  ///< Requests per connection.
 };
@@ -92,6 +95,8 @@ class HttpFront : public httplib::Server {
   void Return(std::unique_ptr<Conn> conn);
   void Close(std::unique_ptr<Conn> conn);
   void ReleaseBytes(Conn* conn, size_t n);
+  // Sends what the connection's pending response the socket takes now; false on an error.
+  bool FlushOut(Conn* conn);
   void Wake();
 
   class Pool;
@@ -103,6 +108,7 @@ class HttpFront : public httplib::Server {
   std::atomic<bool> stopping_{false};
   std::atomic<int> open_connections_{0};
   std::atomic<size_t> inflight_{0};
+  std::atomic<size_t> pending_out_{0};  // response bytes the reactor still has to send
   std::mutex incoming_mutex_;
   std::vector<std::unique_ptr<Conn>> incoming_;
   std::thread reactor_;

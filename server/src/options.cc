@@ -4,6 +4,7 @@
 #include <netinet/in.h>
 
 #include <algorithm>
+#include <cctype>
 #include <string>
 #include <thread>
 
@@ -13,9 +14,29 @@
 namespace npfkct::server {
 namespace {
 
-// Whether `host` only accepts connections from this machine: "localhost", an IPv4 address in
-// 127.0.0.0/8 or the IPv6 loopback. Anything else (0.0.0.0, ::, a name, an interface address)
-// may be reached from the network.
+std::string Lower(std::string_view s) {
+  std::string out(s);
+  for (char& c : out) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return out;
+}
+
+// The host name of an authority ("Name:8080", "[::1]:8080", "name."): lower case, without the
+// port, the brackets of an IPv6 literal or a trailing dot.
+std::string NameOfAuthority(std::string_view authority) {
+  std::string_view name = authority;
+  if (!name.empty() && name.front() == '[') {
+    const size_t close = name.find(']');
+    name = close == std::string_view::npos ? name.substr(1) : name.substr(1, close - 1);
+  } else if (const size_t colon = name.rfind(':');
+             colon != std::string_view::npos && name.find(':') == colon) {
+    name = name.substr(0, colon);
+  }
+  if (!name.empty() && name.back() == '.') name.remove_suffix(1);
+  return Lower(name);
+}
+
+}  // namespace
+
 bool IsLoopbackHost(const std::string& host) {
   if (host == "localhost") return true;
   in_addr v4{};
@@ -24,7 +45,27 @@ bool IsLoopbackHost(const std::string& host) {
   return inet_pton(AF_INET6, host.c_str(), &v6) == 1 && IN6_IS_ADDR_LOOPBACK(&v6);
 }
 
-}  // namespace
+std::string BrowserRefusal(const ServerOptions& o, bool api_route, std::string_view host_header,
+                           std::string_view origin, std::string_view fetch_site) {
+  const std::string host = NameOfAuthority(host_header);
+  if (o.api_key.empty() && IsLoopbackHost(o.host) && !host_header.empty() &&
+      !(IsLoopbackHost(host) || host.ends_with(".localhost"))) {
+    return "Host: a server without an API key on a loopback address answers only requests "
+           "for localhost, 127.0.0.0/8 or [::1] (another name may be a web page's DNS "
+           "rebinding)";
+  }
+  if (!api_route) return "";
+  const std::string site = Lower(fetch_site);
+  if (site == "cross-site" || site == "same-site") {
+    return "Sec-Fetch-Site: requests from the web pages of other sites are refused";
+  }
+  if (origin.empty()) return "";
+  const size_t scheme = origin.find("://");
+  if (scheme == std::string_view::npos || NameOfAuthority(origin.substr(scheme + 3)) != host) {
+    return "Origin: requests from the web pages of other origins are refused";
+  }
+  return "";
+}
 
 ServerOptions Resolved(ServerOptions o) {
   const int cores = std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
@@ -55,8 +96,9 @@ Status ServerOptions::Validate() const {
   if (!(session_ttl_seconds > 0.0)) return InvalidFieldError("session-ttl", "must be > 0");
   if (max_sessions < 1) return InvalidFieldError("max-sessions", "must be >= 1");
   if (threads < 1 || threads > 1024) return InvalidFieldError("threads", "must be in [1, 1024]");
-  if (plan_slots < 0 || plan_slots > 1024 || plan_queue < 0 || plan_queue > 100000) {
-    return InvalidFieldError("plan-slots", "plan slots in [0, 1024], queue in [0, 100000]");
+  // Each queued plan holds a request thread (Resolved): slots and queue bound the threads.
+  if (plan_slots < 0 || plan_slots > 1024 || plan_queue < 0 || plan_queue > 2048) {
+    return InvalidFieldError("plan-slots", "plan slots in [0, 1024], queue in [0, 2048]");
   }
   if (max_body_bytes < 1024) return InvalidFieldError("max-body-mb", "must be >= 1 KiB");
   if (max_inflight_bytes < max_body_bytes) {
@@ -99,10 +141,26 @@ HttpFront::ErrorRenderer FrontErrors() {
 }
 
 httplib::Server::HandlerWithResponse HttpErrorBodies() {
-  return [](const httplib::Request&, httplib::Response& res) {
+  return [](const httplib::Request& req, httplib::Response& res) {
     using R = httplib::Server::HandlerResponse;
     if (!res.body.empty()) return R::Unhandled;
     const int code = res.status;
+    // httplib answers 400 to a method it does not know before any route sees the request.
+    static constexpr std::string_view kKnown[] = {"GET",    "HEAD",    "POST",  "PUT",
+                                                  "DELETE", "OPTIONS", "PATCH", "CONNECT"};
+    if (code == 400 && !req.method.empty() &&
+        std::find(std::begin(kKnown), std::end(kKnown), req.method) == std::end(kKnown)) {
+      std::string method;
+      for (char c : req.method.substr(0, 16)) {
+        method += std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' ? c : '?';
+      }
+      res.set_content(api::RenderError(InvalidArgumentError("method " + method +
+                                                            " is not supported (GET, HEAD, "
+                                                            "POST, DELETE)"),
+                                       code),
+                      "application/json");
+      return R::Handled;
+    }
     const StatusCode status = code == 404   ? StatusCode::kNotFound
                               : code == 413 ? StatusCode::kResourceExhausted
                               : code == 416 ? StatusCode::kOutOfRange

@@ -8,11 +8,27 @@
 #include "http_front.h"
 // clang-format on
 
+#include <string>
+#include <string_view>
+
 namespace npfkct::server {
 
 /// `o` with the defaults that depend on the machine filled in (plan slots: one per core; the
 /// queue: twice the slots; request threads: enough for every slot and queued plan, plus four).
 ServerOptions Resolved(ServerOptions o);
+
+/// Whether `host` (as `--host` takes it) accepts connections from this machine only: "localhost",
+/// an IPv4 address in 127.0.0.0/8 or the IPv6 loopback.
+bool IsLoopbackHost(const std::string& host);
+
+/// Why a request must be refused as one a web page made on a browser's behalf (empty: it may go
+/// on). Any route of a server without an API key bound to loopback: a `Host` header that names
+/// neither localhost nor a loopback address (a page's DNS rebinding). An API route: a
+/// `Sec-Fetch-Site` of cross-site or same-site, or an `Origin` whose host name is not the `Host`
+/// header's (cross-site request forgery; ports are not compared, since a proxy's `Host` may drop
+/// them). Clients that are not browsers send neither `Origin` nor `Sec-Fetch-Site`.
+std::string BrowserRefusal(const ServerOptions& o, bool api_route, std::string_view host_header,
+                           std::string_view origin, std::string_view fetch_site);
 
 /// The HTTP front's settings of a server.
 HttpFrontOptions FrontOptions(const ServerOptions& o);

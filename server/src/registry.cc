@@ -359,16 +359,25 @@ Status Registry::Remove(const std::string& id) {
   {
     std::unique_lock lock(mutex_);
     auto it = sessions_.find(id);
-    if (it != sessions_.end()) {
-      held = std::move(it->second);
-      sessions_.erase(it);
-      metrics_->SetSessions(static_cast<int>(sessions_.size()));
-    }
+    if (it != sessions_.end()) held = it->second;
   }
+  auto forget = [&] {
+    std::unique_lock lock(mutex_);
+    auto it = sessions_.find(id);
+    if (it == sessions_.end() || it->second != held) return;
+    sessions_.erase(it);
+    metrics_->SetSessions(static_cast<int>(sessions_.size()));
+  };
   if (!shared_) {
-    // Cancels a running plan and removes the snapshot under the session's persistence lock.
-    return held ? held->Delete(store_.get()) : NotHeld(id);
+    if (!held) return NotHeld(id);
+    // Removes the snapshot under the session's persistence lock, then cancels a running plan;
+    // a snapshot that cannot be removed keeps the session held (the client may retry), since
+    // it would come back at the next start.
+    if (Status s = held->Delete(store_.get()); !s.ok()) return s;
+    forget();
+    return OkStatus();
   }
+  if (held) forget();
   // Fleet: the row is the session, wherever it is held. The held copy is marked deleted first
   // (waiting for a save in flight), so it is never written again.
   if (held) (void)held->Delete(nullptr);

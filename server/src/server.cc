@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <random>
 #include <string_view>
+#include <system_error>
 #include <thread>
 
 #include "admission.h"
@@ -107,10 +108,16 @@ struct Server::Impl {
   }
 
   // The session of the path, held or (fleet mode) loaded from the store.
+  // The session of the request's path, touched: its TTL counts from the end of the last request
+  // on it, whatever the request and its outcome.
   std::shared_ptr<Session> Find(const Request& req, Response& res) {
     auto s = registry.Acquire(req.matches[1]);
-    if (!s.ok()) Fail(res, s.status());
-    return s.ok() ? *s : nullptr;
+    if (!s.ok()) {
+      Fail(res, s.status());
+      return nullptr;
+    }
+    (*s)->Touch();
+    return *s;
   }
 
   void Create(const Request&, Response& res, const std::string& body) {
@@ -162,7 +169,6 @@ struct Server::Impl {
   void Get(const Request& req, Response& res, const std::string&) {
     auto s = Find(req, res);
     if (!s) return;
-    s->Touch();
     Json(res, 200, api::RenderSession(s->View()));
   }
 
@@ -187,9 +193,17 @@ struct Server::Impl {
       budget.time_ms = options.limits.default_plan_ms;
     }
     if (budget.time_ms == 0.0) budget.time_ms = options.limits.max_plan_ms;
-    // A plan of several search threads takes a slot for each (at most all of them).
-    auto ticket = admission.Enter([] { return HttpFront::ClientGone(); }, s->SearchThreads());
-    if (!ticket.ok()) return Fail(res, ticket.status(), 0, 1);
+    // The session admits itself once it is claimed (a second plan on it is refused at once, and
+    // a session waiting in the queue is in use, not idle); a plan of several search threads
+    // takes a slot for each (at most all of them).
+    bool queue_full = false;
+    Session::Admit admit = [this, &queue_full](const std::function<bool()>& give_up,
+                                               int threads) -> StatusOr<Session::SlotHold> {
+      auto ticket = admission.Enter(give_up, threads);
+      queue_full = ticket.status().code() == StatusCode::kResourceExhausted;
+      if (!ticket.ok()) return ticket.status();
+      return Session::SlotHold(std::make_shared<Admission::Ticket>(std::move(ticket).value()));
+    };
     StatusOr<api::PlanReply> reply = Status(StatusCode::kInternal, "not planned");
     {
       BatchScheduling batch;
@@ -197,9 +211,10 @@ struct Server::Impl {
       // handler thread's.
       const Connection* connection = HttpFront::Current();
       reply = s->Plan(
-          budget, [connection] { return HttpFront::ClientGone(connection); }, registry.store());
+          budget, [connection] { return HttpFront::ClientGone(connection); }, registry.store(),
+          admit);
     }
-    if (!reply.ok()) return Fail(res, reply.status());
+    if (!reply.ok()) return Fail(res, reply.status(), 0, queue_full ? 1 : 0);
     const double total =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     const double planning = reply->stats.elapsed_ms / 1000.0;
@@ -233,7 +248,6 @@ struct Server::Impl {
     if (!f.ok()) return Fail(res, f.status());
     auto s = Find(req, res);
     if (!s) return;
-    s->Touch();
     const auto world = s->Belief();
     const api::SessionView view = s->View();
     if (*f == api::BeliefFormat::kJson) return Json(res, 200, api::RenderBelief(*world, &view));
@@ -346,6 +360,16 @@ struct Server::Impl {
         res.set_header("Allow", allow);
         return R::Handled;
       }
+      if (const std::string refusal = BrowserRefusal(
+              options, route->auth, req.get_header_value("Host"), req.get_header_value("Origin"),
+              req.get_header_value("Sec-Fetch-Site"));
+          !refusal.empty()) {
+        Fail(res,
+             Status(StatusCode::kPermissionDenied, refusal)
+                 .WithFieldViolation(refusal.substr(0, refusal.find(':')), "refused"),
+             403);
+        return R::Handled;
+      }
       // httplib reads a multipart body only through its multipart reader (the plain one
       // throws); no route takes one.
       if (req.is_multipart_form_data()) {
@@ -370,6 +394,11 @@ struct Server::Impl {
     // Every response, with its real status code, counted before it is written (so that a client
     // that reads /metrics next sees its previous request).
     http->set_post_routing_handler([this](const Request& req, Response& res) {
+      // No response is to be read as anything but its Content-Type (a JSON error echoing a
+      // field path is not HTML).
+      if (!res.has_header("X-Content-Type-Options")) {
+        res.set_header("X-Content-Type-Options", "nosniff");
+      }
       const Connection* c = HttpFront::Current();
       const double seconds =
           c ? std::chrono::duration<double>(std::chrono::steady_clock::now() - c->start).count()
@@ -416,7 +445,14 @@ Status Server::Start() {
   if (port_ < 0) {
     return Status(StatusCode::kUnavailable, "cannot bind " + o.host + ":" + std::to_string(o.port));
   }
-  im.http->Start();
+  try {
+    im.http->Start();
+  } catch (const std::system_error& e) {
+    return Status(
+        StatusCode::kUnavailable,
+        "cannot start " + std::to_string(o.threads) +
+            " request threads (--threads, raised to the plan slots and queue + 4): " + e.what());
+  }
   im.serve_thread = std::thread([&im] { im.http->listen_after_bind(); });
   im.registry.StartReaper();
   spdlog::info("npfkct-server listening on {}:{} ({} planning slots, queue {})", o.host, port_,

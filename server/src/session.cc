@@ -129,7 +129,7 @@ void Session::Cancel() {
 
 StatusOr<api::PlanReply> Session::Plan(const Budget& asked,
                                        const std::function<bool()>& client_gone,
-                                       SessionStore* store) {
+                                       SessionStore* store, const Admit& admit) {
   std::unique_lock<std::mutex> op(op_mutex_, std::try_to_lock);
   if (!op.owns_lock()) return Busy();
   Budget budget = asked;
@@ -151,6 +151,22 @@ StatusOr<api::PlanReply> Session::Plan(const Budget& asked,
     }
     budget.time_ms = budget.time_ms > 0.0 ? std::min(budget.time_ms, left_ms) : left_ms;
     in_use_ = true;
+  }
+  SlotHold slots;
+  if (admit) {
+    auto held =
+        admit([&] { return cancel_.load() || (client_gone && client_gone()); }, SearchThreads());
+    if (!held.ok()) {
+      std::lock_guard<std::mutex> lock(state_mutex_);
+      in_use_ = false;
+      last_used_ = std::chrono::steady_clock::now();
+      if (held.status().code() != StatusCode::kCancelled) return held.status();
+      std::lock_guard<std::mutex> persist(persist_mutex_);
+      if (deleted_) return Status(StatusCode::kAborted, "the session was deleted while planning");
+      return CancelledError(cancel_ ? "the server is stopping"
+                                    : "the client closed the connection");
+    }
+    slots = std::move(held).value();
   }
   Decision<HybridAction> d;
   bool cancelled = false;
@@ -385,11 +401,17 @@ Status Session::Save(SessionStore* store) {
 }
 
 Status Session::Delete(SessionStore* store) {
+  {
+    // The snapshot first: a session whose snapshot could not be removed lives on (it would come
+    // back at the next start), and the caller may retry.
+    std::lock_guard<std::mutex> lock(persist_mutex_);
+    if (!deleted_) {
+      if (Status s = store ? store->Delete(id_) : OkStatus(); !s.ok()) return s;
+      deleted_ = true;
+    }
+  }
   Cancel();
-  std::lock_guard<std::mutex> lock(persist_mutex_);
-  if (deleted_) return OkStatus();
-  deleted_ = true;
-  return store ? store->Delete(id_) : OkStatus();
+  return OkStatus();
 }
 
 int64_t Session::version() const {
@@ -405,8 +427,8 @@ bool Session::busy() const {
 bool Session::ExpireIfIdle(SessionStore* store) {
   std::unique_lock<std::mutex> op(op_mutex_, std::try_to_lock);
   if (!op.owns_lock() || IdleSeconds() <= ttl_seconds_) return false;
-  (void)Delete(store);
-  return true;
+  // A snapshot that cannot be removed keeps the session (tried again at the next round).
+  return Delete(store).ok();
 }
 
 }  // namespace npfkct::server

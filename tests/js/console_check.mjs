@@ -112,6 +112,12 @@ try {
                              {timeout: 180000}).then(() => { seen.done = true; },
                                                      () => { seen.done = false; });
   await page.screenshot({path: `${shots}/console-done.png`, fullPage: true});
+
+  // A link whose #fragment is not valid percent-encoding still opens a working console.
+  await page.goto(`${url}/ui#%E0%A4%A`);
+  await page.reload();
+  await page.locator('#sessions li').first().waitFor({timeout: 30000});
+  seen.badFragmentListed = true;
   check(errors.length === 0, `no script errors: ${errors.join(' | ')}`);
   console.log(JSON.stringify(seen));
 } finally {

@@ -5,6 +5,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <valijson/adapters/nlohmann_json_adapter.hpp>
 #include <valijson/schema.hpp>
 #include <valijson/schema_parser.hpp>
@@ -171,6 +172,26 @@ struct Violation {
   int depth = 0;
 };
 
+// The path of the first string (value or key) of `v` holding U+0000, if any. valijson counts a
+// string's characters up to its first NUL (over c_str()), so such a string would pass every
+// maxLength of the schemas; no field of the API has a use for one.
+std::optional<std::string> StringWithNul(const json& v, const std::string& path) {
+  if (v.is_string()) {
+    const auto& text = v.get_ref<const std::string&>();
+    if (text.find('\0') != std::string::npos) return path;
+  } else if (v.is_array()) {
+    for (size_t i = 0; i < v.size(); ++i) {
+      if (auto p = StringWithNul(v[i], At(path, i))) return p;
+    }
+  } else if (v.is_object()) {
+    for (const auto& [key, child] : v.items()) {
+      if (key.find('\0') != std::string::npos) return Join(path, "(a key)");
+      if (auto p = StringWithNul(child, Join(path, key))) return p;
+    }
+  }
+  return std::nullopt;
+}
+
 }  // namespace
 
 const json* SchemaDocument(std::string_view name) {
@@ -184,6 +205,11 @@ Status ValidateAgainstSchema(std::string_view message, const json& doc, size_t m
   auto it = d.schemas.find(std::string(message) + ".schema.json");
   if (it == d.schemas.end()) return InternalError("no schema for " + std::string(message));
   const std::string root_file = std::string(message) + ".schema.json";
+  if (auto field = StringWithNul(doc, "")) {
+    const std::string name = field->empty() ? "body" : Shortened(*field);
+    return Status(StatusCode::kInvalidArgument, name + ": must not contain U+0000")
+        .WithFieldViolation(name, "must not contain U+0000");
+  }
   Adapter adapter(doc);
   {
     valijson::Validator fast;  // stops at the first failure

@@ -199,6 +199,26 @@ TEST(ParseCreateSession, DescribesViolationsInWords) {
   EXPECT_EQ(r.status().field_violations()[0].description, "expected at most 200 characters");
 }
 
+// valijson measures a string up to its first NUL: "a\0" followed by 1,000 characters passed
+// every maxLength (and a restored session then came back with its strings cut).
+TEST(ParseCreateSession, RefusesStringsWithNulWhateverTheirLength) {
+  auto body = CreateBody();
+  body["displayName"] = std::string("a") + '\0' + std::string(1000, 'x');
+  auto r = ParseCreateSession(body.dump(), kLimits);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().field_violations()[0].field, "displayName");
+  EXPECT_EQ(r.status().field_violations()[0].description, "must not contain U+0000");
+  body = CreateBody();
+  body["displayName"] = std::string(1, '\0');
+  EXPECT_EQ(FieldOf(ParseCreateSession(body.dump(), kLimits)), "displayName");
+  body = CreateBody();
+  body["world"]["furniture"][0]["name"] = std::string("t") + '\0';
+  EXPECT_EQ(FieldOf(ParseCreateSession(body.dump(), kLimits)), "world.furniture[0].name");
+  body = CreateBody();
+  body[std::string("x") + '\0'] = 1;
+  EXPECT_EQ(FieldOf(ParseCreateSession(body.dump(), kLimits)), "(a key)");
+}
+
 TEST(ParseBody, RefusesHostileJsonWhileParsing) {
   auto deep = ParsePlan(std::string(100, '[') + std::string(100, ']'), kLimits);
   EXPECT_EQ(FieldOf(deep), "body");

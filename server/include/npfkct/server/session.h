@@ -77,14 +77,24 @@ class Session {
   /// Whether a request (plan or observe) works on the session now.
   bool busy() const;
 
+  /// Holds a planning slot until destroyed (the server's admission ticket).
+  using SlotHold = std::shared_ptr<const void>;
+  /// Waits for `threads` planning slots, giving up when `give_up` returns true (the caller polls
+  /// it); a hold, or why none (RESOURCE_EXHAUSTED: the queue is full; CANCELLED: gave up).
+  using Admit =
+      std::function<StatusOr<SlotHold>(const std::function<bool()>& give_up, int threads)>;
+
   /// Plans within `budget` (its time capped by what is left of the session's planning budget),
   /// stopping early when Cancel() is called or `client_gone` returns true (polled every few
-  /// milliseconds). The action becomes pending and the session is saved to `store` before the
-  /// reply. FAILED_PRECONDITION while an action is pending or after the target was removed;
-  /// ABORTED while another request works on the session or when it was deleted meanwhile;
-  /// CANCELLED when cancelled; RESOURCE_EXHAUSTED when its planning budget is spent.
+  /// milliseconds). The session is claimed first (a second request meanwhile is ABORTED at once)
+  /// and in use, never idle, while `admit` (when given) waits for its planning slots; a deleted
+  /// session or a client that left stops the wait. The action becomes pending and the session is
+  /// saved to `store` before the reply. FAILED_PRECONDITION while an action is pending or after
+  /// the target was removed; ABORTED while another request works on the session or when it was
+  /// deleted meanwhile; CANCELLED when cancelled; RESOURCE_EXHAUSTED when its planning budget is
+  /// spent or no slot is free and the queue is full.
   StatusOr<api::PlanReply> Plan(const Budget& budget, const std::function<bool()>& client_gone,
-                                SessionStore* store);
+                                SessionStore* store, const Admit& admit = {});
   /// Applies the observation that followed the pending action (all or nothing: a rejected
   /// observation changes nothing) and saves the session. FAILED_PRECONDITION for a missing,
   /// stale or repeated actionId; raw sensor data go through the session's perception.
