@@ -756,11 +756,14 @@ void HttpFront::Reactor() {
   // A connection whose response waits for the client to read: watched for EPOLLOUT until sent
   // (within the write timeout), then closed or read again.
   auto send_rest = [&](std::unique_ptr<Conn> c) -> std::unique_ptr<Conn> {
+    const size_t before = c->out_pos;
     if (!FlushOut(c.get())) {
       Close(std::move(c));
       return nullptr;
     }
     if (c->writing) {
+      // The write timeout runs between two sends that make progress (nginx's send_timeout).
+      if (c->out_pos > before) c->deadline = Clock::now() + Seconds(options_.write_timeout_s);
       epoll_event ev{};
       ev.events = EPOLLOUT;
       ev.data.fd = c->fd;
