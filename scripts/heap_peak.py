@@ -1,0 +1,57 @@
+#!/usr/bin/env python3
+"""Peak resident memory of a server whose plan grows a search tree to --max-heap-mb.
+
+Starts npfkct-server (NPFKCT_SERVER_BIN, default build/server/npfkct-server) with
+--max-heap-mb MB, creates a pomcp-joint session of 10,000 particles with 64 discrete poses
+(1,728 joint actions per node) and search.maxDepth 100, plans 5 s, and prints the plan's
+statistics with the server's resident memory after it and at its peak (VmRSS, VmHWM).
+
+Usage: scripts/heap_peak.py [MB]   (default 1024)"""
+import http.client
+import json
+import os
+import subprocess
+import sys
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+MB = sys.argv[1] if len(sys.argv) > 1 else "1024"
+BIN = os.environ.get("NPFKCT_SERVER_BIN", os.path.join(ROOT, "build", "server", "npfkct-server"))
+
+
+def main():
+    with open(os.path.join(ROOT, "schemas", "examples", "create_session_request.json")) as f:
+        world = json.load(f)["world"]
+    world["discretePoses"] = [{"x": 0.1 + 0.01 * i, "y": 0.0, "yaw": 0.0} for i in range(64)]
+    server = subprocess.Popen([BIN, "--port", "0", "--log-level", "warn", "--max-heap-mb", MB],
+                              stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    try:
+        port = int(server.stdout.readline().rsplit(":", 1)[1])
+
+        def memory(key):
+            with open(f"/proc/{server.pid}/status") as f:
+                return next(int(l.split()[1]) // 1024 for l in f if l.startswith(key))
+
+        def call(method, path, body):
+            c = http.client.HTTPConnection("127.0.0.1", port, timeout=120)
+            c.request(method, path, json.dumps(body), {"Content-Type": "application/json"})
+            r = c.getresponse()
+            return json.loads(r.read())
+
+        start = memory("VmRSS")
+        session = call("POST", "/v1/sessions",
+                       {"world": world, "seed": 1,
+                        "planner": {"name": "pomcp-joint", "particles": 10000,
+                                    "options": {"search.maxDepth": 100}}})
+        plan = call("POST", f"/v1/sessions/{session['id']}:plan", {"budget": {"timeMs": 5000}})
+        stats = plan["stats"]
+        print(f"--max-heap-mb {MB}: resident at start {start} MiB; plan of "
+              f"{stats['elapsedMs']:.0f} ms, budgetExhausted {stats['budgetExhausted']}, "
+              f"{stats['treeNodes']} tree nodes; resident after {memory('VmRSS')} MiB, "
+              f"peak {memory('VmHWM')} MiB")
+    finally:
+        server.kill()
+        server.wait()
+
+
+if __name__ == "__main__":
+    main()
