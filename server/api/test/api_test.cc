@@ -64,6 +64,21 @@ TEST(ParseCreateSession, AcceptsAScenarioWorldAndBuildsIt) {
   EXPECT_EQ(req->planner.name, "kct");
   EXPECT_EQ(req->planner.particles, 100);
   EXPECT_EQ(*req->seed, 3u);
+  // Seeds above 2^63 - 1 as JSON integers too (the schema validator reads them as negative).
+  auto big = CreateBody();
+  big["seed"] = 18446744073709551615ull;
+  auto big_req = ParseCreateSession(big.dump(), kLimits);
+  ASSERT_TRUE(big_req.ok()) << big_req.status().ToString();
+  EXPECT_EQ(*big_req->seed, 18446744073709551615ull);
+  // Integers written with a fractional part of zero are integers (JSON Schema's rule).
+  auto floats = json::parse(R"({"planner": {"name": "kct", "particles": 300.0}, "seed": 3e2})");
+  floats["world"] = CreateBody()["world"];
+  auto float_req = ParseCreateSession(floats.dump(), kLimits);
+  ASSERT_TRUE(float_req.ok()) << float_req.status().ToString();
+  EXPECT_EQ(float_req->planner.particles, 300);
+  EXPECT_EQ(*float_req->seed, 300u);
+  floats["planner"]["particles"] = 300.5;
+  EXPECT_FALSE(ParseCreateSession(floats.dump(), kLimits).ok());
   auto world = BuildWorld(req->world, kLimits);
   ASSERT_TRUE(world.ok()) << world.status().ToString();
   EXPECT_GT(world->grid.num_cells(), 0);
