@@ -1335,7 +1335,16 @@ def test_clients_that_never_read_their_responses_hold_no_request_thread(hostile_
             s.connect(("127.0.0.1", port))
             s.sendall(one * 5)
             readers.append(s)
-        time.sleep(2.0)
+        # The replies are rendered first (seconds of CPU on the sanitized build): probe once
+        # the server is idle, when only the sockets it writes to are left.
+        pid, deadline = hostile_server.proc.pid, time.monotonic() + 120
+        used = cpu_seconds(pid)
+        while time.monotonic() < deadline:
+            time.sleep(1.0)
+            now = cpu_seconds(pid)
+            if now - used < 0.05:
+                break
+            used = now
         for _ in range(3):
             t = time.monotonic()
             assert http("GET", url + "/v1/sessions", rec).status_code == 200
