@@ -1231,6 +1231,20 @@ def test_base_regions_are_cut_to_the_room_and_must_leave_room_for_the_robot(host
         bad = dict(world, baseRegions=regions)
         r = http("POST", url + "/v1/sessions", rec, json={"world": bad})
         assert r.status_code == 400 and field_of(r) == field, r.text
+    # A block filling the room but for a corner, and a base region in each: the 4,096 draws find
+    # the corner, and npfkct's filter kept only proposals inside the block (uniform draws that
+    # found no free base were proposed anyway), so its MOVE put the base inside the block.
+    world = world_of("loose1")
+    world["furniture"].append({"name": "block", "center": [0.9, 0.4], "size": [6.2, 5.8, 0.5]})
+    world["baseRegions"] = [{"min": [0.0, 0.0], "max": [4.0, 3.5]},
+                            {"min": [-2.64, -2.64], "max": [-2.56, -2.56]}]
+    world["start"] = {"x": -2.6, "y": -2.6, "yaw": 0.0, "lift": 0.0, "pan": 0.0, "tilt": 0.0}
+    for name in ("npfkct", "kct"):
+        sid = create(url, rec, world=world, planner={"name": name, "particles": 300})
+        r = http("POST", f"{url}/v1/sessions/{sid}:plan", rec, json={"budget": {"timeMs": 200}})
+        assert r.status_code == 200, r.text
+        move = r.json()["action"]["configuration"]
+        assert -2.64 <= move["x"] <= -2.56 and -2.64 <= move["y"] <= -2.56, (name, move)
     rec.check()
 
 
@@ -1361,6 +1375,42 @@ def test_clients_that_never_read_their_responses_hold_no_request_thread(hostile_
     finally:
         for s in readers:
             s.close()
+    rec.check()
+
+
+def test_replies_sent_as_the_client_reads_arrive_whole_and_in_order(hostile_server):
+    # A reply the socket took in part was kept in part, but the write reported the part kept as
+    # all it took: httplib then wrote the tail of the body again, and every later reply on the
+    # connection was read from the wrong place. One connection pipelines 60 PNG beliefs (about
+    # 140 kB each) and reads 64 kB every 30 ms.
+    url, port, rec = hostile_server.url, hostile_server.port, Recorder()
+    sid = create(url, rec)
+    one = f"GET /v1/sessions/{sid}/belief?format=png HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"
+    with socket.create_connection(("127.0.0.1", port), timeout=30) as s:
+        s.sendall(one.encode() * 60)
+        data, replies = b"", []
+        while len(replies) < 60:
+            time.sleep(0.03)
+            chunk = s.recv(65536)
+            assert chunk, f"closed after {len(replies)} replies"
+            data += chunk
+            while b"\r\n\r\n" in data:
+                head, _, rest = data.partition(b"\r\n\r\n")
+                assert head.startswith(b"HTTP/1.1 200 OK\r\n"), (len(replies), head[:80])
+                length = int(next(l.split(b":")[1] for l in head.split(b"\r\n")
+                                  if l.lower().startswith(b"content-length:")))
+                if len(rest) < length:
+                    break
+                replies.append(rest[:length])
+                data = rest[length:]
+        s.settimeout(0.5)
+        try:
+            data += s.recv(65536)
+        except socket.timeout:
+            pass
+    assert data == b"", f"{len(data)} bytes after the last reply"
+    assert all(r.startswith(b"\x89PNG") and r.endswith(b"IEND\xaeB`\x82") for r in replies)
+    assert len(set(replies)) == 1  # the same picture each time
     rec.check()
 
 

@@ -160,10 +160,14 @@ void ProposeMoves(const ObjectSearchModel& model, const ProposalOptions& options
     }
     if (!aimed) {
       source = ProposalSource::kUniform;
-      for (int tries = 0; tries < 64; ++tries) {
+      bool feasible = false;
+      for (int tries = 0; tries < 64 && !feasible; ++tries) {
         c = ObjectSearchModel::ConfigOf(box.SampleUniform(rng));
-        if (w.BaseFeasible(c.x, c.y)) break;
+        feasible = w.BaseFeasible(c.x, c.y);
       }
+      // A world where hardly any base is free: no proposal rather than one the robot cannot
+      // take (the filter kept those, and the search answered a base inside the furniture).
+      if (!feasible) continue;
     }
     configs->push_back(c);
     if (sources != nullptr) sources->push_back(source);

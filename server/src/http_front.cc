@@ -274,6 +274,8 @@ class BufferedStream : public httplib::Stream {
 // it as the client reads. Past the front's bound on waiting bytes, the worker sends it itself,
 // waiting for the socket up to the write timeout (what waited before it first).
 ssize_t BufferedStream::write(const char* ptr, size_t size) {
+  // httplib goes on from the count returned: all of `size` is taken, sent or kept.
+  const auto taken = static_cast<ssize_t>(size);
   if (c_.out_pos == c_.out.size()) {
     size_t sent = 0;
     while (sent < size) {
@@ -288,7 +290,7 @@ ssize_t BufferedStream::write(const char* ptr, size_t size) {
         return -1;
       }
     }
-    if (sent == size) return static_cast<ssize_t>(size);
+    if (sent == size) return taken;
     c_.out.clear();
     c_.out_pos = 0;
     ptr += sent;
@@ -296,7 +298,7 @@ ssize_t BufferedStream::write(const char* ptr, size_t size) {
   }
   if (Reserve(size)) {
     c_.out.append(ptr, size);
-    return static_cast<ssize_t>(size);
+    return taken;
   }
   if (!WriteAll(Fd(), c_.out.data() + c_.out_pos, c_.out.size() - c_.out_pos, write_timeout_)) {
     return -1;
@@ -305,7 +307,7 @@ ssize_t BufferedStream::write(const char* ptr, size_t size) {
   c_.out_reserved = 0;
   c_.out.clear();
   c_.out_pos = 0;
-  return WriteAll(Fd(), ptr, size, write_timeout_) ? static_cast<ssize_t>(size) : -1;
+  return WriteAll(Fd(), ptr, size, write_timeout_) ? taken : -1;
 }
 
 ssize_t BufferedStream::read(char* ptr, size_t size) {

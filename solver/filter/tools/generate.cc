@@ -101,6 +101,7 @@ StatusOr<Dataset> GenerateDataset(const GenerateOptions& options,
         } else {
           std::vector<RobotConfig> configs;
           object_search::ProposeMoves(model, TrainingProposals(), 1, rng, &configs, nullptr);
+          if (configs.empty()) break;  // no feasible base found: no further real step
           a = HybridAction{object_search::kMoveKind, ObjectSearchModel::VecOf(configs[0])};
         }
         const sim::ExecutionOutcome out = simulator.Execute(a, world, rng);

@@ -199,10 +199,10 @@ int main(int argc, char** argv) {
     const std::vector<Vec3> probe = SamplePlacements(*world, kProbePlacements, rng);
     const ScoredConfigs context = ScoreConfigs(model, s, placements, probe, fo.context, rng);
     const int candidate = object_search::TargetCandidate(*world);
-    std::vector<float> q(fo.candidates * kQueryDim);
     std::vector<object_search::RobotConfig> configs;
     object_search::ProposeMoves(model, TrainingProposals(), fo.candidates, rng, &configs, nullptr);
-    for (int i = 0; i < fo.candidates; ++i)
+    std::vector<float> q(configs.size() * kQueryDim);
+    for (size_t i = 0; i < configs.size(); ++i)
       QueryOf(*world, configs[i], candidate, probe, &q[i * kQueryDim]);
     std::vector<double> network, netsam, exact, scene_ms;
     auto sampler = MakeNetSam(*filter, model, fo);

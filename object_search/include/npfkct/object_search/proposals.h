@@ -52,7 +52,8 @@ struct ProposalOptions {
 enum class ProposalSource : uint8_t { kTarget, kObject, kUniform };
 
 /// `count` move configurations: aimed at the target candidate, at other known objects' faces, or
-/// uniform, by the shares of `options`. Fewer when `stop` (if given) says the search must stop.
+/// uniform, by the shares of `options`, each with a feasible base. Fewer when `stop` (if given)
+/// says the search must stop, or when a uniform draw finds no feasible base in 64 tries.
 void ProposeMoves(const ObjectSearchModel& model, const ProposalOptions& options, int count,
                   Rng& rng, std::vector<RobotConfig>* configs, std::vector<ProposalSource>* sources,
                   const TerminationCondition* stop = nullptr);

@@ -339,6 +339,28 @@ class KCenterTree {
       excluded.insert({chosen_worker, best});
       if (stop.Interrupted()) break;
     }
+    // Past them, the visited root sphere of the highest Qhat whose center is executable (one
+    // check per sphere, in one pass): a root where only a sliver of the space is feasible still
+    // gets an executable action.
+    if (!executable && !stop.Interrupted()) {
+      double best_q = -std::numeric_limits<double>::infinity();
+      for (int t = 0; t < static_cast<int>(workers_.size()); ++t) {
+        const Tree& tree = workers_[t].tree;
+        if (tree.root < 0) continue;
+        for (int ai : tree.obs[tree.root].actions) {
+          const auto& entry = tree.act[ai];
+          if (entry.n == 0 || entry.q <= best_q || excluded.count({t, ai}) ||
+              !IsFeasibleAction(model_, s0, entry.action)) {
+            continue;
+          }
+          best_q = entry.q;
+          chosen_worker = t;
+          best = ai;
+          d.action = entry.action;
+          executable = true;
+        }
+      }
+    }
     if (!executable && !ChooseRootEntry({}, &chosen_worker, &best)) {
       return Fail(std::move(d), FailedPreconditionError("no legal action at the root"));
     }
