@@ -107,9 +107,8 @@ struct Server::Impl {
                     "text/plain; version=0.0.4; charset=utf-8");
   }
 
-  // The session of the path, held or (fleet mode) loaded from the store.
-  // The session of the request's path, touched: its TTL counts from the end of the last request
-  // on it, whatever the request and its outcome.
+  // The session of the path, held or (fleet mode) loaded from the store, and touched: its TTL
+  // counts from the last request on it, whatever the request and its outcome.
   std::shared_ptr<Session> Find(const Request& req, Response& res) {
     auto s = registry.Acquire(req.matches[1]);
     if (!s.ok()) {
