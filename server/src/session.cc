@@ -157,14 +157,13 @@ StatusOr<api::PlanReply> Session::Plan(const Budget& asked,
     auto held =
         admit([&] { return cancel_.load() || (client_gone && client_gone()); }, SearchThreads());
     if (!held.ok()) {
-      std::lock_guard<std::mutex> lock(state_mutex_);
-      in_use_ = false;
-      last_used_ = std::chrono::steady_clock::now();
+      {
+        std::lock_guard<std::mutex> lock(state_mutex_);
+        in_use_ = false;
+        last_used_ = std::chrono::steady_clock::now();
+      }
       if (held.status().code() != StatusCode::kCancelled) return held.status();
-      std::lock_guard<std::mutex> persist(persist_mutex_);
-      if (deleted_) return Status(StatusCode::kAborted, "the session was deleted while planning");
-      return CancelledError(cancel_ ? "the server is stopping"
-                                    : "the client closed the connection");
+      return WhyCancelled();
     }
     slots = std::move(held).value();
   }
@@ -198,9 +197,7 @@ StatusOr<api::PlanReply> Session::Plan(const Budget& asked,
   total_simulations_ += d.stats.simulations;
   if (cancelled || d.status.code() == StatusCode::kCancelled) {
     state.unlock();
-    std::lock_guard<std::mutex> persist(persist_mutex_);
-    if (deleted_) return Status(StatusCode::kAborted, "the session was deleted while planning");
-    return CancelledError(cancel_ ? "the server is stopping" : "the client closed the connection");
+    return WhyCancelled();
   }
   if (!d.status.ok()) return d.status;
   ++actions_;
@@ -393,6 +390,12 @@ Status Session::SaveUnderOp(SessionStore* store) {
   }
   version_ = *version;
   return OkStatus();
+}
+
+Status Session::WhyCancelled() const {
+  std::lock_guard<std::mutex> persist(persist_mutex_);
+  if (deleted_) return Status(StatusCode::kAborted, "the session was deleted while planning");
+  return CancelledError(cancel_ ? "the server is stopping" : "the client closed the connection");
 }
 
 Status Session::Save(SessionStore* store) {

@@ -142,6 +142,9 @@ class Session {
   api::SessionView ViewLocked() const;
   static api::ActionView ActionViewOf(const HybridAction& a, const object_search::World& w);
   Status SaveUnderOp(SessionStore* store);
+  // Why a plan that was cancelled ends: ABORTED when the session was deleted, else CANCELLED
+  // (the server stops, or the client left).
+  Status WhyCancelled() const;
 
   // Fixed at creation.
   std::string id_;
