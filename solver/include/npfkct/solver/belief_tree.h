@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "npfkct/solver/model.h"
+#include "npfkct/solver/node_array.h"
 #include "npfkct/solver/planner.h"
 
 namespace npfkct {
@@ -38,8 +39,9 @@ struct ObservationWidening {
 struct NoData {};
 
 /// Storage and observation branching of a belief tree over model M. `ActData` is the planner's
-/// payload per action node (e.g. a Voronoi cell or a hypersphere). Nodes live in two arrays and
-/// refer to each other by index, so tearing the tree down is a couple of deallocations.
+/// payload per action node (e.g. a Voronoi cell or a hypersphere). Nodes live in two NodeArrays
+/// and refer to each other by index, so the tree grows in blocks and tears down in a few
+/// deallocations.
 template <GenerativeModel M, class ActData = NoData>
 class BeliefTree {
  public:
@@ -78,16 +80,14 @@ class BeliefTree {
     bool terminal = false;  ///< The step ended the episode.
   };
 
-  std::vector<ObsNode> obs;
-  std::vector<ActNode> act;
+  NodeArray<ObsNode> obs;
+  NodeArray<ActNode> act;
   int root = -1;
 
   /// Drops every node.
   void Clear() {
     obs.clear();
     act.clear();
-    obs.shrink_to_fit();
-    act.shrink_to_fit();
     root = -1;
   }
   /// Nodes in the tree.
@@ -198,8 +198,8 @@ class BeliefTree {
 
   /// Makes observation node `new_root` the root and drops everything not below it.
   void KeepSubtree(int new_root) {
-    std::vector<ObsNode> new_obs;
-    std::vector<ActNode> new_act;
+    NodeArray<ObsNode> new_obs;
+    NodeArray<ActNode> new_act;
     std::vector<int> stack;
     new_obs.push_back(std::move(obs[new_root]));
     stack.push_back(0);

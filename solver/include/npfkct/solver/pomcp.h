@@ -10,6 +10,7 @@
 
 #include "npfkct/solver/belief.h"
 #include "npfkct/solver/model.h"
+#include "npfkct/solver/node_array.h"
 #include "npfkct/solver/planner.h"
 
 namespace npfkct {
@@ -177,8 +178,6 @@ class Pomcp {
   void ClearTree() {
     obs_.clear();
     act_.clear();
-    obs_.shrink_to_fit();
-    act_.shrink_to_fit();
     root_ = -1;
   }
 
@@ -275,8 +274,8 @@ class Pomcp {
 
   // Copies the subtree under observation node `new_root` into fresh arrays and makes it the root.
   void KeepSubtree(int new_root) {
-    std::vector<ObsNode> obs;
-    std::vector<ActNode> act;
+    NodeArray<ObsNode> obs;
+    NodeArray<ActNode> act;
     std::vector<std::pair<int, int>> stack;  // (old obs index, new obs index)
     obs.push_back(obs_[new_root]);
     stack.emplace_back(new_root, 0);
@@ -307,8 +306,8 @@ class Pomcp {
   PomcpOptions options_;
   double c_ = 1.0;
   ParticleBelief<State> belief_;
-  std::vector<ObsNode> obs_;
-  std::vector<ActNode> act_;
+  NodeArray<ObsNode> obs_;
+  NodeArray<ActNode> act_;
   int root_ = -1;
   int max_depth_ = 0;
   std::vector<int> scratch_;
