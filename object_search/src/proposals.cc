@@ -20,21 +20,10 @@ double MeanOdds(const std::array<float, 8>& odds) {
 
 // A base position drawn uniformly from the base regions (by area), free of the map.
 bool SampleBase(const World& w, Rng& rng, double* x, double* y) {
-  double total = 0.0;
-  for (const BaseRegion& r : w.base_regions) total += (r.max - r.min).prod();
-  if (!(total > 0.0)) return false;
-  double u = rng.Uniform() * total;
-  const BaseRegion* region = &w.base_regions.back();
-  for (const BaseRegion& r : w.base_regions) {
-    u -= (r.max - r.min).prod();
-    if (u <= 0.0) {
-      region = &r;
-      break;
-    }
-  }
-  *x = rng.Uniform(region->min.x(), region->max.x());
-  *y = rng.Uniform(region->min.y(), region->max.y());
-  return w.BaseFeasible(*x, *y);
+  const double pick = rng.Uniform();
+  const double u = rng.Uniform();
+  const double v = rng.Uniform();
+  return w.BasePointAt(pick, u, v, x, y) && w.BaseFeasible(*x, *y);
 }
 
 }  // namespace

@@ -226,6 +226,24 @@ std::vector<Box> World::Occluders() const {
   return out;
 }
 
+bool World::BasePointAt(double pick, double u, double v, double* x, double* y) const {
+  double total = 0.0;
+  for (const BaseRegion& r : base_regions) total += (r.max - r.min).prod();
+  if (!(total > 0.0)) return false;
+  double left = pick * total;
+  const BaseRegion* region = &base_regions.back();
+  for (const BaseRegion& r : base_regions) {
+    left -= (r.max - r.min).prod();
+    if (left <= 0.0) {
+      region = &r;
+      break;
+    }
+  }
+  *x = region->min.x() + (region->max.x() - region->min.x()) * u;
+  *y = region->min.y() + (region->max.y() - region->min.y()) * v;
+  return true;
+}
+
 bool World::BaseFeasible(double x, double y) const {
   bool in_region = false;
   for (const BaseRegion& r : base_regions) in_region |= r.Contains(x, y);
@@ -312,23 +330,12 @@ namespace {
 // the same ones: a world whose regions lie inside furniture leaves every planner proposing
 // configurations the robot cannot take.
 bool AnyBaseFeasible(const World& world) {
-  std::vector<double> cumulative;
-  double total = 0.0;
-  for (const BaseRegion& r : world.base_regions) {
-    total += (r.max.x() - r.min.x()) * (r.max.y() - r.min.y());
-    cumulative.push_back(total);
-  }
-  if (!(total > 0.0)) return false;
   std::mt19937_64 gen(20261127);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
   for (int i = 0; i < 4096; ++i) {
-    const double pick = u(gen) * total;
-    const size_t k = std::min<size_t>(
-        std::lower_bound(cumulative.begin(), cumulative.end(), pick) - cumulative.begin(),
-        cumulative.size() - 1);
-    const BaseRegion& r = world.base_regions[k];
-    const double x = r.min.x() + u(gen) * (r.max.x() - r.min.x());
-    const double y = r.min.y() + u(gen) * (r.max.y() - r.min.y());
+    const double pick = uniform(gen), u = uniform(gen), v = uniform(gen);
+    double x = 0.0, y = 0.0;
+    if (!world.BasePointAt(pick, u, v, &x, &y)) return false;
     if (world.BaseFeasible(x, y)) return true;
   }
   return false;

@@ -190,6 +190,10 @@ struct World {
   /// Whether the base may stand at (x, y): inside a base region, and its footprint plus
   /// params.base_clearance free in the occupancy map.
   bool BaseFeasible(double x, double y) const;
+  /// The base position that three numbers in [0, 1) pick: `pick` a base region by area, `u` and
+  /// `v` the point inside it (uniform draws give a point uniform over the regions). False when
+  /// the regions have no area.
+  bool BasePointAt(double pick, double u, double v, double* x, double* y) const;
   /// Index of the object with this key, or -1.
   int FindObject(const std::string& key) const;
   /// The manual base poses (x, y, yaw) of the discrete baselines: discrete_poses, or each base
