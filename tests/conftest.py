@@ -55,6 +55,8 @@ class ServerProcess:
     Its output is drained by background threads (a full pipe would block the server) and kept in
     `output` for the tests to inspect."""
 
+    started = []  # every server started; kill_servers_a_test_left kills a test's leftovers
+
     def __init__(self, *args, binary=SERVER_BIN, preexec_fn=None, env=None):
         self.proc = subprocess.Popen([binary, "--port", "0", "--log-level", "warn", *args],
                                      stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
@@ -67,6 +69,7 @@ class ServerProcess:
             self.proc.kill()
             raise RuntimeError("server did not start: " + "".join(skipped) + line +
                                self.proc.stderr.read())
+        ServerProcess.started.append(self)
         self.port = int(line.strip().rsplit(":", 1)[1])
         self.url = f"http://127.0.0.1:{self.port}"
         self.output = []
@@ -88,6 +91,18 @@ class ServerProcess:
     def kill(self):
         self.proc.kill()
         self.proc.wait()
+
+
+@pytest.fixture(autouse=True)
+def kill_servers_a_test_left():
+    """Kills the servers a test started and left running (a failed assertion skips its stop());
+    servers of wider-scoped fixtures, started before the test, are left to their fixtures."""
+    before = len(ServerProcess.started)
+    yield
+    for server in ServerProcess.started[before:]:
+        if server.alive():
+            server.kill()
+    del ServerProcess.started[before:]
 
 
 class SimRobot:

@@ -162,21 +162,6 @@ def hostile_server(tmp_path):
     assert_clean_exit(server)
 
 
-@pytest.fixture
-def start_server():
-    """Starts servers for a test and kills those a failed assertion left running."""
-    servers = []
-
-    def start(*args, **kw):
-        servers.append(ServerProcess(*args, **kw))
-        return servers[-1]
-
-    yield start
-    for server in servers:
-        if server.alive():
-            server.kill()
-
-
 def assert_clean_exit(server):
     code = server.stop()
     assert code == 0, f"exit status {code}:\n" + "".join(server.output[-40:])
@@ -1308,10 +1293,10 @@ def test_strings_with_nul_pass_no_length_limit(hostile_server):
     rec.check()
 
 
-def test_web_pages_of_other_sites_cannot_use_the_api(tmp_path, start_server):
+def test_web_pages_of_other_sites_cannot_use_the_api(tmp_path):
     # Without an API key on loopback, any page the operator opened could POST to the server (a
     # text/plain "simple" request needs no preflight) or, after DNS rebinding, read it.
-    server = start_server("--state-dir", str(tmp_path / "state"))
+    server = ServerProcess("--state-dir", str(tmp_path / "state"))
     url, port, rec = server.url, server.port, Recorder()
     body = json.dumps({"world": world_of("loose1")})
     refused = [({"Origin": "http://evil.example", "Content-Type": "text/plain"}, "Origin"),
@@ -1432,12 +1417,12 @@ def test_replies_sent_as_the_client_reads_arrive_whole_and_in_order(hostile_serv
     rec.check()
 
 
-def test_plans_waiting_for_a_slot_are_the_sessions_and_leave_with_it(tmp_path, start_server):
+def test_plans_waiting_for_a_slot_are_the_sessions_and_leave_with_it(tmp_path):
     # A plan waited in the planning queue before it claimed its session: a second plan on the
     # same session was queued (holding a queue place) instead of refused at once, the TTL reaped
     # a session whose plan was queued, and a deleted session's plan kept its place until a slot
     # freed.
-    server = start_server("--state-dir", str(tmp_path / "state"), "--plan-slots", "1",
+    server = ServerProcess("--state-dir", str(tmp_path / "state"), "--plan-slots", "1",
                           "--plan-queue", "1", "--session-ttl", "2")
     url, rec = server.url, Recorder()
     busy, waiting = create(url, rec), create(url, rec)
@@ -1484,12 +1469,12 @@ def test_plans_waiting_for_a_slot_are_the_sessions_and_leave_with_it(tmp_path, s
     assert_clean_exit(server)
 
 
-def test_a_session_whose_snapshot_cannot_be_removed_is_kept(tmp_path, start_server):
+def test_a_session_whose_snapshot_cannot_be_removed_is_kept(tmp_path):
     # DELETE answered 503 (the snapshot could not be removed) after dropping the session from
     # memory: GET then said 404, and the session came back at the next start. A TTL expiry did
     # the same. The snapshot stands in the way here as a directory of its name.
     state = tmp_path / "state"
-    server = start_server("--state-dir", str(state))
+    server = ServerProcess("--state-dir", str(state))
     url, rec = server.url, Recorder()
     sid = create(url, rec)
     short = create(url, rec, ttlSeconds=1)
@@ -1515,3 +1500,23 @@ def test_a_session_whose_snapshot_cannot_be_removed_is_kept(tmp_path, start_serv
     assert short not in listed, listed
     rec.check()
     assert_clean_exit(server)
+
+
+# --- Found in session 19 by an outside-style attack pass -------------------------------------
+
+
+def test_a_second_server_cannot_take_a_state_directory_in_use(tmp_path):
+    # Two servers on one --state-dir each trusted their own versions: one's acknowledged step was
+    # overwritten by the other's save, and a session one deleted was written back by the other.
+    state = tmp_path / "state"
+    first = ServerProcess("--state-dir", str(state))
+    url, rec = first.url, Recorder()
+    sid = create(url, rec)
+    with pytest.raises(RuntimeError, match="is in use by another process"):
+        ServerProcess("--state-dir", str(state))
+    assert http("GET", f"{url}/v1/sessions/{sid}", rec).status_code == 200
+    assert_clean_exit(first)
+    second = ServerProcess("--state-dir", str(state))  # the lock went with the first
+    assert http("GET", f"{second.url}/v1/sessions/{sid}", rec).status_code == 200
+    rec.check()
+    assert_clean_exit(second)

@@ -2,6 +2,7 @@
 
 #include <dirent.h>
 #include <fcntl.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 #include <zlib.h>
@@ -147,6 +148,27 @@ StatusOr<std::unique_ptr<DirectoryStore>> DirectoryStore::Open(const std::string
   if (::stat(dir.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) {
     return InvalidArgumentError("state_dir: '" + dir + "' is not a directory");
   }
+  // One process per directory: two servers on one directory would each trust their own versions
+  // and overwrite the other's snapshots (acknowledged steps lost, deleted sessions written back),
+  // and the second's start would remove the first's temporary files.
+  const std::string lock_path = dir + "/.lock";
+  const int lock_fd =
+      ::open(lock_path.c_str(), O_RDWR | O_CREAT | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC, 0600);
+  if (lock_fd < 0) {
+    return InvalidArgumentError("state_dir: cannot open '" + lock_path +
+                                "': " + std::strerror(errno));
+  }
+  if (::flock(lock_fd, LOCK_EX | LOCK_NB) != 0) {
+    const int err = errno;
+    ::close(lock_fd);
+    if (err == EWOULDBLOCK) {
+      return FailedPreconditionError("state_dir: '" + dir +
+                                     "' is in use by another process (it holds " + lock_path +
+                                     "); give each server a directory of its own");
+    }
+    return InvalidArgumentError("state_dir: cannot lock '" + lock_path +
+                                "': " + std::strerror(err));
+  }
   // Temporary files of a save that never finished (a crash between write and rename), or planted
   // there: unlink removes the entry itself, never what a symbolic link points to.
   if (DIR* d = ::opendir(dir.c_str())) {
@@ -156,8 +178,11 @@ StatusOr<std::unique_ptr<DirectoryStore>> DirectoryStore::Open(const std::string
     }
     ::closedir(d);
   }
-  return std::unique_ptr<DirectoryStore>(new DirectoryStore(dir, limits, max_snapshot_bytes));
+  return std::unique_ptr<DirectoryStore>(
+      new DirectoryStore(dir, lock_fd, limits, max_snapshot_bytes));
 }
+
+DirectoryStore::~DirectoryStore() { ::close(lock_fd_); }
 
 StatusOr<int64_t> DirectoryStore::Save(const api::SessionRecord& record, int64_t expected_version) {
   if (!api::IsSessionId(record.id)) return InvalidArgumentError("store: bad session id");

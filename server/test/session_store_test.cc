@@ -59,6 +59,7 @@ TEST_F(DirectoryStoreTest, SavesLoadsAndVersions) {
   EXPECT_EQ(*v2, 2);
   // A save that names an old version lost a race: ABORTED (optimistic concurrency).
   EXPECT_EQ(store->Save(Record(kA), 1).status().code(), StatusCode::kAborted);
+  store.reset();  // the store holds the directory's lock
   auto reopened = Open();
   auto loaded = reopened->Load(kA);
   ASSERT_TRUE(loaded.ok()) << loaded.status().ToString();
@@ -68,6 +69,31 @@ TEST_F(DirectoryStoreTest, SavesLoadsAndVersions) {
   ASSERT_TRUE(reopened->Delete(kA).ok());
   EXPECT_TRUE(reopened->List(10).value().empty());
   EXPECT_EQ(reopened->Load(kA).status().code(), StatusCode::kNotFound);
+}
+
+TEST_F(DirectoryStoreTest, ADirectoryInUseIsRefusedAndItsTemporaryFilesKept) {
+  // Two stores on one directory would each trust their own versions and overwrite each other's
+  // snapshots; the second's start would remove the first's save in progress.
+  auto store = Open();
+  const fs::path in_progress = dir_ / (kA + ".snap.tmp.0123456789abcdef");
+  std::ofstream(in_progress) << "a save in progress";
+  auto second = DirectoryStore::Open(dir_.string(), api::Limits(), 1 << 20);
+  ASSERT_FALSE(second.ok());
+  EXPECT_EQ(second.status().code(), StatusCode::kFailedPrecondition);
+  EXPECT_NE(second.status().message().find(dir_.string() + "' is in use"), std::string::npos)
+      << second.status().ToString();
+  EXPECT_TRUE(fs::exists(in_progress));
+  store.reset();  // the lock goes with the store
+  auto third = Open();
+  EXPECT_FALSE(fs::exists(in_progress));
+  // A planted symbolic link in place of the lock file is not followed.
+  third.reset();
+  fs::remove(dir_ / ".lock");
+  fs::create_symlink(dir_ / "elsewhere", dir_ / ".lock");
+  auto linked = DirectoryStore::Open(dir_.string(), api::Limits(), 1 << 20);
+  ASSERT_FALSE(linked.ok());
+  EXPECT_EQ(linked.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_FALSE(fs::exists(dir_ / "elsewhere"));
 }
 
 TEST_F(DirectoryStoreTest, ACorruptedOrTruncatedSnapshotIsDataLossNotACrash) {
@@ -81,6 +107,7 @@ TEST_F(DirectoryStoreTest, ACorruptedOrTruncatedSnapshotIsDataLossNotACrash) {
     f.put('#');  // one byte flipped in the middle
   }
   fs::resize_file(dir_ / (kB + ".snap"), fs::file_size(dir_ / (kB + ".snap")) - 10);
+  store.reset();
   auto reopened = Open();
   EXPECT_EQ(reopened->Load(kA).status().code(), StatusCode::kDataLoss);
   EXPECT_EQ(reopened->Load(kB).status().code(), StatusCode::kDataLoss);
@@ -104,6 +131,7 @@ TEST_F(DirectoryStoreTest, HostileEntriesAreSkippedWithoutHangingOrFollowingLink
   std::ofstream(dir_ / "README") << "not a snapshot";
 
   const auto t0 = std::chrono::steady_clock::now();
+  store.reset();
   auto reopened = Open();  // removes the planted temporary link (the link, not its target)
   EXPECT_FALSE(fs::exists(fs::symlink_status(dir_ / (kF + ".snap.tmp.0123456789abcdef"))));
   EXPECT_EQ(std::ifstream(victim).rdbuf() != nullptr, true);

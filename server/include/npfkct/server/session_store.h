@@ -103,7 +103,9 @@ std::unique_ptr<SessionStore> MakeMemoryStore();
 /// cap the size before reading, and check the checksum and the record's limits.
 class DirectoryStore : public SessionStore {
  public:
-  /// Opens (creating) `dir`; leftover temporary files of an interrupted save are removed.
+  /// Opens (creating) `dir` and holds its lock (`dir`/.lock, flock) until destroyed: a directory
+  /// another process holds is a FAILED_PRECONDITION naming it. Leftover temporary files of an
+  /// interrupted save are removed.
   static StatusOr<std::unique_ptr<DirectoryStore>> Open(const std::string& dir,
                                                         const api::Limits& limits,
                                                         size_t max_snapshot_bytes = 256 << 20);
@@ -112,13 +114,15 @@ class DirectoryStore : public SessionStore {
   StatusOr<std::vector<std::string>> List(size_t limit, const std::string& after = "") override;
   StatusOr<Loaded> Load(const std::string& id) override;
   std::string backend() const override { return "directory"; }
+  ~DirectoryStore() override;
 
  private:
-  DirectoryStore(std::string dir, const api::Limits& limits, size_t max_bytes)
-      : dir_(std::move(dir)), limits_(limits), max_bytes_(max_bytes) {}
+  DirectoryStore(std::string dir, int lock_fd, const api::Limits& limits, size_t max_bytes)
+      : dir_(std::move(dir)), lock_fd_(lock_fd), limits_(limits), max_bytes_(max_bytes) {}
   std::string PathOf(const std::string& id) const { return dir_ + "/" + id + ".snap"; }
 
   std::string dir_;
+  int lock_fd_;  // holds the directory's flock
   api::Limits limits_;
   size_t max_bytes_;
   std::mutex mutex_;
