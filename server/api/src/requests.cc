@@ -241,6 +241,16 @@ StatusOr<perception::SensorFrame> ReadFrame(const json& body, const Limits& limi
     auto data = Base64Decode(body.at("image").at("data").get<std::string>(), "image.data",
                              static_cast<size_t>(limits.max_image_pixels) * 4 + (1 << 20));
     if (!data.ok()) return data.status();
+    if (const json& img = body.at("image"); img.contains("encoding")) {
+      auto info = ProbeImage(*data, "image.data");
+      if (!info.ok()) return info.status();
+      const std::string said = img.at("encoding").get<std::string>();
+      const std::string is = info->format == ImageInfo::Format::kPng ? "png" : "jpeg";
+      if (said != is) {
+        return InvalidFieldError("image.encoding",
+                                 "says " + said + ", the data is a " + is + " image");
+      }
+    }
     auto image = DecodeImage(*data, limits.max_image_pixels, "image.data");
     if (!image.ok()) return image.status();
     if (image->cols != in.width || image->rows != in.height) {

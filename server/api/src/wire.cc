@@ -204,7 +204,9 @@ StatusOr<cv::Mat> DecodeImage(std::string_view bytes, int64_t max_pixels,
   cv::Mat image;
   try {
     const cv::Mat raw(1, static_cast<int>(bytes.size()), CV_8U, const_cast<char*>(bytes.data()));
-    image = cv::imdecode(raw, cv::IMREAD_COLOR);
+    // Pixels as stored: an EXIF orientation would turn or mirror them away from the cloud, the
+    // intrinsics and the header's size.
+    image = cv::imdecode(raw, cv::IMREAD_COLOR | cv::IMREAD_IGNORE_ORIENTATION);
   } catch (const cv::Exception&) {
     image.release();
   }

@@ -6,6 +6,7 @@
 
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <random>
 #include <sstream>
 
@@ -323,6 +324,27 @@ TEST(ParseObserve, DetectionsOrRawDataWithinLimits) {
   cloud[0].z = cloud[1].z = cloud[2].z = 1.0f;
   big_camera["pointCloud"]["data"] = Base64Encode(EncodeCloud(cloud));
   EXPECT_EQ(FieldOf(ParseObserve(big_camera.dump(), kLimits)), "camera");
+
+  // image.encoding must name the data's format (it was not read: JPEG bytes said to be PNG
+  // passed).
+  std::vector<uchar> jpeg;
+  cv::imencode(".jpg", cv::Mat(16, 16, CV_8UC3, cv::Scalar(1, 2, 3)), jpeg);
+  json with_image = raw;
+  with_image["pointCloud"]["data"] = Base64Encode(EncodeCloud(cloud));
+  with_image["camera"] = {{"width", 16}, {"height", 16}, {"fx", 16},
+                          {"fy", 16},    {"cx", 8},      {"cy", 8}};
+  with_image["image"] = {{"encoding", "jpeg"},
+                         {"data", Base64Encode(std::string(jpeg.begin(), jpeg.end()))}};
+  auto jpeg_ok = ParseObserve(with_image.dump(), kLimits);
+  ASSERT_TRUE(jpeg_ok.ok()) << jpeg_ok.status().ToString();
+  with_image["image"].erase("encoding");
+  EXPECT_TRUE(ParseObserve(with_image.dump(), kLimits).ok());
+  with_image["image"]["encoding"] = "png";
+  auto said_png = ParseObserve(with_image.dump(), kLimits);
+  EXPECT_EQ(FieldOf(said_png), "image.encoding");
+  EXPECT_NE(said_png.status().message().find("says png, the data is a jpeg image"),
+            std::string::npos)
+      << said_png.status().ToString();
 }
 
 TEST(Schemas, AgreeWithTheLimitsAndThePlannerRegistry) {

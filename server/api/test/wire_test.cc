@@ -73,6 +73,35 @@ TEST(DecodeImage, RefusesAPixelBombBeforeDecoding) {
   EXPECT_FALSE(DecodeImage(broken, 4'194'304, "image.data").ok());
 }
 
+TEST(DecodeImage, KeepsThePixelsAsStoredWhateverTheExifOrientation) {
+  // A 64 x 48 JPEG with an EXIF APP1 segment (Orientation 6, "rotate 90"): OpenCV turned it to
+  // 48 x 64, which the header check refused as a lie; orientations that keep the size (2, 3)
+  // mirrored or turned the pixels away from the cloud and the intrinsics.
+  cv::Mat gradient(48, 64, CV_8UC3);
+  for (int r = 0; r < 48; ++r) {
+    for (int c = 0; c < 64; ++c) gradient.at<cv::Vec3b>(r, c) = cv::Vec3b(4 * c, 5 * r, 100);
+  }
+  std::vector<uchar> out;
+  cv::imencode(".jpg", gradient, out);
+  const std::string plain(out.begin(), out.end());
+  for (const char orientation : {'\x06', '\x03', '\x02'}) {
+    const std::string tiff = std::string("II*\0\x08\0\0\0", 8) +
+                             std::string("\x01\0\x12\x01\x03\0\x01\0\0\0", 10) + orientation +
+                             std::string("\0\0\0\0\0\0\0", 7);
+    const std::string payload = std::string("Exif\0\0", 6) + tiff;
+    const size_t length = payload.size() + 2;
+    const std::string app1 = std::string("\xff\xe1", 2) + static_cast<char>(length >> 8) +
+                             static_cast<char>(length & 0xff) + payload;
+    const std::string exif = plain.substr(0, 2) + app1 + plain.substr(2);
+    auto with = DecodeImage(exif, 4'194'304, "image.data");
+    ASSERT_TRUE(with.ok()) << int{orientation} << " " << with.status().ToString();
+    auto without = DecodeImage(plain, 4'194'304, "image.data");
+    ASSERT_TRUE(without.ok());
+    ASSERT_EQ(with->size(), without->size());
+    EXPECT_EQ(cv::norm(*with, *without, cv::NORM_INF), 0.0) << int{orientation};
+  }
+}
+
 // The JPEG's segments up to its end-of-image marker, each scan with its entropy-coded data.
 std::vector<std::string> JpegSegments(const std::string& jpeg) {
   std::vector<std::string> out;
