@@ -10,8 +10,12 @@ build/server/npfkct-server; run the build of another commit to see the "before" 
   sift-photos N       N textured 2048^2 target photos (default 8), one plate filling the view
   ransac-lattice N    a cube and N lattice points (default 100,000), one per RANSAC voxel
   track-slabs N       N 1 cm slabs (default 9) grown into one track, then a restart
+  big-room N          the example session's world in a room N m wide (default 39), two frames
+                      of three 0.6 m squares that ICP cannot fit from the reported pose (RANSAC
+                      runs each time)
 """
 import base64
+import json
 import os
 import random
 import struct
@@ -20,7 +24,7 @@ import tempfile
 import zlib
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests"))
-from conftest import ServerProcess  # noqa: E402
+from conftest import ROOT, ServerProcess  # noqa: E402
 from test_hostile import create, flat_png, http, noise_png, raw_observation  # noqa: E402
 
 FAR = [(9999.0, 9999.0, 9999.0), (-9999.0, 9999.0, 0.5), (0.001, -9999.0, 9999.0)]
@@ -104,6 +108,11 @@ def main():
             sid = create(url, None, target={"description": "x", "photos": [photo]})
         elif attack in ("far-blob", "denormal", "ransac-lattice"):
             sid = create(url, None)
+        elif attack == "big-room":
+            with open(os.path.join(ROOT, "schemas", "examples", "create_session_request.json")) as f:
+                world, half = json.load(f)["world"], (n or 39) / 2
+            world["room"] = {"min": [-half, -half], "max": [half, half]}
+            sid = create(url, None, world=world)
         elif attack == "track-slabs":
             world = {"robot": "fetch", "room": {"min": [-1, -1], "max": [9, 6]},
                      "mapResolution": 0.05,
@@ -157,6 +166,19 @@ def main():
                 points += [(x, y, z) for y in ys for z in zs][:wanted - len(points)]
                 x += pitch
             observe(server, sid, raw_observation(action(), points, "map"), attack)
+        elif attack == "big-room":
+            points = []
+            for i in range(60):
+                for k in range(60):
+                    u, v = i * 0.01, k * 0.01
+                    points += [(-0.3 + u, -0.3 + v, 2.0), (-0.3, -0.3 + u, 2.0 - v),
+                               (-0.3 + u, -0.3, 2.0 - v)]
+            with open(os.path.join(ROOT, "schemas", "examples", "observe_request_raw.json")) as f:
+                robot_state = json.load(f)["robotState"]
+            for label in ("first frame (builds the prior map)", "second frame"):
+                body = raw_observation(action(), points)
+                body["robotState"] = robot_state
+                observe(server, sid, body, f"{attack} {label}")
         elif attack == "track-slabs":
             c = lambda i: (i + 0.5) * 0.01  # noqa: E731
             x0, x1, y0, y1, z0, z1 = 302, 698, 102, 398, 78, 130  # the box's voxel indices

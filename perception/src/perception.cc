@@ -121,6 +121,26 @@ typename pcl::PointCloud<Point>::Ptr Thin(const typename pcl::PointCloud<Point>:
   return out;
 }
 
+// An axis-aligned box in the x-y plane (m).
+struct BoxXY {
+  double min_x, min_y, max_x, max_y;
+  BoxXY Widened(double by) const { return {min_x - by, min_y - by, max_x + by, max_y + by}; }
+  bool Contains(double x, double y) const {
+    return x >= min_x && x <= max_x && y >= min_y && y <= max_y;
+  }
+};
+
+// The points of `in` inside `box` (x-y), in their order.
+template <typename Point>
+typename pcl::PointCloud<Point>::Ptr CropXY(const typename pcl::PointCloud<Point>::Ptr& in,
+                                            const BoxXY& box) {
+  auto out = pcl::make_shared<pcl::PointCloud<Point>>();
+  for (const Point& p : *in) {
+    if (box.Contains(p.x, p.y)) out->push_back(p);
+  }
+  return out;
+}
+
 // Points with surface normals estimated from neighbours within `radius`.
 NormalCloud::Ptr WithNormals(const CloudXYZ::Ptr& in, double radius) {
   auto normals = pcl::make_shared<pcl::PointCloud<pcl::Normal>>();
@@ -283,9 +303,10 @@ Status CameraIntrinsics::Validate() const {
 }
 
 Status PerceptionOptions::Validate() const {
-  for (double v : {voxel, icp_max_distance, icp_good_fitness, ransac_voxel, max_correction,
-                   map_distance, max_object_height, cluster_tolerance, association_gate,
-                   association_distance, sift_ratio, match_threshold, gripper_max}) {
+  for (double v :
+       {voxel, icp_max_distance, icp_good_fitness, ransac_voxel, max_correction, registration_range,
+        map_distance, max_object_height, cluster_tolerance, association_gate, association_distance,
+        sift_ratio, match_threshold, gripper_max}) {
     if (!(v > 0) || !std::isfinite(v))
       return InvalidArgumentError("perception options must be > 0");
   }
@@ -323,9 +344,6 @@ struct Perception::Impl {
   std::vector<std::vector<cv::KeyPoint>> photo_keypoints;
   int64_t photo_features = 0;  // keypoints over every photo: a region's matching costs this each
   std::vector<cv::Mat> photo_histograms;
-  // RANSAC fallback features of the map (computed on first use).
-  pcl::PointCloud<pcl::FPFHSignature33>::Ptr map_features;
-  CloudXYZ::Ptr map_ransac;
 
   cv::Mat Histogram(const cv::Mat& bgr, const cv::Mat& mask = cv::Mat()) const {
     cv::Mat hsv, hist;
@@ -659,6 +677,25 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
     if (!on_workspace(p, 0.05, nullptr)) structure->push_back(p);
   }
   if (structure->size() < 100) structure = in_map;
+  // The part of the map a correction could align the frame with: where the frame's structure
+  // lies within registration_range of the camera, widened by the largest correction and ICP's
+  // reach. Registration then costs what the view covers, not the size of the room (a 39 m room
+  // made a frame's first registration 57 s and every later one 19 s).
+  const Eigen::Vector3d camera = reported.block<3, 1>(0, 3);
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  BoxXY view{kInf, kInf, -kInf, -kInf};
+  for (const auto& p : *structure) {
+    view.min_x = std::min<double>(view.min_x, p.x);
+    view.min_y = std::min<double>(view.min_y, p.y);
+    view.max_x = std::max<double>(view.max_x, p.x);
+    view.max_y = std::max<double>(view.max_y, p.y);
+  }
+  view.min_x = std::max(view.min_x, camera.x() - o.registration_range);
+  view.min_y = std::max(view.min_y, camera.y() - o.registration_range);
+  view.max_x = std::min(view.max_x, camera.x() + o.registration_range);
+  view.max_y = std::min(view.max_y, camera.y() + o.registration_range);
+  const BoxXY reach = view.Widened(o.max_correction + o.icp_max_distance);
+  const NormalCloud::Ptr target = CropXY<PointNormal>(im.map_normals, reach);
   // Point-to-plane ICP: the scene is mostly planes (floor, table tops, sides), along which
   // point-to-point ICP slides.
   // Thinned to max_icp_points: each ICP iteration searches the map for every source point.
@@ -679,11 +716,12 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
   }
   const Eigen::Matrix<double, 6, 1> directions =
       Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>>(system).eigenvalues();
-  const bool observable = source->size() >= 200 && directions[0] > o.min_structure * directions[5];
+  const bool observable = source->size() >= 200 && target->size() >= 3 &&
+                          directions[0] > o.min_structure * directions[5];
   pcl::IterativeClosestPointWithNormals<PointNormal, PointNormal> icp;
   icp.setTransformationEstimation(pcl::make_shared<FiniteStepPointToPlane>());
   icp.setInputSource(source);
-  icp.setInputTarget(im.map_normals);
+  icp.setInputTarget(target);
   icp.setMaxCorrespondenceDistance(o.icp_max_distance);
   icp.setMaximumIterations(o.icp_iterations);
   icp.setTransformationEpsilon(1e-9);
@@ -697,18 +735,28 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
   }
   if (observable && fitness > o.icp_good_fitness) {
     // Poor fit from the reported pose: a global alignment first (RANSAC on FPFH features).
-    if (!im.map_features) {
-      im.ComputeRansacFeatures(im.map, /*max_points=*/0, &im.map_ransac, &im.map_features);
+    // The map's features within reach, each computed from all its neighbours (the crop is
+    // widened by the normals' and features' radii, then cut back).
+    CloudXYZ::Ptr around, map_ransac = pcl::make_shared<CloudXYZ>();
+    pcl::PointCloud<pcl::FPFHSignature33>::Ptr around_features;
+    auto map_features = pcl::make_shared<pcl::PointCloud<pcl::FPFHSignature33>>();
+    im.ComputeRansacFeatures(CropXY<PointXYZ>(im.map, reach.Widened(8.0 * o.ransac_voxel)),
+                             /*max_points=*/0, &around, &around_features);
+    for (size_t i = 0; i < around->size(); ++i) {
+      if (reach.Contains((*around)[i].x, (*around)[i].y)) {
+        map_ransac->push_back((*around)[i]);
+        map_features->push_back((*around_features)[i]);
+      }
     }
     CloudXYZ::Ptr src_down;
     pcl::PointCloud<pcl::FPFHSignature33>::Ptr src_features;
     im.ComputeRansacFeatures(structure, o.max_ransac_points, &src_down, &src_features);
-    const bool enough = src_down->size() >= 3 && im.map_ransac->size() >= 3;
+    const bool enough = src_down->size() >= 3 && map_ransac->size() >= 3;
     pcl::SampleConsensusPrerejective<PointXYZ, PointXYZ, pcl::FPFHSignature33> ransac;
     ransac.setInputSource(src_down);
     ransac.setSourceFeatures(src_features);
-    ransac.setInputTarget(im.map_ransac);
-    ransac.setTargetFeatures(im.map_features);
+    ransac.setInputTarget(map_ransac);
+    ransac.setTargetFeatures(map_features);
     ransac.setMaximumIterations(20000);
     ransac.setNumberOfSamples(3);
     ransac.setCorrespondenceRandomness(5);

@@ -59,6 +59,10 @@ struct PerceptionOptions {
   double icp_good_fitness = 2.5e-4;  ///< Mean squared distance (m^2) below which ICP is trusted.
   double ransac_voxel = 0.03;        ///< Leaf for the RANSAC fallback.
   double max_correction = 0.5;       ///< Larger pose corrections are rejected (m).
+  /// Registration aligns the frame with the map only where the frame lies within this distance
+  /// of the camera in x-y (plus max_correction and icp_max_distance): its cost follows the view,
+  /// not the room (m).
+  double registration_range = 6.0;
   /// Registration runs only when the visible structure constrains the pose: the smallest
   /// eigenvalue of the point-to-plane system must exceed this fraction of the largest.
   double min_structure = 1e-5;
