@@ -102,7 +102,8 @@ Status Session::Init(const SamplerFactory& samplers) {
 }
 
 void Session::Reseed() {
-  // A function of the seed and the step only, so that a restored session continues identically.
+  // A function of the seed and the step only, so that a restored session rebuilds the belief it
+  // had. (Its next plan starts a fresh search tree: the subtree kept between steps is not saved.)
   rng_.Seed(HashMix(seed_ ^ HashMix(static_cast<uint64_t>(actions_) + 0x51ed27)));
 }
 
