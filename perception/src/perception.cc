@@ -680,7 +680,7 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
   // The part of the map a correction could align the frame with: where the frame's structure
   // lies within registration_range of the camera, widened by the largest correction and ICP's
   // reach. Registration then costs what the view covers, not the size of the room (a 39 m room
-  // made a frame's first registration 57 s and every later one 19 s).
+  // made a frame's first registration 60 s and every later one 20 s).
   const Eigen::Vector3d camera = reported.block<3, 1>(0, 3);
   constexpr double kInf = std::numeric_limits<double>::infinity();
   BoxXY view{kInf, kInf, -kInf, -kInf};

@@ -40,8 +40,8 @@ struct NoData {};
 
 /// Storage and observation branching of a belief tree over model M. `ActData` is the planner's
 /// payload per action node (e.g. a Voronoi cell or a hypersphere). Nodes live in two NodeArrays
-/// and refer to each other by index, so the tree grows in blocks and tears down in a few
-/// deallocations.
+/// and refer to each other by index: the tree grows a block at a time, never by moving all its
+/// nodes.
 template <GenerativeModel M, class ActData = NoData>
 class BeliefTree {
  public:
