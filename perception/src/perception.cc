@@ -408,7 +408,16 @@ Perception::Perception(const object_search::World& world, TargetModel target,
     }
   }
   im.map = Downsample(im.map, options.voxel);
-  im.map_tree.setInputCloud(im.map);
+  // Segmentation asks only whether a point standing on a workspace (higher than its surface by
+  // 5 mm) lies within map_distance of the map: map points lower than that below every workspace
+  // never answer, and the floor is most of a large room's map.
+  double lowest = std::numeric_limits<double>::infinity();
+  for (const auto& ws : world.grid.workspaces()) lowest = std::min(lowest, ws.height);
+  auto upper = pcl::make_shared<CloudXYZ>();
+  for (const auto& p : *im.map) {
+    if (p.z > lowest + 0.005 - options.map_distance - 1e-3) upper->push_back(p);
+  }
+  if (!upper->empty()) im.map_tree.setInputCloud(upper);
   im.map_normals = WithNormals(Downsample(im.map, 2.0 * options.voxel), 3.0 * options.voxel);
   for (const cv::Mat& photo : im.target.photos) {
     if (photo.empty()) continue;
@@ -816,7 +825,7 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
   for (const auto& p : *points) {
     int surface = -1;
     if (!on_workspace(p, o.workspace_margin, &surface)) continue;
-    if (im.map_tree.nearestKSearch(p, 1, nearest, distance) > 0 &&
+    if (im.map_tree.getInputCloud() && im.map_tree.nearestKSearch(p, 1, nearest, distance) > 0 &&
         distance[0] < o.map_distance * o.map_distance) {
       continue;
     }
