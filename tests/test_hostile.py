@@ -893,7 +893,8 @@ def test_deletes_racing_plans_and_observes_never_come_back_after_a_restart(tmp_p
     alive = {s["id"] for s in http("GET", server.url + "/v1/sessions",
                                    params={"pageSize": 1000}).json()["sessions"]}
     assert alive == set(keepers), f"{len(alive & set(deleted))} deleted sessions came back"
-    assert not [f for f in os.listdir(state) if not f.endswith(".snap")]
+    # Snapshots and the directory's lock only: no temporary file left behind.
+    assert not [f for f in os.listdir(state) if not f.endswith(".snap") and f != ".lock"]
     assert_alive_and_intact(server, before, rec)
     assert_clean_exit(server)
 
@@ -1049,8 +1050,11 @@ def test_multipart_bodies_odd_methods_and_option_spellings(hostile_server):
                              b"Content-Length: " + str(len(part)).encode() + b"\r\n\r\n" + part)
         assert status_of(reply) == 415, reply[:300]
         rec.add(415)
-    # A method that is not HTTP's: counted as "other", never copied into /metrics.
+    # A method that is not HTTP's: counted as "other", never copied into /metrics; one that is
+    # not even a token is a malformed request line.
     reply = raw_exchange(port, b'A"},evil="1 /healthz HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n')
+    assert status_of(reply) == 400 and b"malformed request line" in reply, reply[:200]
+    reply = raw_exchange(port, b"evil /healthz HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
     assert status_of(reply) in (400, 404, 405, 501), reply[:200]
     metrics = http("GET", url + "/metrics", rec).text
     assert "evil" not in metrics

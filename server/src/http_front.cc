@@ -43,6 +43,19 @@ bool IsToken(const std::string& s) {
   });
 }
 
+// Whether `line` is a request line (RFC 9112 3): method SP request-target SP HTTP/d.d, the method
+// a token and the target without spaces.
+bool WellFormedRequestLine(const std::string& line) {
+  const size_t sp1 = line.find(' ');
+  if (sp1 == std::string::npos || !IsToken(line.substr(0, sp1))) return false;
+  const size_t sp2 = line.find(' ', sp1 + 1);
+  if (sp2 == std::string::npos || sp2 == sp1 + 1) return false;
+  const std::string_view version = std::string_view(line).substr(sp2 + 1);
+  return version.size() == 8 && version.substr(0, 5) == "HTTP/" &&
+         std::isdigit(static_cast<unsigned char>(version[5])) && version[6] == '.' &&
+         std::isdigit(static_cast<unsigned char>(version[7]));
+}
+
 // Whether a head (up to its final CRLF) holds a NUL, or a CR or LF that is not part of a CRLF:
 // httplib ends lines at a bare LF where the front does not, so such a head would be read as two
 // different requests.
@@ -572,6 +585,14 @@ void HttpFront::Reactor() {
       // Parse the head: request line, then "name: value" lines.
       size_t line_end = c->buf.find("\r\n");
       const std::string request_line = c->buf.substr(0, line_end);
+      // httplib answered an unparsable request line with a 400 and kept the connection for a
+      // next request that cannot be framed after it (the client waited for the idle timeout).
+      if (!WellFormedRequestLine(request_line)) {
+        refuse(std::move(c), 400,
+               "a malformed request line: expected METHOD TARGET HTTP/1.1, separated by single "
+               "spaces");
+        return -1;
+      }
       std::string content_length, transfer_encoding, content_encoding;
       int content_length_count = 0;
       bool expect_continue = false, keep_alive_asked = false;

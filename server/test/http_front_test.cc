@@ -208,6 +208,27 @@ TEST_F(HttpFrontTest, HeadsTooLargeKeepAliveAndPipelining) {
   ::close(e);
 }
 
+TEST_F(HttpFrontTest, AMalformedRequestLineIsAnsweredAndTheConnectionClosed) {
+  // httplib answered these with a 400 and kept the connection open until its idle timeout (5 s
+  // of the client's wait for a close): nothing after an unparsable request line can be framed.
+  Start(HttpFrontOptions{});
+  for (const std::string& line :
+       {std::string("GARBAGE"), std::string("GET /healthz HTTP/1.1 extra"),
+        std::string("GET  /healthz HTTP/1.1"), std::string("GET /healthz"),
+        std::string("GET /healthz HTTX/1.1"), std::string("G@T /healthz HTTP/1.1")}) {
+    const auto t0 = Clock::now();
+    const std::string reply = Exchange(line + "\r\nHost: localhost\r\n\r\n");
+    EXPECT_EQ(reply.rfind("HTTP/1.1 400", 0), 0u) << line << ": " << reply;
+    EXPECT_NE(reply.find("Connection: close"), std::string::npos) << line;
+    EXPECT_NE(reply.find("malformed request line"), std::string::npos) << line;
+    EXPECT_LT(Since(t0), 2.0) << line;
+  }
+  // Well-formed lines, an unknown method and HTTP/1.0 included, reach the routes.
+  EXPECT_EQ(Exchange("GET /healthz HTTP/1.0\r\n\r\n").rfind("HTTP/1.1 200", 0), 0u);
+  EXPECT_EQ(Exchange("BREW /healthz HTTP/1.1\r\nConnection: close\r\n\r\n").find("malformed"),
+            std::string::npos);
+}
+
 TEST_F(HttpFrontTest, AHandlerSeesItsClientHangUp) {
   Start(HttpFrontOptions());
   const int fd = Connect();
