@@ -312,8 +312,8 @@ Status PerceptionOptions::Validate() const {
   }
   if (icp_iterations < 1 || min_cluster_points < 1 || max_cluster_points < min_cluster_points ||
       min_features < 1 || min_inliers < 4 || max_clusters < 1 || max_track_points < 1 ||
-      max_ransac_points < 1 || max_icp_points < 1 || max_features < 1 || max_sift_pixels < 16 ||
-      max_sift_frame_pixels < 0 || max_sift_pairs < 0) {
+      max_ransac_points < 1 || max_ransac_map_points < 1 || max_icp_points < 1 ||
+      max_features < 1 || max_sift_pixels < 16 || max_sift_frame_pixels < 0 || max_sift_pairs < 0) {
     return InvalidArgumentError("perception options: bad counts");
   }
   return OkStatus();
@@ -750,7 +750,7 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
     pcl::PointCloud<pcl::FPFHSignature33>::Ptr around_features;
     auto map_features = pcl::make_shared<pcl::PointCloud<pcl::FPFHSignature33>>();
     im.ComputeRansacFeatures(CropXY<PointXYZ>(im.map, reach.Widened(8.0 * o.ransac_voxel)),
-                             /*max_points=*/0, &around, &around_features);
+                             o.max_ransac_map_points, &around, &around_features);
     for (size_t i = 0; i < around->size(); ++i) {
       if (reach.Contains((*around)[i].x, (*around)[i].y)) {
         map_ransac->push_back((*around)[i]);

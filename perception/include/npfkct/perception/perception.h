@@ -96,6 +96,9 @@ struct PerceptionOptions {
   int64_t max_icp_points = 20'000;
   /// The RANSAC fallback's source points, after downsampling, are thinned to this many.
   int64_t max_ransac_points = 10'000;
+  /// Its map points within reach of the view, after downsampling, are thinned to this many (a
+  /// frame spread to the edges of registration_range reaches about 240,000).
+  int64_t max_ransac_map_points = 60'000;
   /// SIFT keypoints kept per target photo and per image region (the strongest).
   int max_features = 2'000;
   /// An image region or target photo larger than this (pixels) is scaled down before SIFT.
