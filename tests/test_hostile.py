@@ -1166,11 +1166,13 @@ def test_work_inside_a_simulation_or_before_it_stops_with_the_plan(hostile_serve
 
 def test_a_growing_search_tree_stops_at_the_heap_bound(tmp_path):
     # pomcp-joint's tree grows by about 400 MiB a second here; with --max-heap-mb 256 a 5 s plan
-    # stops early with its best action, the next plan is refused while the tree is kept, and
-    # deleting the session gives the heap back. The resident peak stays near the bound: the
-    # tree's node arrays grow in blocks (they doubled in one piece, and the old and new arrays
-    # were both resident while one was copied). The Release build: ASan's allocator is not the
-    # one the bound reads.
+    # stops early with its best action. The resident peak stays near the bound: the tree's node
+    # arrays grow in blocks (they doubled in one piece, and the old and new arrays were both
+    # resident while one was copied). The tree that reached the bound is dropped and its memory
+    # given back: kept, it refused the session's own observation until a DELETE (and everyone
+    # else's plans), and freed trees stayed resident in the arena of the thread that grew them
+    # (3 GiB resident after six create-plan-delete cycles at a 1 GiB bound). The Release build:
+    # ASan's allocator is not the one the bound reads.
     server = ServerProcess("--state-dir", str(tmp_path / "state"), "--max-heap-mb", "256",
                            binary=RELEASE_BIN)
     url, rec = server.url, Recorder()
@@ -1183,24 +1185,43 @@ def test_a_growing_search_tree_stops_at_the_heap_bound(tmp_path):
     big = create(url, rec, planner={"name": "pomcp-joint"})
     other = create(url, rec)
     pending = planned(url, rec)
-    t = time.monotonic()
-    r = http("POST", f"{url}/v1/sessions/{big}:plan", rec, json={"budget": {"timeMs": 5000}})
+    for cycle in range(3):
+        t = time.monotonic()
+        r = http("POST", f"{url}/v1/sessions/{big}:plan", rec, json={"budget": {"timeMs": 5000}})
+        assert r.status_code == 200, r.text
+        assert time.monotonic() - t < 4.0
+        stats = r.json()["stats"]
+        assert stats["budgetExhausted"] is False and stats["simulations"] > 0, stats
+        assert rss_mib() - start < 100, (cycle, start, rss_mib())
+        assert rss_mib("VmHWM") - start < 256 + 64, (cycle, start, rss_mib("VmHWM"))
+        r = http("POST", f"{url}/v1/sessions/{big}:observe", rec,
+                 json=observation(r.json()["actionId"]))
+        assert r.status_code == 200, r.text
+    r = http("POST", f"{url}/v1/sessions/{other}:plan", rec, json={"budget": {"timeMs": 200}})
     assert r.status_code == 200, r.text
-    assert time.monotonic() - t < 4.0
-    stats = r.json()["stats"]
-    assert stats["budgetExhausted"] is False and stats["simulations"] > 0, stats
-    assert rss_mib() - start < 600, (start, rss_mib())
-    assert rss_mib("VmHWM") - start < 256 + 64, (start, rss_mib("VmHWM"))
-    # Past the bound nothing that grows the heap starts: plans, observations, new sessions.
-    for method, path, body in [("POST", f"/v1/sessions/{other}:plan", {"budget": {"timeMs": 200}}),
+    # A perception map of a 36 m room holds the heap past the bound: nothing that grows the heap
+    # starts (plans, observations, new sessions), and each 429 says when to retry (the plan's
+    # and the observation's said nothing).
+    with open(os.path.join(ROOT, "schemas", "examples", "create_session_request.json")) as f:
+        world = json.load(f)["world"]
+    with open(os.path.join(ROOT, "schemas", "examples", "observe_request_raw.json")) as f:
+        raw = json.load(f)
+    world["room"] = {"min": [-18, -18], "max": [18, 18]}
+    fresh = create(url, rec)
+    holder, action = planned(url, rec, world=world)
+    r = http("POST", f"{url}/v1/sessions/{holder}:observe", rec, json=dict(raw, actionId=action),
+             timeout=120)
+    assert r.status_code == 200, r.text
+    for method, path, body in [("POST", f"/v1/sessions/{fresh}:plan", {"budget": {"timeMs": 200}}),
                                ("POST", f"/v1/sessions/{pending[0]}:observe",
                                 observation(pending[1])),
                                ("POST", "/v1/sessions", {"world": world_of("loose1")})]:
         r = http(method, url + path, rec, json=body)
         assert r.status_code == 429 and "max-heap-mb" in r.json()["error"]["message"], r.text
-        assert path != "/v1/sessions" or r.headers["Retry-After"] == "5", r.headers
-    assert http("DELETE", f"{url}/v1/sessions/{big}", rec).status_code == 200
-    r = http("POST", f"{url}/v1/sessions/{other}:plan", rec, json={"budget": {"timeMs": 200}})
+        assert r.headers["Retry-After"] == "5", (path, r.headers)
+        assert any(d.get("retryDelay") == "5s" for d in r.json()["error"]["details"]), r.text
+    assert http("DELETE", f"{url}/v1/sessions/{holder}", rec).status_code == 200
+    r = http("POST", f"{url}/v1/sessions/{fresh}:plan", rec, json={"budget": {"timeMs": 200}})
     assert r.status_code == 200, r.text
     r = http("POST", f"{url}/v1/sessions/{pending[0]}:observe", rec, json=observation(pending[1]))
     assert r.status_code == 200, r.text
@@ -1546,13 +1567,26 @@ def test_a_frame_in_a_large_room_costs_what_the_view_covers(hostile_server):
             u, v = i * 0.01, k * 0.01
             points += [(-0.3 + u, -0.3 + v, 2.0), (-0.3, -0.3 + u, 2.0 - v),
                        (-0.3 + u, -0.3, 2.0 - v)]
-    for frame in range(2):
+    # A few points at the edges of registration_range (6 m) widen the view to its largest: the
+    # map's RANSAC features there are thinned to max_ransac_map_points (5.2 s a frame before).
+    # raw_observation's robot stands at (0.3, 0); a corner in the map frame before it.
+    corner = []
+    for i in range(60):
+        for k in range(60):
+            u, v = i * 0.01, k * 0.01
+            corner += [(1.2 + u, -1.2 + v, 1.6), (1.2, -1.2 + u, 1.6 - v), (1.2 + u, -1.2, 1.6 - v)]
+    spread = [(0.3 + sx * 5.9 + 0.01 * j, sy * 5.9, 0.4)
+              for sx in (-1, 1) for sy in (-1, 1) for j in range(3)]
+    limit = 2.0 * (3 if SANITIZED else 1)
+    for frame in ("first", "second", "spread"):
         action_id = http("POST", f"{url}/v1/sessions/{sid}:plan", rec,
                          json={"budget": {"simulations": 20}}).json()["actionId"]
         body = dict(raw_observation(action_id, points), robotState=robot_state)
+        if frame == "spread":
+            body = raw_observation(action_id, corner + spread, "map")
         before = cpu_seconds(pid)
         r = http("POST", f"{url}/v1/sessions/{sid}:observe", rec, json=body, timeout=120)
         used = cpu_seconds(pid) - before
         assert r.status_code == 200, r.text
-    assert used < 2.0, f"the second frame took {used:.1f} s of CPU"
+        assert frame == "first" or used < limit, f"the {frame} frame took {used:.1f} s of CPU"
     rec.check()

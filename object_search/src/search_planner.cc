@@ -54,6 +54,7 @@ class HybridPlanner final : public SearchPlanner {
                  ParticleBelief<State> belief) override {
     planner_.AdvanceTo(a, o, std::move(belief));
   }
+  void DropTree() override { planner_.DropTree(); }
   int64_t TreeSize() const override { return planner_.TreeSize(); }
   bool ReusesTree() const override { return reuse_; }
   int SearchThreads() const override { return threads_; }
@@ -122,6 +123,7 @@ class DiscretePlanner final : public SearchPlanner {
     }
   }
   void OnWorldChanged() override { discrete_.Refresh(); }
+  void DropTree() override { planner_.DropTree(); }
   int64_t TreeSize() const override { return planner_.TreeSize(); }
   bool ReusesTree() const override { return reuse_; }
 

@@ -286,6 +286,8 @@ void Registry::Drop(const std::string& id) {
     metrics_->SetSessions(static_cast<int>(sessions_.size()));
   }
   (void)held->Delete(nullptr);  // stops its plan; never saved again
+  held.reset();
+  ReleaseFreedMemory();
 }
 
 StatusOr<std::vector<api::SessionView>> Registry::Page(const std::string& token, int size,
@@ -354,6 +356,12 @@ StatusOr<std::shared_ptr<Session>> Registry::Add(std::unique_ptr<Session> create
 }
 
 Status Registry::Remove(const std::string& id) {
+  const Status removed = RemoveSession(id);
+  ReleaseFreedMemory();  // the session is gone unless a request still holds it
+  return removed;
+}
+
+Status Registry::RemoveSession(const std::string& id) {
   if (!api::IsSessionId(id)) return NotHeld(id);
   std::shared_ptr<Session> held;
   {
@@ -397,6 +405,7 @@ StoreHealth Registry::store_health() const {
 }
 
 void Registry::Reap() {
+  bool expired = false;
   std::vector<std::shared_ptr<Session>> all;
   {
     std::shared_lock lock(mutex_);
@@ -414,8 +423,11 @@ void Registry::Reap() {
       metrics_->SetSessions(static_cast<int>(sessions_.size()));
     }
     metrics_->CountExpired();
+    expired = true;
     spdlog::info("session {} expired", s->id());
   }
+  all.clear();
+  if (expired) ReleaseFreedMemory();
 }
 
 // Fleet upkeep: keeps the sessions requests work on from expiring (every tick); once a second,

@@ -81,6 +81,8 @@ class Registry {
 
  private:
   Status FullError() const;
+  // Remove() but for giving the memory back.
+  Status RemoveSession(const std::string& id);
   // Restores a stored session and holds it in place of `replaced` (unless another request
   // installed a newer copy meanwhile).
   StatusOr<std::shared_ptr<Session>> Install(SessionStore::Loaded loaded,

@@ -57,10 +57,12 @@ bool SameSecret(std::string_view a, std::string_view b) {
   return diff == 0;
 }
 
-// UNAVAILABLE (the session store did not answer) is worth retrying in a second.
+// UNAVAILABLE (the session store did not answer) is worth retrying in a second; every 429
+// names when to retry (5 s unless the caller knows better: the heap bound, a full store).
 void Fail(Response& res, const Status& s, int http_status = 0, int retry_after = 0) {
   if (retry_after == 0 && s.code() == StatusCode::kUnavailable) retry_after = 1;
   const int code = http_status > 0 ? http_status : api::HttpStatusOf(s.code());
+  if (retry_after == 0 && code == 429) retry_after = 5;
   Json(res, code, api::RenderError(s, code, retry_after));
   if (retry_after > 0) res.set_header("Retry-After", std::to_string(retry_after));
 }
@@ -238,6 +240,7 @@ struct Server::Impl {
     auto reply = s->Observe(std::move(observe).value(), registry.store());
     if (!reply.ok()) return Fail(res, reply.status());
     Json(res, 200, api::RenderObserve(*reply));
+    ReleaseFreedMemory();  // the planner kept only the subtree of what was observed
   }
 
   void Belief(const Request& req, Response& res, const std::string&) {

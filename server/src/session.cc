@@ -2,6 +2,7 @@
 
 #include <malloc.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <set>
@@ -49,6 +50,20 @@ Status HeapBoundError(const SessionLimits& limits, const std::string& what) {
 
 Status CheckHeap(const SessionLimits& limits, const std::string& what) {
   return HeapPastBound(limits) ? HeapBoundError(limits, what) : OkStatus();
+}
+
+void ReleaseFreedMemory() {
+  static std::mutex mutex;
+  static size_t free_after_trim = 0;  // the allocator's free bytes after the last trim
+  constexpr size_t kWorthIt = size_t{64} << 20;
+  std::lock_guard<std::mutex> lock(mutex);
+  const size_t free_now = mallinfo2().fordblks;
+  // Trimmed chunks still count as free: compare with what was free after the last trim, which
+  // follows the free bytes down as they are reused.
+  free_after_trim = std::min(free_after_trim, free_now);
+  if (free_now < free_after_trim + kWorthIt) return;
+  malloc_trim(0);
+  free_after_trim = mallinfo2().fordblks;
 }
 
 Session::~Session() = default;
@@ -189,6 +204,13 @@ StatusOr<api::PlanReply> Session::Plan(const Budget& asked,
     cancelled = stop.cancelled();
     if (!cancelled && stop.limit_reached() && d.status.ok() && d.stats.simulations == 0) {
       d.status = HeapBoundError(limits_, "plan");
+    }
+    if (stop.limit_reached()) {
+      // The tree holds the heap past its bound: kept, it would refuse this session's own
+      // observation (and everyone's plans) until the session is deleted. The next plan starts
+      // a fresh tree.
+      planner_->DropTree();
+      ReleaseFreedMemory();
     }
   }
   std::unique_lock<std::mutex> state(state_mutex_);

@@ -35,6 +35,8 @@ class SearchPlanner {
                          ParticleBelief<State> belief) = 0;
   /// Tells the planner that the model's World changed (manual poses depend on it).
   virtual void OnWorldChanged() {}
+  /// Drops the search tree (and its memory), keeping the belief: the next Plan() starts afresh.
+  virtual void DropTree() = 0;
   /// Nodes in the tree.
   virtual int64_t TreeSize() const = 0;
   /// Whether the planner keeps its tree across real steps.

@@ -82,6 +82,8 @@ class Advt {
     belief_ = std::move(belief);
     tree_.Clear();
   }
+  /// Drops the search tree and gives its memory back; the belief stays.
+  void DropTree() { tree_.Clear(); }
   const ParticleBelief<State>& belief() const { return belief_; }
   const AdvtOptions& options() const { return options_; }
 

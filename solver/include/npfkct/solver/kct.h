@@ -209,6 +209,8 @@ class KCenterTree {
     belief_ = std::move(belief);
     ClearTrees();
   }
+  /// Drops the search tree and gives its memory back; the belief stays.
+  void DropTree() { ClearTrees(); }
   const ParticleBelief<State>& belief() const { return belief_; }
   const KctOptions& options() const { return options_; }
   /// Replaces the candidate sampler (e.g. with the neural filter).

@@ -63,6 +63,8 @@ class Pomcp {
     belief_ = std::move(belief);
     ClearTree();
   }
+  /// Drops the search tree and gives its memory back; the belief stays.
+  void DropTree() { ClearTree(); }
   const ParticleBelief<State>& belief() const { return belief_; }
   const PomcpOptions& options() const { return options_; }
 

@@ -82,6 +82,8 @@ requires HasObservationLikelihood<M> &&
     belief_ = std::move(belief);
     tree_.Clear();
   }
+  /// Drops the search tree and gives its memory back; the belief stays.
+  void DropTree() { tree_.Clear(); }
   const ParticleBelief<State>& belief() const { return belief_; }
   const PomcpowOptions& options() const { return options_; }
 
