@@ -13,6 +13,8 @@ build/server/npfkct-server; run the build of another commit to see the "before" 
   big-room N          the example session's world in a room N m wide (default 39), two frames
                       of three 0.6 m squares that ICP cannot fit from the reported pose (RANSAC
                       runs each time)
+  view-spread N       as big-room (default 16 m), the corner in the map frame beside twelve points
+                      5.9 m from the camera: the view as wide as registration_range allows
 """
 import base64
 import json
@@ -108,9 +110,10 @@ def main():
             sid = create(url, None, target={"description": "x", "photos": [photo]})
         elif attack in ("far-blob", "denormal", "ransac-lattice"):
             sid = create(url, None)
-        elif attack == "big-room":
+        elif attack in ("big-room", "view-spread"):
             with open(os.path.join(ROOT, "schemas", "examples", "create_session_request.json")) as f:
-                world, half = json.load(f)["world"], (n or 39) / 2
+                world = json.load(f)["world"]
+            half = (n or (39 if attack == "big-room" else 16)) / 2
             world["room"] = {"min": [-half, -half], "max": [half, half]}
             sid = create(url, None, world=world)
         elif attack == "track-slabs":
@@ -179,6 +182,20 @@ def main():
                 body = raw_observation(action(), points)
                 body["robotState"] = robot_state
                 observe(server, sid, body, f"{attack} {label}")
+        elif attack == "view-spread":
+            corner = []
+            for i in range(60):
+                for k in range(60):
+                    u, v = i * 0.01, k * 0.01
+                    corner += [(1.2 + u, -1.2 + v, 1.6), (1.2, -1.2 + u, 1.6 - v),
+                               (1.2 + u, -1.2, 1.6 - v)]
+            spread = [(0.3 + sx * 5.9 + 0.01 * j, sy * 5.9, 0.4)
+                      for sx in (-1, 1) for sy in (-1, 1) for j in range(3)]
+            observe(server, sid, raw_observation(action(), corner, "map"),
+                    f"{attack} first frame, the corner alone (builds the prior map)")
+            for i in range(2):
+                observe(server, sid, raw_observation(action(), corner + spread, "map"),
+                        f"{attack} frame {i + 2}, the corner and the spread points")
         elif attack == "track-slabs":
             c = lambda i: (i + 0.5) * 0.01  # noqa: E731
             x0, x1, y0, y1, z0, z1 = 302, 698, 102, 398, 78, 130  # the box's voxel indices
