@@ -516,7 +516,8 @@ def test_plans_whose_save_failed_still_count_against_the_session(tmp_path):
     fail with EFBIG as on a full file system): a plan whose snapshot cannot be written answers
     503 and the session goes back to its last snapshot, which had not counted the plan's CPU,
     so plans on a failing store never used up --max-session-plan-seconds. Now the reloaded
-    session keeps what its copy spent, and the fourth 0.4 s plan of a 1 s budget is refused."""
+    session keeps what its copy spent, and a 0.4 s plan past a 1 s budget is refused (the third
+    or the fourth: the time counted is the plans' wall-clock time, longer on a loaded machine)."""
     def create_in(server):
         r = http("POST", server.url + "/v1/sessions", None,
                  json={"world": world_of("loose1"), "seed": 3, "planner": {"name": "kct"}})
@@ -536,10 +537,12 @@ def test_plans_whose_save_failed_still_count_against_the_session(tmp_path):
     url, rec = server.url, Recorder()
     sid = create_in(server)
     codes = []
-    for _ in range(4):
+    for _ in range(6):
         r = http("POST", f"{url}/v1/sessions/{sid}:plan", rec, json={"budget": {"cpuMs": 400}})
         codes.append(r.status_code)
-    assert codes == [503, 503, 503, 429], codes
+        if r.status_code != 503:
+            break
+    assert codes in ([503, 503, 429], [503, 503, 503, 429]), codes
     assert field_of(r) == "budget", r.text
     used = http("GET", f"{url}/v1/sessions/{sid}", rec).json()["planningSecondsUsed"]
     assert used >= 1.0, used
