@@ -544,6 +544,7 @@ def test_plans_whose_save_failed_still_count_against_the_session(tmp_path):
             break
     assert codes in ([503, 503, 429], [503, 503, 503, 429]), codes
     assert field_of(r) == "budget", r.text
+    assert "Retry-After" not in r.headers, r.headers  # no retry clears a spent budget
     used = http("GET", f"{url}/v1/sessions/{sid}", rec).json()["planningSecondsUsed"]
     assert used >= 1.0, used
     assert_clean_exit(server)

@@ -282,3 +282,5 @@ def test_http_retries_with_backoff():
     # An answer that is not "try later" is not retried.
     assert not retry.retryable(ApiError(409, "FAILED_PRECONDITION", "pending"))
     assert retry.retryable(ApiError(429, "RESOURCE_EXHAUSTED", "full", retry_after=1.0))
+    # A 429 naming no time is the request's own limit (a session's planning budget).
+    assert not retry.retryable(ApiError(429, "RESOURCE_EXHAUSTED", "spent"))

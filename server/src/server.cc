@@ -57,12 +57,14 @@ bool SameSecret(std::string_view a, std::string_view b) {
   return diff == 0;
 }
 
-// UNAVAILABLE (the session store did not answer) is worth retrying in a second; every 429
-// names when to retry (5 s unless the caller knows better: the heap bound, a full store).
+// UNAVAILABLE (the session store did not answer) is worth retrying in a second; a 429 of the
+// server's resources names when to retry (5 s unless the caller knows better: the heap bound, a
+// full store). A 429 naming a field is the request's own limit (a session's planning budget),
+// which no retry clears: it names no time.
 void Fail(Response& res, const Status& s, int http_status = 0, int retry_after = 0) {
   if (retry_after == 0 && s.code() == StatusCode::kUnavailable) retry_after = 1;
   const int code = http_status > 0 ? http_status : api::HttpStatusOf(s.code());
-  if (retry_after == 0 && code == 429) retry_after = 5;
+  if (retry_after == 0 && code == 429 && s.field_violations().empty()) retry_after = 5;
   Json(res, code, api::RenderError(s, code, retry_after));
   if (retry_after > 0) res.set_header("Retry-After", std::to_string(retry_after));
 }
@@ -427,6 +429,9 @@ Status Server::Start() {
   if (!restored.ok()) return restored.status();
   restored_ = *restored;
   if (restored_ > 0) spdlog::info("restored {} sessions from {}", restored_, o.state_dir);
+  // Reads what the process holds outside the heap before any plan: later calls give back what
+  // the allocator holds free beyond it.
+  ReleaseFreedMemory();
 
   const HttpFrontOptions front = FrontOptions(o);
   im.http = std::make_unique<HttpFront>(

@@ -1,9 +1,12 @@
 #include "npfkct/server/session.h"
 
 #include <malloc.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <limits>
 #include <random>
 #include <set>
 
@@ -53,17 +56,28 @@ Status CheckHeap(const SessionLimits& limits, const std::string& what) {
 }
 
 void ReleaseFreedMemory() {
+  // Resident memory that the allocator holds free: the process's resident bytes less the heap in
+  // use, above the least seen (what the process holds outside the heap). Trimmed chunks that a
+  // later tree reused and freed again count again.
   static std::mutex mutex;
-  static size_t free_after_trim = 0;  // the allocator's free bytes after the last trim
-  constexpr size_t kWorthIt = size_t{64} << 20;
+  static int64_t least = std::numeric_limits<int64_t>::max();
+  constexpr int64_t kWorthIt = int64_t{64} << 20;
   std::lock_guard<std::mutex> lock(mutex);
-  const size_t free_now = mallinfo2().fordblks;
-  // Trimmed chunks still count as free: compare with what was free after the last trim, which
-  // follows the free bytes down as they are reused.
-  free_after_trim = std::min(free_after_trim, free_now);
-  if (free_now < free_after_trim + kWorthIt) return;
+  auto resident_not_in_use = [] {
+    long pages = 0, resident = 0;
+    if (FILE* f = std::fopen("/proc/self/statm", "r")) {
+      if (std::fscanf(f, "%ld %ld", &pages, &resident) != 2) resident = 0;
+      std::fclose(f);
+    }
+    const struct mallinfo2 m = mallinfo2();
+    return static_cast<int64_t>(resident) * ::sysconf(_SC_PAGESIZE) -
+           static_cast<int64_t>(m.uordblks + m.hblkhd);
+  };
+  const int64_t now = resident_not_in_use();
+  least = std::min(least, now);
+  if (now < least + kWorthIt) return;
   malloc_trim(0);
-  free_after_trim = mallinfo2().fordblks;
+  least = std::min(least, resident_not_in_use());
 }
 
 Session::~Session() = default;
@@ -205,10 +219,16 @@ StatusOr<api::PlanReply> Session::Plan(const Budget& asked,
     if (!cancelled && stop.limit_reached() && d.status.ok() && d.stats.simulations == 0) {
       d.status = HeapBoundError(limits_, "plan");
     }
-    if (stop.limit_reached()) {
-      // The tree holds the heap past its bound: kept, it would refuse this session's own
-      // observation (and everyone's plans) until the session is deleted. The next plan starts
-      // a fresh tree.
+    bool deleted = false;
+    if (cancelled) {
+      std::lock_guard<std::mutex> persist(persist_mutex_);
+      deleted = deleted_;
+    }
+    if (stop.limit_reached() || deleted) {
+      // At the heap bound the tree holds the heap past it: kept, it would refuse this session's
+      // own observation (and everyone's plans) until the session is deleted; the next plan
+      // starts a fresh tree. A deleted session's tree would stay resident until the last
+      // request holding the session lets go of it, after the DELETE gave memory back.
       planner_->DropTree();
       ReleaseFreedMemory();
     }

@@ -55,8 +55,8 @@ struct SessionLimits {
 Status CheckHeap(const SessionLimits& limits, const std::string& what);
 
 /// Gives memory the allocator holds free back to the system (malloc_trim) once more than 64 MiB
-/// has been freed since the last time: a freed tree stays resident in the arena of the thread
-/// that grew it, and the next plan, on another thread, grows another arena.
+/// of it is resident: a freed tree stays resident in the arena of the thread that grew it, and
+/// the next plan, on another thread, grows another arena.
 void ReleaseFreedMemory();
 
 /// A session. Thread-safe.

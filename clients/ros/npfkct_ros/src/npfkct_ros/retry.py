@@ -1,9 +1,10 @@
 """HTTP calls to the npfkct server with retries and exponential backoff.
 
 Retried: connection errors and timeouts (the server restarting, a proxy without a replica) and
-the server's own "try again later" answers, 429 RESOURCE_EXHAUSTED and 503 UNAVAILABLE, whose
-Retry-After header is respected. Everything else (400, 404, 409 FAILED_PRECONDITION, ...) is an
-answer and is raised at once."""
+the server's own "try again later" answers, 503 UNAVAILABLE and 429 RESOURCE_EXHAUSTED with a
+Retry-After header, which is respected. Everything else (400, 404, 409 FAILED_PRECONDITION, a
+429 without Retry-After: the request's own limit, such as a session's planning budget, which no
+retry clears) is an answer and is raised at once."""
 
 import time
 
@@ -36,7 +37,9 @@ def retryable(error):
     """Whether an exception from NpfkctClient is worth another try."""
     if isinstance(error, (requests.ConnectionError, requests.Timeout)):
         return True
-    return isinstance(error, ApiError) and error.http_status in RETRIED_HTTP
+    if not isinstance(error, ApiError) or error.http_status not in RETRIED_HTTP:
+        return False
+    return error.http_status != 429 or error.retry_after is not None
 
 
 def call(fn, policy, sleep=time.sleep, log=None, stop=lambda: False):
