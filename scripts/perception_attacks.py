@@ -15,6 +15,9 @@ build/server/npfkct-server; run the build of another commit to see the "before" 
                       runs each time)
   view-spread N       as big-room (default 16 m), the corner in the map frame beside twelve points
                       5.9 m from the camera: the view as wide as registration_range allows
+  nested-shells N     the example world in an 8 m room with N furniture shells 3 cm apart (default
+                      28) and map-frame frames of a 22^3 lattice 3 cm apart beside them (RANSAC's
+                      FPFH: neighbours per point are not bounded)
 """
 import base64
 import json
@@ -116,6 +119,14 @@ def main():
             half = (n or (39 if attack == "big-room" else 16)) / 2
             world["room"] = {"min": [-half, -half], "max": [half, half]}
             sid = create(url, None, world=world)
+        elif attack == "nested-shells":
+            with open(os.path.join(ROOT, "schemas", "examples", "create_session_request.json")) as f:
+                world = json.load(f)["world"]
+            world["room"] = {"min": [-4, -4], "max": [4, 4]}
+            world["furniture"] += [{"name": f"shell{i}", "center": [-2.5, -2.5],
+                                    "size": [0.3 + 0.03 * i] * 3, "yaw": 0.0, "workspace": False,
+                                    "color": [9, 9, 9]} for i in range(n or 28)]
+            sid = create(url, None, world=world)
         elif attack == "track-slabs":
             world = {"robot": "fetch", "room": {"min": [-1, -1], "max": [9, 6]},
                      "mapResolution": 0.05,
@@ -196,6 +207,14 @@ def main():
             for i in range(2):
                 observe(server, sid, raw_observation(action(), corner + spread, "map"),
                         f"{attack} frame {i + 2}, the corner and the spread points")
+        elif attack == "nested-shells":
+            lattice = [(-3.0 + 0.03 * i + 0.011, -3.0 + 0.03 * k + 0.007, 0.05 + 0.03 * m)
+                       for i in range(22) for k in range(22) for m in range(22)]
+            for i in range(3):
+                body = raw_observation(action(), lattice, "map")
+                body["robotState"] = {"x": -1.5, "y": -1.5, "yaw": 3.9, "lift": 0.2, "pan": 0,
+                                      "tilt": 0.4}
+                observe(server, sid, body, f"{attack} frame {i + 1}")
         elif attack == "track-slabs":
             c = lambda i: (i + 0.5) * 0.01  # noqa: E731
             x0, x1, y0, y1, z0, z1 = 302, 698, 102, 398, 78, 130  # the box's voxel indices
