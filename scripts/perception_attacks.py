@@ -20,7 +20,6 @@ build/server/npfkct-server; run the build of another commit to see the "before" 
                       FPFH: neighbours per point are not bounded)
 """
 import base64
-import json
 import os
 import random
 import struct
@@ -29,15 +28,11 @@ import tempfile
 import zlib
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests"))
-from conftest import ROOT, ServerProcess  # noqa: E402
-from test_hostile import create, flat_png, http, noise_png, raw_observation  # noqa: E402
+from conftest import ServerProcess  # noqa: E402
+from test_hostile import (cpu_seconds, create, example, flat_png, http, noise_png,  # noqa: E402
+                          raw_observation, registration_edge_points, three_squares)
 
 FAR = [(9999.0, 9999.0, 9999.0), (-9999.0, 9999.0, 0.5), (0.001, -9999.0, 9999.0)]
-
-
-def cpu_seconds(pid):
-    fields = open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 def peak_mb(pid):
@@ -114,14 +109,12 @@ def main():
         elif attack in ("far-blob", "denormal", "ransac-lattice"):
             sid = create(url, None)
         elif attack in ("big-room", "view-spread"):
-            with open(os.path.join(ROOT, "schemas", "examples", "create_session_request.json")) as f:
-                world = json.load(f)["world"]
+            world = example("create_session_request.json")["world"]
             half = (n or (39 if attack == "big-room" else 16)) / 2
             world["room"] = {"min": [-half, -half], "max": [half, half]}
             sid = create(url, None, world=world)
         elif attack == "nested-shells":
-            with open(os.path.join(ROOT, "schemas", "examples", "create_session_request.json")) as f:
-                world = json.load(f)["world"]
+            world = example("create_session_request.json")["world"]
             world["room"] = {"min": [-4, -4], "max": [4, 4]}
             world["furniture"] += [{"name": f"shell{i}", "center": [-2.5, -2.5],
                                     "size": [0.3 + 0.03 * i] * 3, "yaw": 0.0, "workspace": False,
@@ -181,27 +174,14 @@ def main():
                 x += pitch
             observe(server, sid, raw_observation(action(), points, "map"), attack)
         elif attack == "big-room":
-            points = []
-            for i in range(60):
-                for k in range(60):
-                    u, v = i * 0.01, k * 0.01
-                    points += [(-0.3 + u, -0.3 + v, 2.0), (-0.3, -0.3 + u, 2.0 - v),
-                               (-0.3 + u, -0.3, 2.0 - v)]
-            with open(os.path.join(ROOT, "schemas", "examples", "observe_request_raw.json")) as f:
-                robot_state = json.load(f)["robotState"]
+            points = three_squares(-0.3, -0.3, 2.0)  # in the camera frame
+            robot_state = example("observe_request_raw.json")["robotState"]
             for label in ("first frame (builds the prior map)", "second frame"):
                 body = raw_observation(action(), points)
                 body["robotState"] = robot_state
                 observe(server, sid, body, f"{attack} {label}")
         elif attack == "view-spread":
-            corner = []
-            for i in range(60):
-                for k in range(60):
-                    u, v = i * 0.01, k * 0.01
-                    corner += [(1.2 + u, -1.2 + v, 1.6), (1.2, -1.2 + u, 1.6 - v),
-                               (1.2 + u, -1.2, 1.6 - v)]
-            spread = [(0.3 + sx * 5.9 + 0.01 * j, sy * 5.9, 0.4)
-                      for sx in (-1, 1) for sy in (-1, 1) for j in range(3)]
+            corner, spread = three_squares(1.2, -1.2, 1.6), registration_edge_points()
             observe(server, sid, raw_observation(action(), corner, "map"),
                     f"{attack} first frame, the corner alone (builds the prior map)")
             for i in range(2):

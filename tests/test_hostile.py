@@ -153,6 +153,31 @@ def raw_observation(action_id, points, frame="camera"):
                            "data": base64.b64encode(cloud_bytes(points)).decode()}}
 
 
+def example(name):
+    """A body of schemas/examples, parsed."""
+    with open(os.path.join(ROOT, "schemas", "examples", name), encoding="utf-8") as f:
+        return json.load(f)
+
+
+def three_squares(x, y, z):
+    """Three orthogonal 0.6 m squares of points 1 cm apart from the corner (x, y, z): one level,
+    two hanging down from it. Before the example session's robot, ICP cannot fit them from the
+    reported pose, so RANSAC runs."""
+    points = []
+    for i in range(60):
+        for k in range(60):
+            u, v = i * 0.01, k * 0.01
+            points += [(x + u, y + v, z), (x, y + u, z - v), (x + u, y, z - v)]
+    return points
+
+
+def registration_edge_points():
+    """Twelve map points 5.9 m from raw_observation's robot at (0.3, 0) in x and y: the view as
+    wide as registration_range (6 m) lets it be."""
+    return [(0.3 + sx * 5.9 + 0.01 * j, sy * 5.9, 0.4)
+            for sx in (-1, 1) for sy in (-1, 1) for j in range(3)]
+
+
 @pytest.fixture
 def hostile_server(tmp_path):
     server = ServerProcess("--state-dir", str(tmp_path / "state"), "--max-body-mb", "4",
@@ -1206,10 +1231,8 @@ def test_a_growing_search_tree_stops_at_the_heap_bound(tmp_path):
     # A perception map of a 36 m room holds the heap past the bound: nothing that grows the heap
     # starts (plans, observations, new sessions), and each 429 says when to retry (the plan's
     # and the observation's said nothing).
-    with open(os.path.join(ROOT, "schemas", "examples", "create_session_request.json")) as f:
-        world = json.load(f)["world"]
-    with open(os.path.join(ROOT, "schemas", "examples", "observe_request_raw.json")) as f:
-        raw = json.load(f)
+    world = example("create_session_request.json")["world"]
+    raw = example("observe_request_raw.json")
     world["room"] = {"min": [-18, -18], "max": [18, 18]}
     fresh = create(url, rec)
     holder, action = planned(url, rec, world=world)
@@ -1559,28 +1582,15 @@ def test_a_frame_in_a_large_room_costs_what_the_view_covers(hostile_server):
     # Registration now uses the map within reach of the view. The first frame builds the
     # session's prior map, which still grows with the room (up to its 4,000,000-point bound).
     url, rec, pid = hostile_server.url, Recorder(), hostile_server.proc.pid
-    with open(os.path.join(ROOT, "schemas", "examples", "create_session_request.json")) as f:
-        world = json.load(f)["world"]
-    with open(os.path.join(ROOT, "schemas", "examples", "observe_request_raw.json")) as f:
-        robot_state = json.load(f)["robotState"]
+    world = example("create_session_request.json")["world"]
+    robot_state = example("observe_request_raw.json")["robotState"]
     world["room"] = {"min": [-10, -10], "max": [10, 10]}
     sid = create(url, rec, world=world)
-    points = []
-    for i in range(60):
-        for k in range(60):
-            u, v = i * 0.01, k * 0.01
-            points += [(-0.3 + u, -0.3 + v, 2.0), (-0.3, -0.3 + u, 2.0 - v),
-                       (-0.3 + u, -0.3, 2.0 - v)]
+    points = three_squares(-0.3, -0.3, 2.0)  # in the camera frame
     # A few points at the edges of registration_range (6 m) widen the view to its largest: the
     # map's RANSAC features there are thinned to max_ransac_map_points (5.2 s a frame before).
-    # raw_observation's robot stands at (0.3, 0); a corner in the map frame before it.
-    corner = []
-    for i in range(60):
-        for k in range(60):
-            u, v = i * 0.01, k * 0.01
-            corner += [(1.2 + u, -1.2 + v, 1.6), (1.2, -1.2 + u, 1.6 - v), (1.2 + u, -1.2, 1.6 - v)]
-    spread = [(0.3 + sx * 5.9 + 0.01 * j, sy * 5.9, 0.4)
-              for sx in (-1, 1) for sy in (-1, 1) for j in range(3)]
+    # raw_observation's robot stands at (0.3, 0); the corner in the map frame before it.
+    corner, spread = three_squares(1.2, -1.2, 1.6), registration_edge_points()
     limit = 2.0 * (3 if SANITIZED else 1)
     for frame in ("first", "second", "spread"):
         action_id = http("POST", f"{url}/v1/sessions/{sid}:plan", rec,
