@@ -12,6 +12,7 @@
 #include <pcl/segmentation/extract_clusters.h>
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -121,22 +122,18 @@ typename pcl::PointCloud<Point>::Ptr Thin(const typename pcl::PointCloud<Point>:
   return out;
 }
 
-// An axis-aligned box in the x-y plane (m).
-struct BoxXY {
-  double min_x, min_y, max_x, max_y;
-  BoxXY Widened(double by) const { return {min_x - by, min_y - by, max_x + by, max_y + by}; }
-  bool Contains(double x, double y) const {
-    return x >= min_x && x <= max_x && y >= min_y && y <= max_y;
-  }
-};
+// `box` widened by `by` on every side (m).
+Eigen::AlignedBox2d Widened(const Eigen::AlignedBox2d& box, double by) {
+  return Eigen::AlignedBox2d(box.min().array() - by, box.max().array() + by);
+}
 
 // The points of `in` inside `box` (x-y), in their order.
 template <typename Point>
 typename pcl::PointCloud<Point>::Ptr CropXY(const typename pcl::PointCloud<Point>::Ptr& in,
-                                            const BoxXY& box) {
+                                            const Eigen::AlignedBox2d& box) {
   auto out = pcl::make_shared<pcl::PointCloud<Point>>();
   for (const Point& p : *in) {
-    if (box.Contains(p.x, p.y)) out->push_back(p);
+    if (box.contains(Eigen::Vector2d(p.x, p.y))) out->push_back(p);
   }
   return out;
 }
@@ -691,19 +688,11 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
   // reach. Registration then costs what the view covers, not the size of the room (a 39 m room
   // made a frame's first registration 60 s and every later one 20 s).
   const Eigen::Vector3d camera = reported.block<3, 1>(0, 3);
-  constexpr double kInf = std::numeric_limits<double>::infinity();
-  BoxXY view{kInf, kInf, -kInf, -kInf};
-  for (const auto& p : *structure) {
-    view.min_x = std::min<double>(view.min_x, p.x);
-    view.min_y = std::min<double>(view.min_y, p.y);
-    view.max_x = std::max<double>(view.max_x, p.x);
-    view.max_y = std::max<double>(view.max_y, p.y);
-  }
-  view.min_x = std::max(view.min_x, camera.x() - o.registration_range);
-  view.min_y = std::max(view.min_y, camera.y() - o.registration_range);
-  view.max_x = std::min(view.max_x, camera.x() + o.registration_range);
-  view.max_y = std::min(view.max_y, camera.y() + o.registration_range);
-  const BoxXY reach = view.Widened(o.max_correction + o.icp_max_distance);
+  Eigen::AlignedBox2d view;  // empty (Eigen's default for a fixed size)
+  for (const auto& p : *structure) view.extend(Eigen::Vector2d(p.x, p.y));
+  view = view.intersection(
+      Widened(Eigen::AlignedBox2d(camera.head<2>(), camera.head<2>()), o.registration_range));
+  const Eigen::AlignedBox2d reach = Widened(view, o.max_correction + o.icp_max_distance);
   const NormalCloud::Ptr target = CropXY<PointNormal>(im.map_normals, reach);
   // Point-to-plane ICP: the scene is mostly planes (floor, table tops, sides), along which
   // point-to-point ICP slides.
@@ -749,10 +738,10 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
     CloudXYZ::Ptr around, map_ransac = pcl::make_shared<CloudXYZ>();
     pcl::PointCloud<pcl::FPFHSignature33>::Ptr around_features;
     auto map_features = pcl::make_shared<pcl::PointCloud<pcl::FPFHSignature33>>();
-    im.ComputeRansacFeatures(CropXY<PointXYZ>(im.map, reach.Widened(8.0 * o.ransac_voxel)),
+    im.ComputeRansacFeatures(CropXY<PointXYZ>(im.map, Widened(reach, 8.0 * o.ransac_voxel)),
                              o.max_ransac_map_points, &around, &around_features);
     for (size_t i = 0; i < around->size(); ++i) {
-      if (reach.Contains((*around)[i].x, (*around)[i].y)) {
+      if (reach.contains(Eigen::Vector2d((*around)[i].x, (*around)[i].y))) {
         map_ransac->push_back((*around)[i]);
         map_features->push_back((*around_features)[i]);
       }
