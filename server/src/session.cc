@@ -36,12 +36,13 @@ Status Busy() {
                 "another request is working on this session; retry when it has finished");
 }
 
-// Whether the bytes the allocator has handed out and not had back, over every arena, are past
-// the bound.
-bool HeapPastBound(const SessionLimits& limits) {
+// The bytes the allocator has handed out and not had back, over every arena.
+int64_t HeapInUse() {
   const struct mallinfo2 m = mallinfo2();
-  return static_cast<int64_t>(m.uordblks + m.hblkhd) > limits.max_heap_bytes;
+  return static_cast<int64_t>(m.uordblks + m.hblkhd);
 }
+
+bool HeapPastBound(const SessionLimits& limits) { return HeapInUse() > limits.max_heap_bytes; }
 
 Status HeapBoundError(const SessionLimits& limits, const std::string& what) {
   return ResourceExhaustedError("the server's heap is past its bound (--max-heap-mb " +
@@ -69,9 +70,7 @@ void ReleaseFreedMemory() {
       if (std::fscanf(f, "%ld %ld", &pages, &resident) != 2) resident = 0;
       std::fclose(f);
     }
-    const struct mallinfo2 m = mallinfo2();
-    return static_cast<int64_t>(resident) * ::sysconf(_SC_PAGESIZE) -
-           static_cast<int64_t>(m.uordblks + m.hblkhd);
+    return static_cast<int64_t>(resident) * ::sysconf(_SC_PAGESIZE) - HeapInUse();
   };
   const int64_t now = resident_not_in_use();
   least = std::min(least, now);
