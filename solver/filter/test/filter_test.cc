@@ -256,6 +256,24 @@ TEST(DatasetTest, GeneratesWritesAndReadsBack) {
   EXPECT_FALSE(ReadDataset(path).ok());
 }
 
+// Generated scene 20753 leaves so few free bases that a uniform proposal sometimes finds none in
+// its 64 tries and is dropped; the snapshot is topped up (it held 63 of 64 queries, and
+// WriteDataset refused the whole set).
+TEST(DatasetTest, EverySnapshotHasItsQueriesWhereFreeBasesAreRare) {
+  GenerateOptions o = SmallGeneration(40, 3, 20753);
+  o.scene_count = 1;
+  o.queries_per_sample = 64;
+  o.placements = 8;
+  o.max_steps = 0;
+  auto data = GenerateDataset(o);
+  ASSERT_TRUE(data.ok()) << data.status().ToString();
+  ASSERT_EQ(data->samples.size(), 40u);
+  for (const Sample& s : data->samples) ASSERT_EQ(s.num_queries(), 64);
+  const std::string path = TempPath("sparse.bin");
+  EXPECT_TRUE(WriteDataset(*data, path).ok());
+  fs::remove(path);
+}
+
 TEST(DatasetTest, OptionsNameTheBadField) {
   GenerateOptions o = SmallGeneration(1, 1);
   o.queries_per_sample = 1;

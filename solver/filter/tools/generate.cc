@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <memory>
+#include <optional>
 
 #include "npfkct/filter/features.h"
 #include "npfkct/sim/oracle.h"
@@ -12,16 +13,24 @@
 namespace npfkct::filter {
 namespace {
 
-Sample MakeSample(const ObjectSearchModel& model, const GenerateOptions& o, Rng& rng) {
+// A snapshot of the model's current world with o.queries_per_sample scored configurations, or
+// nullopt where the world leaves too few free bases for them: proposals without a free base are
+// dropped (ProposeMoves), so a short draw is topped up by further draws, up to 8.
+std::optional<Sample> MakeSample(const ObjectSearchModel& model, const GenerateOptions& o,
+                                 Rng& rng) {
   const World& w = model.world();
   Sample out;
   const State s = model.SampleInitialState(rng);
   const std::vector<Vec3> placements = SamplePlacements(w, o.placements, rng);
   const std::vector<Vec3> probe = SamplePlacements(w, kProbePlacements, rng);
   out.scene = SceneOf(w, rng);
-  ScoredConfigs scored = ScoreConfigs(model, s, placements, probe, o.queries_per_sample, rng);
-  out.queries = std::move(scored.queries);
-  out.scores = std::move(scored.scores);
+  for (int draw = 0; draw < 8 && out.num_queries() < o.queries_per_sample; ++draw) {
+    const ScoredConfigs scored = ScoreConfigs(model, s, placements, probe,
+                                              o.queries_per_sample - out.num_queries(), rng);
+    out.queries.insert(out.queries.end(), scored.queries.begin(), scored.queries.end());
+    out.scores.insert(out.scores.end(), scored.scores.begin(), scored.scores.end());
+  }
+  if (out.num_queries() != o.queries_per_sample) return std::nullopt;
   return out;
 }
 
@@ -120,7 +129,9 @@ StatusOr<Dataset> GenerateDataset(const GenerateOptions& options,
         }
         model.SetWorld(std::make_shared<const World>(world));
       }
-      data.samples.push_back(MakeSample(model, options, rng));
+      std::optional<Sample> sample = MakeSample(model, options, rng);
+      if (!sample.has_value()) break;  // hardly a free base: no snapshot of this scene
+      data.samples.push_back(*std::move(sample));
       if (progress != nullptr) progress(static_cast<int>(data.samples.size()), options.samples);
       if (static_cast<int>(data.samples.size()) >= options.samples) break;
     }
