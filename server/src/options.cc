@@ -93,7 +93,9 @@ Status ServerOptions::Validate() const {
   if (!default_model.empty() && !api::IsModelName(default_model)) {
     return InvalidFieldError("default-model", "must be a file name of --model-dir");
   }
-  if (!(session_ttl_seconds > 0.0)) return InvalidFieldError("session-ttl", "must be > 0");
+  if (!(session_ttl_seconds > 0.0 && session_ttl_seconds <= api::kMaxTtlSeconds)) {
+    return InvalidFieldError("session-ttl", "must be in (0, 1e9]");
+  }
   if (max_sessions < 1) return InvalidFieldError("max-sessions", "must be >= 1");
   if (threads < 1 || threads > 1024) return InvalidFieldError("threads", "must be in [1, 1024]");
   // Each queued plan holds a request thread (Resolved): slots and queue bound the threads.

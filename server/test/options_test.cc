@@ -54,6 +54,20 @@ TEST(ServerOptions, PlanQueueIsBoundedByTheThreadsItNeeds) {
   EXPECT_EQ(s.field_violations()[0].field, "plan-slots");
 }
 
+// A fleet's store adds the TTL to its clock: --session-ttl 1e15 made every create that gave no
+// ttlSeconds a 500 ("interval out of range"). The flag has the API's maximum.
+TEST(ServerOptions, SessionTtlHasTheApisMaximum) {
+  ServerOptions o = Listening("127.0.0.1");
+  o.session_ttl_seconds = 1e9;
+  EXPECT_TRUE(o.Validate().ok());
+  for (double ttl : {1e15, 0.0, -1.0}) {
+    o.session_ttl_seconds = ttl;
+    const Status s = o.Validate();
+    ASSERT_FALSE(s.ok()) << ttl;
+    EXPECT_EQ(s.field_violations()[0].field, "session-ttl");
+  }
+}
+
 TEST(BrowserRefusal, ClientsThatAreNotBrowsersAreServed) {
   for (const char* host : {"127.0.0.1", "0.0.0.0"}) {
     EXPECT_EQ(BrowserRefusal(Listening(host, "k"), true, "", "", ""), "") << host;

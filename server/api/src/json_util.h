@@ -8,6 +8,7 @@
 #include <string>
 #include <string_view>
 
+#include "npfkct/api/limits.h"
 #include "npfkct/object_search/geometry.h"
 #include "npfkct/solver/status.h"
 
@@ -21,6 +22,11 @@ using nlohmann::json;
 /// when `allow_empty`.
 StatusOr<json> ParseBody(std::string_view text, int max_depth, int64_t max_values,
                          bool allow_empty);
+
+/// Checks one planner option override as a request gives it (a lowerCamelCase key, a finite
+/// value within the bound of the options that size memory or work); the error names
+/// "planner.options.<key>". Requests and restored records both pass through it.
+Status CheckPlannerOption(const std::string& key, double value, const Limits& limits);
 
 /// "parent.key" (or "key" at the top).
 inline std::string Join(const std::string& parent, const std::string& key) {

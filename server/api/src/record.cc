@@ -57,7 +57,11 @@ Status ReadPlanner(const json& j, const Limits& limits, PlannerSpec* out) {
     for (const json& o : options) {
       const std::string key = internal::String(o, "key");
       const double value = internal::Number(o, "value", std::nan(""));
-      if (key.empty() || key.size() > 64 || !std::isfinite(value)) return Lost("planner option");
+      if (key.empty() || key.size() > 64) return Lost("planner option");
+      // A record edited on disk or in the store must not restore what no request could set.
+      if (Status s = internal::CheckPlannerOption(key, value, limits); !s.ok()) {
+        return Lost(s.message());
+      }
       out->options.emplace_back(key, value);
       out->option_is_bool.push_back(internal::Bool(o, "bool"));
     }
@@ -144,7 +148,7 @@ StatusOr<SessionRecord> DecodeRecord(std::string_view bytes, const Limits& limit
   if (!seed.ok()) return seed.status();
   r.seed = *seed;
   r.ttl_seconds = internal::Number(j, "ttlSeconds", 3600.0);
-  if (!(r.ttl_seconds > 0.0)) return Lost("ttlSeconds");
+  if (!(r.ttl_seconds > 0.0 && r.ttl_seconds <= kMaxTtlSeconds)) return Lost("ttlSeconds");
   r.state = ReadState(j);
   r.actions = std::max<int64_t>(0, internal::Integer(j, "actions"));
   r.total_simulations = std::max<int64_t>(0, internal::Integer(j, "totalSimulations"));

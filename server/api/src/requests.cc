@@ -57,7 +57,7 @@ constexpr OptionBound kOptionBounds[] = {
     {"numCandidates", 4096},
     {"maxInitialClusters", 16},
     {"maxFeasibilityTries", 10000},
-    {"treeFeasibilityTries", 10000},
+    {"treeFeasibilityTries", 1000},
     {"feasibilityTries", 10000},
     {"maxDepth", 100},
     {"numParticles", 10000},
@@ -90,6 +90,32 @@ bool IsLowerCamelKey(const std::string& key) {
   }
   return !segment_start;
 }
+
+}  // namespace
+
+Status internal::CheckPlannerOption(const std::string& key, double value, const Limits& limits) {
+  const std::string field = "planner.options." + key;
+  // lowerCamelCase only: the session turns keys into snake_case, so "num_candidates" or
+  // "search.Threads" would reach the same option past the bounds below.
+  if (!IsLowerCamelKey(key)) {
+    return InvalidFieldError(field, "expected a lowerCamelCase key (e.g. search.maxDepth)");
+  }
+  if (!std::isfinite(value)) return InvalidFieldError(field, "not finite");
+  const size_t dot = key.find_last_of('.');
+  const std::string leaf = dot == std::string::npos ? key : key.substr(dot + 1);
+  for (const OptionBound& b : kOptionBounds) {
+    const bool applies = b.exact_only ? key == b.leaf : leaf == b.leaf;
+    if (applies && std::abs(value) > b.max) {
+      return InvalidFieldError(field, "must be <= " + std::to_string(int64_t(b.max)));
+    }
+  }
+  if (leaf == "numParticles" && value > limits.max_particles) {
+    return InvalidFieldError(field, "must be <= " + std::to_string(limits.max_particles));
+  }
+  return OkStatus();
+}
+
+namespace {
 
 Status ReadPlanner(const json& p, const Limits& limits, PlannerSpec* spec) {
   spec->name = internal::String(p, "name", spec->name);
@@ -131,25 +157,8 @@ Status ReadPlanner(const json& p, const Limits& limits, PlannerSpec* spec) {
           "planner.options", "at most " + std::to_string(limits.max_planner_options) + " options");
     }
     for (auto it = o.begin(); it != o.end(); ++it) {
-      const std::string field = "planner.options." + it.key();
-      // lowerCamelCase only: the session turns keys into snake_case, so "num_candidates" or
-      // "search.Threads" would reach the same option past the bounds below.
-      if (!IsLowerCamelKey(it.key())) {
-        return InvalidFieldError(field, "expected a lowerCamelCase key (e.g. search.maxDepth)");
-      }
       const double v = it->is_boolean() ? (it->get<bool>() ? 1.0 : 0.0) : it->get<double>();
-      if (!std::isfinite(v)) return InvalidFieldError(field, "not finite");
-      const size_t dot = it.key().find_last_of('.');
-      const std::string leaf = dot == std::string::npos ? it.key() : it.key().substr(dot + 1);
-      for (const OptionBound& b : kOptionBounds) {
-        const bool applies = b.exact_only ? it.key() == b.leaf : leaf == b.leaf;
-        if (applies && std::abs(v) > b.max) {
-          return InvalidFieldError(field, "must be <= " + std::to_string(int64_t(b.max)));
-        }
-      }
-      if (leaf == "numParticles" && v > limits.max_particles) {
-        return InvalidFieldError(field, "must be <= " + std::to_string(limits.max_particles));
-      }
+      NPFKCT_API_RETURN_IF_ERROR(internal::CheckPlannerOption(it.key(), v, limits));
       spec->options.emplace_back(it.key(), v);
       spec->option_is_bool.push_back(it->is_boolean());
     }

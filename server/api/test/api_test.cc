@@ -117,6 +117,9 @@ TEST(ParseCreateSession, SchemaViolationsNameTheFieldAsData) {
                    "planner.options.numCandidates"});
   cases.push_back({{{"world", world}, {"planner", {{"options", {{"maxDepth", 1e6}}}}}},
                    "planner.options.maxDepth"});
+  // The schema allowed 10,000, which kCT refuses (a schema-valid request that got a 400).
+  cases.push_back({{{"world", world}, {"planner", {{"options", {{"treeFeasibilityTries", 1001}}}}}},
+                   "planner.options.treeFeasibilityTries"});
   cases.push_back(
       {{{"world", world}, {"planner", {{"options", {{"x", "str"}}}}}}, "planner.options.x"});
   // The bounds above hold for the lowerCamelCase keys; other spellings, which the session would
@@ -491,6 +494,21 @@ TEST(Records, RoundTripAndRefuseCorruptOrOversizedSnapshots) {
   EXPECT_EQ(DecodeRecord(j.dump(), kLimits).status().code(), StatusCode::kDataLoss);
   j = json::parse(bytes);
   j["id"] = "../../etc/passwd";
+  EXPECT_EQ(DecodeRecord(j.dump(), kLimits).status().code(), StatusCode::kDataLoss);
+  // A record edited on disk restores no planner option a request could not set (found by an
+  // outside attack: search.numParticles 5e7 and search.maxDepth 1e6 were restored), nor a time
+  // to live past the API's maximum.
+  for (const auto& [key, value] : std::vector<std::pair<std::string, double>>{
+           {"search.numParticles", 5e7}, {"search.maxDepth", 1e6}, {"num_candidates", 8}}) {
+    j = json::parse(bytes);
+    j["planner"]["options"] = json::array({{{"key", key}, {"value", value}, {"bool", false}}});
+    const auto decoded = DecodeRecord(j.dump(), kLimits);
+    EXPECT_EQ(decoded.status().code(), StatusCode::kDataLoss) << key;
+    EXPECT_NE(decoded.status().message().find("planner.options." + key), std::string::npos)
+        << decoded.status().message();
+  }
+  j = json::parse(bytes);
+  j["ttlSeconds"] = 1e15;
   EXPECT_EQ(DecodeRecord(j.dump(), kLimits).status().code(), StatusCode::kDataLoss);
 }
 

@@ -15,6 +15,10 @@
 
 namespace npfkct::api {
 
+/// Longest time to live of a session (ttlSeconds, the server's --session-ttl), in seconds: the
+/// schema's maximum (a fleet's store adds it to its clock).
+inline constexpr double kMaxTtlSeconds = 1e9;
+
 /// Every limit the API layer enforces. Defaults are the documented values; `Validate()` rejects
 /// settings beyond the hard maxima (the schemas' numbers).
 struct Limits {
