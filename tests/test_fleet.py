@@ -5,6 +5,7 @@ import concurrent.futures
 import json
 import os
 import signal
+import socket
 import subprocess
 import threading
 import time
@@ -14,6 +15,7 @@ import requests
 
 from conftest import BUILD, SERVER_BIN, ServerProcess, SimRobot, world_of
 from fleet import FleetRobot, Nginx, Postgres, call, metric, start_replica
+from test_hostile import cpu_seconds, example, raw_observation, three_squares
 
 SCENARIOS = ["loose1", "hidden1", "loose2", "covered1"]
 PLANNERS = [("pomcp", None), ("npfkct", "filter.pt"), ("kct", None)]
@@ -446,6 +448,127 @@ def test_a_save_that_loses_the_race_is_not_served_afterwards(postgres, store):
         assert metric(a.url, "npfkct_store_conflicts_total") == 1
         served = requests.get(f"{a.url}/v1/sessions/{sid}").json()
         assert served["pendingAction"]["actionId"] == quick.json()["actionId"]
+    finally:
+        stop_all(a, b)
+
+
+def test_a_replica_loads_a_session_without_building_its_perception(postgres, store):
+    """Found by an outside attack: a replica that did not hold a session's current version
+    rebuilt it for any request, a GET too, perception included (the prior map of the whole room:
+    in a 39 m room 6 s of CPU and 230-340 MiB per GET; four GETs at once built four copies,
+    2.8 GiB). Perception is now built when a raw frame needs it, and loads of one session wait
+    for each other and share the copy."""
+    a, b = start_replica(store), start_replica(store)
+    try:
+        world = example("create_session_request.json")["world"]
+        world["room"] = {"min": [-15, -15], "max": [15, 15]}
+        sid = create(a.url, world=world, planner={"name": "kct", "particles": 50})
+        plan = {"budget": {"simulations": 20}}
+
+        def raw_step(url, pid):
+            action_id = requests.post(f"{url}/v1/sessions/{sid}:plan", json=plan).json()["actionId"]
+            body = dict(raw_observation(action_id, three_squares(-0.3, -0.3, 2.0)),
+                        robotState=example("observe_request_raw.json")["robotState"])
+            before = cpu_seconds(pid)
+            r = requests.post(f"{url}/v1/sessions/{sid}:observe", json=body, timeout=300)
+            assert r.status_code == 200, r.text
+            return cpu_seconds(pid) - before
+
+        built = raw_step(a.url, a.proc.pid)  # builds A's perception of the 30 m room
+        before = cpu_seconds(b.proc.pid)
+        r = requests.get(f"{b.url}/v1/sessions/{sid}")
+        loaded = cpu_seconds(b.proc.pid) - before
+        assert r.status_code == 200 and r.json()["perceptionTracks"] >= 0, r.text
+        assert loaded < min(0.5, built / 4), (loaded, built)
+        # Four requests at once on B, which holds an older version: one load.
+        assert requests.post(f"{a.url}/v1/sessions/{sid}:plan", json=plan).status_code == 200
+        loads = metric(b.url, "npfkct_sessions_loaded_total")
+        with concurrent.futures.ThreadPoolExecutor(4) as pool:
+            codes = list(pool.map(lambda _: requests.get(f"{b.url}/v1/sessions/{sid}").status_code,
+                                  range(4)))
+        assert codes == [200] * 4
+        assert metric(b.url, "npfkct_sessions_loaded_total") == loads + 1
+        # B builds its perception for its first raw frame (A's pending action observed there).
+        pending = requests.get(f"{b.url}/v1/sessions/{sid}").json()["pendingAction"]["actionId"]
+        body = dict(raw_observation(pending, three_squares(-0.3, -0.3, 2.0)),
+                    robotState=example("observe_request_raw.json")["robotState"])
+        r = requests.post(f"{b.url}/v1/sessions/{sid}:observe", json=body, timeout=300)
+        assert r.status_code == 200, r.text
+    finally:
+        stop_all(a, b)
+
+
+def test_a_delete_through_another_replica_stops_the_plan(postgres, store):
+    """Found by an outside attack: a DELETE through replica B answered 200 while the session's
+    15 s plan on A ran to its end (14 s of CPU). A replica's keep-alive of the sessions its
+    requests work on now finds a deleted one gone and stops its request."""
+    a, b = start_replica(store), start_replica(store)
+    try:
+        sid = create(a.url)
+        planned = {}
+        t = threading.Thread(target=lambda: planned.setdefault("r", requests.post(
+            f"{a.url}/v1/sessions/{sid}:plan", json={"budget": {"timeMs": 15000}}, timeout=60)))
+        t.start()
+        time.sleep(1.0)
+        assert requests.delete(f"{b.url}/v1/sessions/{sid}").status_code == 200
+        deleted = time.monotonic()
+        t.join()
+        assert time.monotonic() - deleted < 3.0
+        assert planned["r"].status_code == 409, planned["r"].text
+        assert planned["r"].json()["error"]["status"] == "ABORTED"
+    finally:
+        stop_all(a, b)
+
+
+def test_a_plan_outlives_a_short_ttl_in_a_fleet(postgres, store):
+    """Found by an outside attack: with ttlSeconds 0.05 or 0.2 another replica deleted the
+    session between two of its replica's keep-alive ticks (250 ms) and the 2 s plan answered 409
+    after 0.25-1 s. The store now expires a session no sooner than 2 s after its last use."""
+    a, b = start_replica(store), start_replica(store)
+    try:
+        for ttl in (0.05, 0.2):
+            sid = create(a.url, ttlSeconds=ttl)
+            r = requests.post(f"{a.url}/v1/sessions/{sid}:plan", json={"budget": {"timeMs": 2000}})
+            assert r.status_code == 200, (ttl, r.text)
+        # Unused, it still expires (the 2 s, then a reaper's round).
+        time.sleep(4.0)
+        assert requests.get(f"{b.url}/v1/sessions/{sid}").status_code == 404
+    finally:
+        stop_all(a, b)
+
+
+def hang_up_plan(port, sid, time_ms, after):
+    """A :plan whose client closes the connection `after` seconds in."""
+    body = json.dumps({"budget": {"timeMs": time_ms}}).encode()
+    with socket.create_connection(("127.0.0.1", port)) as s:
+        s.sendall(b"POST /v1/sessions/%s:plan HTTP/1.1\r\nHost: localhost\r\n"
+                  b"Content-Type: application/json\r\nContent-Length: %d\r\n\r\n%s"
+                  % (sid.encode(), len(body), body))
+        time.sleep(after)
+
+
+def test_planning_counts_against_the_budget_when_the_client_hangs_up_or_loses_a_race(
+        postgres, store):
+    """Found by an outside attack: --max-session-plan-seconds could be exceeded (1) by hanging
+    up on every plan (their time was counted in the replica's memory and never stored: another
+    replica, or a restart, had forgotten it) and (2) by racing one session's plans on two
+    replicas (the loser's time was folded in with max() instead of added: a 5 s cap allowed
+    about 10 s). Both now reach the store."""
+    a, b = (start_replica(store, "--max-session-plan-seconds", "100") for _ in range(2))
+    try:
+        sid = create(a.url)
+        for _ in range(2):
+            hang_up_plan(a.port, sid, 5000, 0.6)
+            time.sleep(0.5)  # the server notices, stops the plan and stores the session
+        used = requests.get(f"{b.url}/v1/sessions/{sid}").json()["planningSecondsUsed"]
+        assert used >= 0.8, used
+        for url in (a.url, b.url):  # both hold the same version before the race
+            assert requests.get(f"{url}/v1/sessions/{sid}").status_code == 200
+        plans = race([a.url, b.url], f"/v1/sessions/{sid}:plan", {"budget": {"timeMs": 1000}})
+        assert sorted(r.status_code for r in plans) == [200, 409], [r.text for r in plans]
+        after = [requests.get(f"{u}/v1/sessions/{sid}").json()["planningSecondsUsed"]
+                 for u in (a.url, b.url)]
+        assert after[0] == after[1] and after[0] >= used + 1.9, (used, after)
     finally:
         stop_all(a, b)
 

@@ -459,15 +459,24 @@ std::vector<TrackState> Perception::SaveTracks(int* next_id) const {
   return out;
 }
 
-Status Perception::RestoreTracks(const std::vector<TrackState>& tracks, int next_id) {
-  const auto& workspaces = impl_->world.grid.workspaces();
+Status CheckTracks(const std::vector<TrackState>& tracks, int next_id,
+                   const object_search::World& world) {
+  const auto& workspaces = world.grid.workspaces();
   if (next_id < 0) return InvalidArgumentError("perception tracks: negative next id");
-  std::vector<Track> restored;
   for (const TrackState& st : tracks) {
     if (st.id.empty() || st.points.empty() || st.points.size() % 3 != 0 || st.surface < 0 ||
         st.surface >= static_cast<int>(workspaces.size())) {
       return InvalidArgumentError("perception track '" + st.id + "' is malformed");
     }
+  }
+  return OkStatus();
+}
+
+Status Perception::RestoreTracks(const std::vector<TrackState>& tracks, int next_id) {
+  if (Status s = CheckTracks(tracks, next_id, impl_->world); !s.ok()) return s;
+  const auto& workspaces = impl_->world.grid.workspaces();
+  std::vector<Track> restored;
+  for (const TrackState& st : tracks) {
     Track t;
     t.id = st.id;
     t.surface = st.surface;

@@ -96,6 +96,14 @@ constexpr char kTable[] = "npfkct_sessions";
 // instead of the records. A database of version 1 is migrated at start-up.
 constexpr int kSchemaVersion = 2;
 
+// When a row used now expires, given its time to live (an SQL expression): no sooner than 2 s,
+// whatever the TTL. Replicas keep the sessions their requests work on alive every 250 ms; a
+// shorter expiry let another replica delete a session between two of those ticks, under a
+// running plan.
+std::string ExpiresAt(const std::string& ttl) {
+  return "now() + greatest(" + ttl + ", 2) * interval '1 second'";
+}
+
 // libpq's messages end in newlines and may hold several lines.
 std::string Clean(const char* message) {
   std::string out;
@@ -373,8 +381,9 @@ class PostgresStore : public SessionStore {
       // A new session: inserted only when the id is free and the table below its limit.
       auto r = Query(std::string("INSERT INTO ") + kTable +
                          " (id, version, snapshot, ttl_seconds, expires_at, updated_by, summary)"
-                         " SELECT $1::text, 1, $2::bytea, $3::float8,"
-                         " now() + $3::float8 * interval '1 second', $4::text, $6::bytea"
+                         " SELECT $1::text, 1, $2::bytea, $3::float8, " +
+                         ExpiresAt("$3::float8") +
+                         ", $4::text, $6::bytea"
                          " WHERE (SELECT count(*) FROM " +
                          kTable + ") < $5::bigint ON CONFLICT (id) DO NOTHING RETURNING 1",
                      {{id},
@@ -399,7 +408,9 @@ class PostgresStore : public SessionStore {
     // second waits for the first's row lock, then finds another version and updates nothing.
     auto r = Query(std::string("UPDATE ") + kTable +
                        " SET version = $3::bigint, snapshot = $2::bytea, ttl_seconds = $4::float8,"
-                       " expires_at = now() + $4::float8 * interval '1 second',"
+                       " expires_at = " +
+                       ExpiresAt("$4::float8") +
+                       ","
                        " updated_at = now(), updated_by = $5::text, summary = $7::bytea"
                        " WHERE id = $1::text AND version = $6::bigint RETURNING 1",
                    {{id},
@@ -478,8 +489,7 @@ class PostgresStore : public SessionStore {
     if (!api::IsSessionId(id)) return NotFoundError("not a session id");
     // One round trip: the time to live restarts, and the record comes only when it changed.
     auto r =
-        Query(std::string("UPDATE ") + kTable +
-                  " SET expires_at = now() + ttl_seconds * interval '1 second'"
+        Query(std::string("UPDATE ") + kTable + " SET expires_at = " + ExpiresAt("ttl_seconds") +
                   " WHERE id = $1 AND expires_at > now() RETURNING version::text,"
                   " CASE WHEN version <> $2::bigint AND octet_length(snapshot) <= $3::bigint"
                   " THEN snapshot END, octet_length(snapshot)::text",
@@ -496,19 +506,22 @@ class PostgresStore : public SessionStore {
     return out;
   }
 
-  Status KeepAlive(const std::vector<std::string>& ids) override {
-    if (ids.empty()) return OkStatus();
+  StatusOr<std::vector<std::string>> KeepAlive(const std::vector<std::string>& ids) override {
+    if (ids.empty()) return std::vector<std::string>{};
     std::string array = "{";
     for (const std::string& id : ids) {
       if (!api::IsSessionId(id)) continue;
       array += (array.size() > 1 ? "," : "") + id;
     }
     array += "}";
-    auto r = Query(std::string("UPDATE ") + kTable +
-                       " SET expires_at = now() + ttl_seconds * interval '1 second'"
-                       " WHERE id = ANY($1::text[]) AND expires_at > now()",
-                   {{array}}, true);
-    return r.ok() ? OkStatus() : r.status();
+    auto r =
+        Query(std::string("UPDATE ") + kTable + " SET expires_at = " + ExpiresAt("ttl_seconds") +
+                  " WHERE id = ANY($1::text[]) AND expires_at > now() RETURNING id",
+              {{array}}, true);
+    if (!r.ok()) return r.status();
+    std::vector<std::string> kept;
+    for (int i = 0; i < PQntuples(r->get()); ++i) kept.emplace_back(Value(r->get(), i, 0));
+    return kept;
   }
 
   StatusOr<std::vector<std::string>> DeleteExpired(size_t limit) override {

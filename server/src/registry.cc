@@ -46,7 +46,7 @@ class InstrumentedStore : public SessionStore {
   StatusOr<Refreshed> Refresh(const std::string& id, int64_t held) override {
     return Timed("refresh", [&] { return store_->Refresh(id, held); });
   }
-  Status KeepAlive(const std::vector<std::string>& ids) override {
+  StatusOr<std::vector<std::string>> KeepAlive(const std::vector<std::string>& ids) override {
     return Timed("keepalive", [&] { return store_->KeepAlive(ids); });
   }
   StatusOr<std::vector<std::string>> DeleteExpired(size_t limit) override {
@@ -228,9 +228,45 @@ StatusOr<std::shared_ptr<Session>> Registry::Acquire(const std::string& id) {
   return Install(std::move(*fresh->loaded), held);
 }
 
+void Registry::KeepUsageOf(const std::shared_ptr<Session>& stale) {
+  auto fresh = Acquire(stale->id());
+  if (!fresh.ok() || *fresh == stale) return;
+  (*fresh)->KeepUsage(*stale);  // unless Install moved it already (the copy was held)
+  (void)(*fresh)->SaveIfIdle(store_.get());
+}
+
+std::shared_ptr<std::mutex> Registry::LoadLock(const std::string& id) {
+  std::lock_guard<std::mutex> lock(load_locks_mutex_);
+  for (auto it = load_locks_.begin(); it != load_locks_.end();) {
+    it = it->second.expired() ? load_locks_.erase(it) : std::next(it);
+  }
+  std::shared_ptr<std::mutex> held = load_locks_[id].lock();
+  if (!held) {
+    held = std::make_shared<std::mutex>();
+    load_locks_[id] = held;
+  }
+  return held;
+}
+
 StatusOr<std::shared_ptr<Session>> Registry::Install(SessionStore::Loaded loaded,
                                                      const std::shared_ptr<Session>& replaced) {
   const std::string id = loaded.record.id;
+  // One load of a session at a time: requests that arrive together (a fleet replica that does
+  // not hold the session, or holds an older version) wait for the first, then share its copy.
+  const std::shared_ptr<std::mutex> load_lock = LoadLock(id);
+  std::lock_guard<std::mutex> loading(*load_lock);
+  {
+    std::shared_lock lock(mutex_);
+    auto it = sessions_.find(id);
+    if (it != sessions_.end() && it->second != replaced && !it->second->stale() &&
+        it->second->version() >= loaded.version) {
+      // Another request loaded it meanwhile.
+      if (replaced) it->second->KeepUsage(*replaced);
+      return it->second;
+    }
+  }
+  // A session holds its particles and tree: none is loaded past the heap bound.
+  if (Status heap = CheckHeap(session_limits_, "load a session"); !heap.ok()) return heap;
   auto restored =
       Session::Restore(std::move(loaded.record), loaded.version, samplers_, session_limits_);
   if (!restored.ok()) {
@@ -239,18 +275,17 @@ StatusOr<std::shared_ptr<Session>> Registry::Install(SessionStore::Loaded loaded
     return restored.status();
   }
   std::shared_ptr<Session> session = std::move(restored).value();
-  // A held copy whose save failed planned meanwhile: the stored record does not count that.
-  if (replaced) session->KeepUsage(*replaced);
   metrics_->CountLoaded();
-  std::unique_lock lock(mutex_);
-  auto it = sessions_.find(id);
-  if (it != sessions_.end() && it->second != replaced && !it->second->stale() &&
-      it->second->version() >= session->version()) {
-    return it->second;  // another request loaded it meanwhile
+  {
+    // Only loads (under the load lock) install a session of an existing id.
+    std::unique_lock lock(mutex_);
+    if (sessions_.find(id) == sessions_.end() && !MakeRoomLocked(1)) return FullError();
+    sessions_[id] = session;
+    metrics_->SetSessions(static_cast<int>(sessions_.size()));
   }
-  if (it == sessions_.end() && !MakeRoomLocked(1)) return FullError();
-  sessions_[id] = session;
-  metrics_->SetSessions(static_cast<int>(sessions_.size()));
+  // A held copy whose save failed or lost a race planned meanwhile: the stored record does not
+  // count that.
+  if (replaced) session->KeepUsage(*replaced);
   return session;
 }
 
@@ -446,7 +481,18 @@ void Registry::Maintain(bool full_round) {
       }
     }
   }
-  if (!busy.empty()) (void)store_->KeepAlive(busy);
+  if (!busy.empty()) {
+    // A session deleted through another replica (or expired) stops its plan here within a tick.
+    auto kept = store_->KeepAlive(busy);
+    if (kept.ok()) {
+      for (const std::string& id : busy) {
+        if (std::find(kept->begin(), kept->end(), id) == kept->end()) {
+          spdlog::info("session {} is no longer stored; its request stops", id);
+          Drop(id);
+        }
+      }
+    }
+  }
   if (!full_round) return;
   (void)store_->Ping();
   if (auto expired = store_->DeleteExpired(100); expired.ok()) {

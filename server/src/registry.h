@@ -52,6 +52,10 @@ class Registry {
   /// not held, is held at an older version (another replica advanced it) or is stale (a save
   /// failed). NOT_FOUND when there is none (deleted, expired); UNAVAILABLE when the store is.
   StatusOr<std::shared_ptr<Session>> Acquire(const std::string& id);
+  /// Stores the planning a stale copy of a session spent (its save lost to another replica's, or
+  /// failed): the usage moves to the stored session, loaded, which is saved unless a request
+  /// works on it (which saves it when it ends).
+  void KeepUsageOf(const std::shared_ptr<Session>& stale);
   /// Up to `size` sessions after `token` in id order; `next` gets the token of the next page.
   StatusOr<std::vector<api::SessionView>> Page(const std::string& token, int size,
                                                std::string* next) const;
@@ -83,8 +87,10 @@ class Registry {
   Status FullError() const;
   // Remove() but for giving the memory back.
   Status RemoveSession(const std::string& id);
+  // The lock that serializes loads of session `id` (held by its loaders only).
+  std::shared_ptr<std::mutex> LoadLock(const std::string& id);
   // Restores a stored session and holds it in place of `replaced` (unless another request
-  // installed a newer copy meanwhile).
+  // installed a newer copy meanwhile); RESOURCE_EXHAUSTED past the heap bound.
   StatusOr<std::shared_ptr<Session>> Install(SessionStore::Loaded loaded,
                                              const std::shared_ptr<Session>& replaced);
   // Drops sessions from memory (fleet): the least recently used idle ones until `room` more fit.
@@ -102,6 +108,8 @@ class Registry {
   bool shared_ = false;
   mutable std::shared_mutex mutex_;
   std::map<std::string, std::shared_ptr<Session>> sessions_;
+  std::mutex load_locks_mutex_;
+  std::map<std::string, std::weak_ptr<std::mutex>> load_locks_;
   std::thread reaper_;
   std::mutex stop_mutex_;
   std::condition_variable stop_cv_;

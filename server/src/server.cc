@@ -217,7 +217,12 @@ struct Server::Impl {
           budget, [connection] { return HttpFront::ClientGone(connection); }, registry.store(),
           admit);
     }
-    if (!reply.ok()) return Fail(res, reply.status(), 0, queue_full ? 1 : 0);
+    if (!reply.ok()) {
+      // Another replica saved the session first (or the save failed): this plan's time still
+      // counts against the session's lifetime budget, racing replicas included.
+      if (s->stale()) registry.KeepUsageOf(s);
+      return Fail(res, reply.status(), 0, queue_full ? 1 : 0);
+    }
     const double total =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     const double planning = reply->stats.elapsed_ms / 1000.0;

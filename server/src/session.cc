@@ -237,11 +237,16 @@ StatusOr<api::PlanReply> Session::Plan(const Budget& asked,
   last_used_ = std::chrono::steady_clock::now();
   planning_seconds_ += d.stats.elapsed_ms / 1000.0;
   total_simulations_ += d.stats.simulations;
-  if (cancelled || d.status.code() == StatusCode::kCancelled) {
+  unsaved_seconds_ += d.stats.elapsed_ms / 1000.0;
+  unsaved_simulations_ += d.stats.simulations;
+  if (cancelled || !d.status.ok()) {
+    // The planning was spent: stored, so that a restart or another replica counts it (a client
+    // that hangs up on every plan would otherwise plan past --max-session-plan-seconds).
     state.unlock();
-    return WhyCancelled();
+    (void)SaveUnderOp(store);
+    if (cancelled || d.status.code() == StatusCode::kCancelled) return WhyCancelled();
+    return d.status;
   }
-  if (!d.status.ok()) return d.status;
   ++actions_;
   pending_action_ = d.action;
   char id[64];
@@ -344,6 +349,15 @@ StatusOr<api::ObserveReply> Session::Observe(api::ObserveRequest req, SessionSto
       }
       perception_ = std::make_unique<perception::Perception>(*world, std::move(target),
                                                              perception::PerceptionOptions{});
+      if (stored_tracks_) {
+        // Checked when the record was restored.
+        if (Status st = perception_->RestoreTracks(stored_tracks_->second, stored_tracks_->first);
+            !st.ok()) {
+          perception_.reset();
+          return Status(StatusCode::kDataLoss, "snapshot: " + st.message());
+        }
+        stored_tracks_.reset();
+      }
     }
     saved_tracks = perception_->SaveTracks(&saved_next_id);
     if (!is_move && req.succeeded && offset == object_search::kRemoveOffset) {
@@ -431,6 +445,10 @@ Status Session::SaveUnderOp(SessionStore* store) {
     return version.status();
   }
   version_ = *version;
+  std::lock_guard<std::mutex> state(state_mutex_);
+  // The caller holds op_mutex_: no plan added to the usage since the record was taken.
+  unsaved_seconds_ = 0.0;
+  unsaved_simulations_ = 0;
   return OkStatus();
 }
 
@@ -442,6 +460,12 @@ Status Session::WhyCancelled() const {
 
 Status Session::Save(SessionStore* store) {
   std::lock_guard<std::mutex> op(op_mutex_);
+  return SaveUnderOp(store);
+}
+
+Status Session::SaveIfIdle(SessionStore* store) {
+  std::unique_lock<std::mutex> op(op_mutex_, std::try_to_lock);
+  if (!op.owns_lock()) return OkStatus();
   return SaveUnderOp(store);
 }
 

@@ -1,6 +1,7 @@
 // How a session is restored from its record, recorded and shown: the parts of Session that
 // turn its state into the API layer's types and back (session.cc has the state machine).
 #include <algorithm>
+#include <utility>
 
 #include "npfkct/api/api.h"
 #include "npfkct/api/wire.h"
@@ -43,19 +44,11 @@ StatusOr<std::unique_ptr<Session>> Session::Restore(api::SessionRecord r, int64_
     if (perception::PriorMapPoints(*s->world_, {}) > limits.max_perception_map_points) {
       return Status(StatusCode::kDataLoss, "snapshot: perception tracks for a world too large");
     }
-    perception::TargetModel target;
-    for (const std::string& photo : s->target_.photos) {
-      auto image = api::DecodeImage(photo, limits.max_photo_pixels, "target.photos");
-      if (!image.ok())
-        return Status(StatusCode::kDataLoss, "snapshot: " + image.status().message());
-      target.photos.push_back(*image);
-    }
-    s->perception_ = std::make_unique<perception::Perception>(*s->world_, std::move(target),
-                                                              perception::PerceptionOptions{});
-    if (!s->perception_->RestoreTracks(r.perception->second, r.perception->first).ok()) {
+    if (!perception::CheckTracks(r.perception->second, r.perception->first, *s->world_).ok()) {
       return Status(StatusCode::kDataLoss, "snapshot: perception tracks");
     }
-    s->perception_tracks_ = s->perception_->tracks();
+    s->perception_tracks_ = static_cast<int>(r.perception->second.size());
+    s->stored_tracks_ = std::move(r.perception);
   }
   return s;
 }
@@ -126,17 +119,20 @@ api::SessionView Session::ViewOf(const api::SessionRecord& r) {
   return v;
 }
 
-void Session::KeepUsage(const Session& replaced) {
+void Session::KeepUsage(Session& replaced) {
+  if (&replaced == this) return;
   double seconds = 0.0;
   int64_t simulations = 0;
   {
     std::lock_guard<std::mutex> lock(replaced.state_mutex_);
-    seconds = replaced.planning_seconds_;
-    simulations = replaced.total_simulations_;
+    seconds = std::exchange(replaced.unsaved_seconds_, 0.0);
+    simulations = std::exchange(replaced.unsaved_simulations_, 0);
   }
   std::lock_guard<std::mutex> lock(state_mutex_);
-  planning_seconds_ = std::max(planning_seconds_, seconds);
-  total_simulations_ = std::max(total_simulations_, simulations);
+  planning_seconds_ += seconds;
+  total_simulations_ += simulations;
+  unsaved_seconds_ += seconds;
+  unsaved_simulations_ += simulations;
 }
 
 std::string SummaryOf(const api::SessionRecord& record) {
@@ -182,6 +178,8 @@ api::SessionRecord Session::RecordLocked() const {
     int next_id = 0;
     auto tracks = perception_->SaveTracks(&next_id);
     r.perception = std::make_pair(next_id, std::move(tracks));
+  } else {
+    r.perception = stored_tracks_;
   }
   return r;
 }

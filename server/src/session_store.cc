@@ -91,7 +91,9 @@ std::string RandomHex() {
 StatusOr<SessionStore::Refreshed> SessionStore::Refresh(const std::string&, int64_t) {
   return Status(StatusCode::kUnimplemented, "not a shared store");
 }
-Status SessionStore::KeepAlive(const std::vector<std::string>&) { return OkStatus(); }
+StatusOr<std::vector<std::string>> SessionStore::KeepAlive(const std::vector<std::string>& ids) {
+  return ids;
+}
 StatusOr<std::vector<SessionStore::Listed>> SessionStore::ListViews(size_t limit,
                                                                     const std::string& after) {
   auto ids = List(limit, after);

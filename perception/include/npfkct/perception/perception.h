@@ -192,4 +192,9 @@ Eigen::Matrix4d CameraToMap(const object_search::RobotPreset& robot,
 /// that a caller can refuse a world too large to map.
 int64_t PriorMapPoints(const object_search::World& world, const PerceptionOptions& options);
 
+/// Checks saved tracks (Perception::SaveTracks) against `world` without building a perception:
+/// INVALID_ARGUMENT, naming the track, when one could not be restored.
+Status CheckTracks(const std::vector<TrackState>& tracks, int next_id,
+                   const object_search::World& world);
+
 }  // namespace npfkct::perception

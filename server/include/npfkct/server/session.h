@@ -11,7 +11,10 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "npfkct/api/types.h"
 #include "npfkct/object_search/model.h"
@@ -112,16 +115,18 @@ class Session {
   std::vector<api::StepRecord> Steps() const;
   /// Threads each of its plans searches on (search.threads): the planning slots a plan takes.
   int SearchThreads() const { return planner_->SearchThreads(); }
-  /// Keeps the planning time and simulations `replaced` (an earlier copy of this session, e.g.
-  /// one whose save failed) used where they exceed this copy's: reloading a session from its
-  /// last snapshot never gives back planning budget that was spent.
-  void KeepUsage(const Session& replaced);
+  /// Moves to this copy the planning time and simulations `replaced` (an earlier copy of this
+  /// session, e.g. one whose save failed or lost a race) spent and did not save: reloading a
+  /// session from the store never gives back planning budget that was spent.
+  void KeepUsage(Session& replaced);
 
   /// The API resource of a stored record (a session this server does not hold).
   static api::SessionView ViewOf(const api::SessionRecord& record);
 
   /// Saves the session to `store` unless it was deleted (for creation).
   Status Save(SessionStore* store);
+  /// Saves the session unless it was deleted or a request works on it (that request saves it).
+  Status SaveIfIdle(SessionStore* store);
   /// Stops a running plan at its next check, marks the session deleted and removes its stored
   /// copy (none when `store` is null: it was removed already), under the same lock as every
   /// save: a deleted session is never written again.
@@ -167,6 +172,10 @@ class Session {
   std::unique_ptr<object_search::ObjectSearchModel> model_;
   std::unique_ptr<object_search::SearchPlanner> planner_;
   std::unique_ptr<perception::Perception> perception_;
+  // Perception tracks of a restored record, kept as they are until a raw frame needs the
+  // perception: building it maps the whole room (seconds in a large one), which a restart or a
+  // fleet replica's load of the session does not pay for.
+  std::optional<std::pair<int, std::vector<perception::TrackState>>> stored_tracks_;
 
   // The state readers see (state_mutex_).
   mutable std::mutex state_mutex_;
@@ -178,6 +187,9 @@ class Session {
   int64_t actions_ = 0;
   int64_t total_simulations_ = 0;
   double planning_seconds_ = 0.0;
+  // What planning_seconds_ and total_simulations_ hold that no save has stored yet.
+  double unsaved_seconds_ = 0.0;
+  int64_t unsaved_simulations_ = 0;
   int perception_tracks_ = -1;  // -1: no raw data yet
   std::vector<api::StepRecord> history_;
   std::chrono::system_clock::time_point update_time_;

@@ -71,8 +71,9 @@ class SessionStore {
   /// version, with the record when that version is not `held_version`. NOT_FOUND when absent
   /// or expired. Shared stores only.
   virtual StatusOr<Refreshed> Refresh(const std::string& id, int64_t held_version);
-  /// Keeps sessions that requests are working on from expiring (a plan may outlast the TTL).
-  virtual Status KeepAlive(const std::vector<std::string>& ids);
+  /// Keeps sessions that requests are working on from expiring (a plan may outlast the TTL);
+  /// returns those of `ids` still stored (the others were deleted or expired meanwhile).
+  virtual StatusOr<std::vector<std::string>> KeepAlive(const std::vector<std::string>& ids);
   /// Deletes up to `limit` sessions whose time to live has passed; returns their ids.
   virtual StatusOr<std::vector<std::string>> DeleteExpired(size_t limit);
   /// Whether the store answers (UNAVAILABLE with the reason when not). Bounded in time.
