@@ -520,6 +520,35 @@ def test_a_delete_through_another_replica_stops_the_plan(postgres, store):
         stop_all(a, b)
 
 
+def test_a_plan_stops_when_its_replica_loads_a_newer_version(postgres, store):
+    """Found by an outside attack: when replica B loaded a version that A saved while B planned,
+    B's planning copy left B's map and ran on unseen: a DELETE then left it planning 10 s, a short
+    TTL expired the session under it, and with 4 plan slots B planned one session four times at
+    once (4x the lifetime cap). Its save could only fail: it stops when the newer copy loads."""
+    a, b = start_replica(store), start_replica(store)
+    try:
+        sid = create(a.url)
+        assert requests.get(f"{b.url}/v1/sessions/{sid}").status_code == 200
+        planned = {}
+        t = threading.Thread(target=lambda: planned.setdefault("r", requests.post(
+            f"{b.url}/v1/sessions/{sid}:plan", json={"budget": {"timeMs": 15000}}, timeout=60)))
+        t.start()
+        time.sleep(1.0)
+        hang_up_plan(a.port, sid, 5000, 0.3)  # A saves the session (its planning time)
+        time.sleep(0.5)
+        assert requests.get(f"{b.url}/v1/sessions/{sid}").status_code == 200  # B loads it
+        loaded = time.monotonic()
+        t.join()
+        assert time.monotonic() - loaded < 3.0
+        assert planned["r"].status_code == 409, planned["r"].text
+        assert planned["r"].json()["error"]["status"] == "ABORTED"
+        # Its planning counts: B's time moved to the stored session.
+        used = requests.get(f"{a.url}/v1/sessions/{sid}").json()["planningSecondsUsed"]
+        assert used >= 1.5, used
+    finally:
+        stop_all(a, b)
+
+
 def test_a_plan_outlives_a_short_ttl_in_a_fleet(postgres, store):
     """Found by an outside attack: with ttlSeconds 0.05 or 0.2 another replica deleted the
     session between two of its replica's keep-alive ticks (250 ms) and the 2 s plan answered 409

@@ -276,6 +276,11 @@ StatusOr<std::shared_ptr<Session>> Registry::Install(SessionStore::Loaded loaded
   }
   std::shared_ptr<Session> session = std::move(restored).value();
   metrics_->CountLoaded();
+  // A request still working on the copy replaced by a newer version could only fail to save it,
+  // and DELETE, expiry and keep-alive see only the copy held: its plan stops now.
+  if (replaced && replaced->busy() && replaced->version() != session->version()) {
+    replaced->Supersede();
+  }
   {
     // Only loads (under the load lock) install a session of an existing id.
     std::unique_lock lock(mutex_);
@@ -297,7 +302,8 @@ bool Registry::MakeRoomLocked(int room) {
     double idlest = 0.0;
     for (auto it = sessions_.begin(); it != sessions_.end(); ++it) {
       const double idle = it->second->IdleSeconds();
-      if (idle > idlest && !it->second->busy()) {
+      // A copy holding planning the store does not have yet stays (Maintain saves it).
+      if (idle > idlest && !it->second->busy() && !it->second->has_unsaved_usage()) {
         idlest = idle;
         victim = it;
       }
@@ -470,17 +476,30 @@ void Registry::Reap() {
 void Registry::Maintain(bool full_round) {
   std::vector<std::string> busy;
   std::vector<std::string> idle;
+  std::vector<std::shared_ptr<Session>> unsaved;
   {
     std::shared_lock lock(mutex_);
     for (const auto& [id, s] : sessions_) {
       if (s->busy()) {
         busy.push_back(id);
+      } else if (full_round && s->has_unsaved_usage()) {
+        unsaved.push_back(s);
       } else if (full_round &&
                  s->IdleSeconds() > std::min(options_.evict_idle_seconds, s->ttl_seconds())) {
         idle.push_back(id);
       }
     }
   }
+  // Planning moved to a copy by KeepUsage while a request held it, which then ended unsaved (a
+  // copy whose save conflicts passes it on to the stored version).
+  for (const auto& s : unsaved) {
+    if (s->stale()) {
+      KeepUsageOf(s);
+    } else {
+      (void)s->SaveIfIdle(store_.get());
+    }
+  }
+  unsaved.clear();
   if (!busy.empty()) {
     // A session deleted through another replica (or expired) stops its plan here within a tick.
     auto kept = store_->KeepAlive(busy);
@@ -505,7 +524,7 @@ void Registry::Maintain(bool full_round) {
   std::unique_lock lock(mutex_);
   for (const std::string& id : idle) {
     auto it = sessions_.find(id);
-    if (it == sessions_.end() || it->second->busy()) continue;
+    if (it == sessions_.end() || it->second->busy() || it->second->has_unsaved_usage()) continue;
     sessions_.erase(it);
     metrics_->CountEvicted();
   }

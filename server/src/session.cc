@@ -436,7 +436,9 @@ StatusOr<api::ObserveReply> Session::Observe(api::ObserveRequest req, SessionSto
 
 Status Session::SaveUnderOp(SessionStore* store) {
   // The caller holds op_mutex_ (or owns the session alone): perception and the planner are still.
-  const api::SessionRecord record = RecordLocked();
+  double seconds = 0.0;
+  int64_t simulations = 0;
+  const api::SessionRecord record = RecordLocked(&seconds, &simulations);
   std::lock_guard<std::mutex> lock(persist_mutex_);
   if (deleted_) return Status(StatusCode::kAborted, "the session was deleted meanwhile");
   auto version = store->Save(record, version_);
@@ -445,16 +447,20 @@ Status Session::SaveUnderOp(SessionStore* store) {
     return version.status();
   }
   version_ = *version;
+  // What KeepUsage added since the record was taken stays unsaved.
   std::lock_guard<std::mutex> state(state_mutex_);
-  // The caller holds op_mutex_: no plan added to the usage since the record was taken.
-  unsaved_seconds_ = 0.0;
-  unsaved_simulations_ = 0;
+  unsaved_seconds_ = std::max(0.0, unsaved_seconds_ - seconds);
+  unsaved_simulations_ = std::max<int64_t>(0, unsaved_simulations_ - simulations);
   return OkStatus();
 }
 
 Status Session::WhyCancelled() const {
   std::lock_guard<std::mutex> persist(persist_mutex_);
   if (deleted_) return Status(StatusCode::kAborted, "the session was deleted while planning");
+  if (superseded_) {
+    return Status(StatusCode::kAborted,
+                  "another request saved the session while this plan ran; read it and plan again");
+  }
   return CancelledError(cancel_ ? "the server is stopping" : "the client closed the connection");
 }
 
@@ -491,6 +497,16 @@ int64_t Session::version() const {
 bool Session::busy() const {
   std::unique_lock<std::mutex> op(op_mutex_, std::try_to_lock);
   return !op.owns_lock();
+}
+
+bool Session::has_unsaved_usage() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  return unsaved_seconds_ > 1e-9 || unsaved_simulations_ > 0;
+}
+
+void Session::Supersede() {
+  superseded_ = true;
+  Cancel();
 }
 
 bool Session::ExpireIfIdle(SessionStore* store) {

@@ -154,7 +154,8 @@ std::vector<api::StepRecord> Session::Steps() const {
   return history_;
 }
 
-api::SessionRecord Session::RecordLocked() const {
+api::SessionRecord Session::RecordLocked(double* unsaved_seconds,
+                                         int64_t* unsaved_simulations) const {
   api::SessionRecord r;
   r.id = id_;
   r.display_name = display_name_;
@@ -168,6 +169,8 @@ api::SessionRecord Session::RecordLocked() const {
   r.actions = actions_;
   r.total_simulations = total_simulations_;
   r.planning_seconds_used = planning_seconds_;
+  *unsaved_seconds = unsaved_seconds_;
+  *unsaved_simulations = unsaved_simulations_;
   r.update_time_ms = api::UnixMillis(update_time_);
   r.last_action_id = last_action_id_;
   r.pending_action_id = pending_action_id_;

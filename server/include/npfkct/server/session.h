@@ -84,6 +84,12 @@ class Session {
   bool stale() const { return stale_.load(); }
   /// Whether a request (plan or observe) works on the session now.
   bool busy() const;
+  /// Whether this copy planned more than the store holds (saved by SaveIfIdle, or moved on by
+  /// KeepUsage): such a copy is not dropped from memory.
+  bool has_unsaved_usage() const;
+  /// Stops this copy's running plan because another replica saved a newer version: its save
+  /// could only fail, and the copy is no longer the one requests see (its plan answers ABORTED).
+  void Supersede();
 
   /// Holds a planning slot until destroyed (the server's admission ticket).
   using SlotHold = std::shared_ptr<const void>;
@@ -148,7 +154,9 @@ class Session {
   Status Init(const SamplerFactory& samplers);
   void Reseed();
   ParticleBelief<object_search::State> FreshBelief();
-  api::SessionRecord RecordLocked() const;
+  // The record to save; `unsaved_seconds` and `unsaved_simulations` get the usage in it that no
+  // save has stored yet (read together with it).
+  api::SessionRecord RecordLocked(double* unsaved_seconds, int64_t* unsaved_simulations) const;
   api::SessionView ViewLocked() const;
   static api::ActionView ActionViewOf(const HybridAction& a, const object_search::World& w);
   Status SaveUnderOp(SessionStore* store);
@@ -204,6 +212,7 @@ class Session {
 
   // Cancellation of a running plan.
   std::atomic<bool> cancel_{false};
+  std::atomic<bool> superseded_{false};
   std::mutex running_mutex_;
   const TerminationCondition* running_ = nullptr;
 };
