@@ -549,6 +549,53 @@ def test_a_plan_stops_when_its_replica_loads_a_newer_version(postgres, store):
         stop_all(a, b)
 
 
+def test_requests_that_read_a_replicas_own_save_keep_its_copy(postgres, store):
+    """Found by an outside attack: a GET that read the held copy's version just before the copy's
+    own save and refreshed just after it loaded that save as a newer version: the copy working on
+    the session left the map (two plans at once on one replica, a DELETE missing a running plan),
+    a plan was aborted with no other writer, and planning time was both stored and moved (+3 to
+    +11% planningSecondsUsed under GET polling), and each such load restored the session for
+    nothing. The held copy at that version stays."""
+    a = start_replica(store, "--store-pool", "1", "--threads", "16")
+    stop_polling = threading.Event()
+
+    def poll():
+        while not stop_polling.is_set():
+            requests.get(f"{a.url}/v1/sessions/{sid}", timeout=30)
+
+    try:
+        sid = create(a.url, planner={"name": "pomcp", "particles": 10000})
+        loads = metric(a.url, "npfkct_sessions_loaded_total")
+        pollers = [threading.Thread(target=poll) for _ in range(6)]
+        for t in pollers:
+            t.start()
+        robot_state = {"x": 0.3, "y": 0, "yaw": 0, "lift": 0.2, "pan": 0, "tilt": 0.4}
+        seconds, simulations = 0.0, 0
+        for _ in range(30):
+            plan = requests.post(f"{a.url}/v1/sessions/{sid}:plan",
+                                 json={"budget": {"timeMs": 10}})
+            assert plan.status_code == 200, plan.text
+            seconds += plan.json()["stats"]["elapsedMs"] / 1000
+            simulations += plan.json()["stats"]["simulations"]
+            r = requests.post(f"{a.url}/v1/sessions/{sid}:observe",
+                              json={"actionId": plan.json()["actionId"], "detections": [],
+                                    "robotState": robot_state})
+            assert r.status_code == 200, r.text
+            if r.json()["done"]:
+                break
+        stop_polling.set()
+        for t in pollers:
+            t.join()
+        view = requests.get(f"{a.url}/v1/sessions/{sid}").json()
+        assert abs(view["planningSecondsUsed"] - seconds) < 1e-6, (view, seconds)
+        assert view["totalSimulations"] == simulations
+        # The only writer of the session never loads it (each load was a restore for nothing).
+        assert metric(a.url, "npfkct_sessions_loaded_total") == loads
+    finally:
+        stop_polling.set()
+        stop_all(a)
+
+
 def test_a_plan_outlives_a_short_ttl_in_a_fleet(postgres, store):
     """Found by an outside attack: with ttlSeconds 0.05 or 0.2 another replica deleted the
     session between two of its replica's keep-alive ticks (250 ms) and the 2 s plan answered 409

@@ -251,6 +251,9 @@ std::shared_ptr<std::mutex> Registry::LoadLock(const std::string& id) {
 StatusOr<std::shared_ptr<Session>> Registry::Install(SessionStore::Loaded loaded,
                                                      const std::shared_ptr<Session>& replaced) {
   const std::string id = loaded.record.id;
+  // The held copy's own save, which a request's refresh read before the copy learnt its new
+  // version: the copy is current (replacing it would leave its request working unseen).
+  if (replaced && !replaced->stale() && replaced->version() >= loaded.version) return replaced;
   // One load of a session at a time: requests that arrive together (a fleet replica that does
   // not hold the session, or holds an older version) wait for the first, then share its copy.
   const std::shared_ptr<std::mutex> load_lock = LoadLock(id);
@@ -278,7 +281,7 @@ StatusOr<std::shared_ptr<Session>> Registry::Install(SessionStore::Loaded loaded
   metrics_->CountLoaded();
   // A request still working on the copy replaced by a newer version could only fail to save it,
   // and DELETE, expiry and keep-alive see only the copy held: its plan stops now.
-  if (replaced && replaced->busy() && replaced->version() != session->version()) {
+  if (replaced && replaced->busy() && replaced->version() < session->version()) {
     replaced->Supersede();
   }
   {
@@ -288,8 +291,8 @@ StatusOr<std::shared_ptr<Session>> Registry::Install(SessionStore::Loaded loaded
     sessions_[id] = session;
     metrics_->SetSessions(static_cast<int>(sessions_.size()));
   }
-  // A held copy whose save failed or lost a race planned meanwhile: the stored record does not
-  // count that.
+  // A held copy whose save failed or lost a race (stale, or older than the store: no save of
+  // it can succeed) planned meanwhile: the stored record does not count that.
   if (replaced) session->KeepUsage(*replaced);
   return session;
 }
