@@ -26,6 +26,7 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
+#include <unordered_map>
 
 namespace npfkct::perception {
 namespace {
@@ -120,6 +121,41 @@ typename pcl::PointCloud<Point>::Ptr Thin(const typename pcl::PointCloud<Point>:
   auto out = pcl::make_shared<pcl::PointCloud<Point>>();
   for (int64_t i = 0; i < n; i += stride) out->push_back((*in)[i]);
   return out;
+}
+
+// A bound on the pairs of points of `cloud` closer than `radius`: for each point, the points in
+// the 3 x 3 x 3 cells of edge `radius` around its own.
+int64_t NeighbourPairBound(const CloudXYZ& cloud, double radius) {
+  struct Key {
+    int64_t x, y, z;
+    bool operator==(const Key&) const = default;
+  };
+  struct Hash {
+    size_t operator()(const Key& k) const {
+      return std::hash<int64_t>()(k.x * 73856093 ^ k.y * 19349663 ^ k.z * 83492791);
+    }
+  };
+  auto key = [radius](const PointXYZ& p) {
+    return Key{static_cast<int64_t>(std::floor(p.x / radius)),
+               static_cast<int64_t>(std::floor(p.y / radius)),
+               static_cast<int64_t>(std::floor(p.z / radius))};
+  };
+  std::unordered_map<Key, int64_t, Hash> cells;
+  for (const auto& p : cloud) ++cells[key(p)];
+  int64_t pairs = 0;
+  for (const auto& [k, count] : cells) {
+    int64_t around = 0;
+    for (int64_t dx = -1; dx <= 1; ++dx) {
+      for (int64_t dy = -1; dy <= 1; ++dy) {
+        for (int64_t dz = -1; dz <= 1; ++dz) {
+          auto it = cells.find(Key{k.x + dx, k.y + dy, k.z + dz});
+          if (it != cells.end()) around += it->second;
+        }
+      }
+    }
+    pairs += count * around;
+  }
+  return pairs;
 }
 
 // `box` widened by `by` on every side (m).
@@ -309,8 +345,9 @@ Status PerceptionOptions::Validate() const {
   }
   if (icp_iterations < 1 || min_cluster_points < 1 || max_cluster_points < min_cluster_points ||
       min_features < 1 || min_inliers < 4 || max_clusters < 1 || max_track_points < 1 ||
-      max_ransac_points < 1 || max_ransac_map_points < 1 || max_icp_points < 1 ||
-      max_features < 1 || max_sift_pixels < 16 || max_sift_frame_pixels < 0 || max_sift_pairs < 0) {
+      max_ransac_points < 1 || max_ransac_map_points < 1 || max_ransac_pairs < 1 ||
+      max_icp_points < 1 || max_features < 1 || max_sift_pixels < 16 || max_sift_frame_pixels < 0 ||
+      max_sift_pairs < 0) {
     return InvalidArgumentError("perception options: bad counts");
   }
   return OkStatus();
@@ -360,6 +397,15 @@ struct Perception::Impl {
                              pcl::PointCloud<pcl::FPFHSignature33>::Ptr* features) const {
     *down = Downsample(cloud, options.ransac_voxel);
     if (max_points > 0) *down = Thin<PointXYZ>(*down, max_points);
+    // Each feature weighs every neighbour within its radius: bounded by thinning the cloud,
+    // which divides the pairs by the square of the stride.
+    const double radius = 5.0 * options.ransac_voxel;
+    const int64_t pairs = NeighbourPairBound(**down, radius);
+    if (pairs > options.max_ransac_pairs) {
+      const auto stride = static_cast<int64_t>(
+          std::ceil(std::sqrt(static_cast<double>(pairs) / options.max_ransac_pairs)));
+      *down = Thin<PointXYZ>(*down, static_cast<int64_t>((*down)->size()) / stride);
+    }
     auto normals = pcl::make_shared<pcl::PointCloud<pcl::Normal>>();
     pcl::NormalEstimation<PointXYZ, pcl::Normal> ne;
     ne.setInputCloud(*down);
@@ -369,7 +415,7 @@ struct Perception::Impl {
     pcl::FPFHEstimation<PointXYZ, pcl::Normal, pcl::FPFHSignature33> fpfh;
     fpfh.setInputCloud(*down);
     fpfh.setInputNormals(normals);
-    fpfh.setRadiusSearch(5.0 * options.ransac_voxel);
+    fpfh.setRadiusSearch(radius);
     fpfh.compute(**features);
     // PCL weights a neighbour's histogram by 1 / squared distance: two points a float denormal
     // apart make that inf and the feature NaN, on which the consensus' feature k-d tree asserts

@@ -99,6 +99,11 @@ struct PerceptionOptions {
   /// Its map points within reach of the view, after downsampling, are thinned to this many (a
   /// frame spread to the edges of registration_range reaches about 240,000).
   int64_t max_ransac_map_points = 60'000;
+  /// Either cloud of RANSAC's features is thinned further (every k-th point) until a bound on
+  /// its points' neighbour pairs within the features' radius (points in the 27 cells of that
+  /// size around each point) is at most this: a depth camera sees surfaces (about 80 neighbours
+  /// a point), while a 3-D lattice or nested shells give each about 520.
+  int64_t max_ransac_pairs = 40'000'000;
   /// SIFT keypoints kept per target photo and per image region (the strongest).
   int max_features = 2'000;
   /// An image region or target photo larger than this (pixels) is scaled down before SIFT.
