@@ -400,11 +400,12 @@ struct Perception::Impl {
     // Each feature weighs every neighbour within its radius: bounded by thinning the cloud,
     // which divides the pairs by the square of the stride.
     const double radius = 5.0 * options.ransac_voxel;
-    const int64_t pairs = NeighbourPairBound(**down, radius);
-    if (pairs > options.max_ransac_pairs) {
+    for (int64_t pairs = NeighbourPairBound(**down, radius); pairs > options.max_ransac_pairs;
+         pairs = NeighbourPairBound(**down, radius)) {
       const auto stride = static_cast<int64_t>(
           std::ceil(std::sqrt(static_cast<double>(pairs) / options.max_ransac_pairs)));
-      *down = Thin<PointXYZ>(*down, static_cast<int64_t>((*down)->size()) / stride);
+      *down = Thin<PointXYZ>(*down,
+                             static_cast<int64_t>((*down)->size()) / std::max<int64_t>(2, stride));
     }
     auto normals = pcl::make_shared<pcl::PointCloud<pcl::Normal>>();
     pcl::NormalEstimation<PointXYZ, pcl::Normal> ne;

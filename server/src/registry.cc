@@ -228,11 +228,12 @@ StatusOr<std::shared_ptr<Session>> Registry::Acquire(const std::string& id) {
   return Install(std::move(*fresh->loaded), held);
 }
 
-void Registry::KeepUsageOf(const std::shared_ptr<Session>& stale) {
+bool Registry::KeepUsageOf(const std::shared_ptr<Session>& stale) {
   auto fresh = Acquire(stale->id());
-  if (!fresh.ok() || *fresh == stale) return;
+  if (fresh.status().code() == StatusCode::kNotFound) return true;  // deleted: nothing to count
+  if (!fresh.ok() || *fresh == stale) return false;
   (*fresh)->KeepUsage(*stale);  // unless Install moved it already (the copy was held)
-  (void)(*fresh)->SaveIfIdle(store_.get());
+  return (*fresh)->SaveIfIdle(store_.get()).ok();
 }
 
 std::shared_ptr<std::mutex> Registry::LoadLock(const std::string& id) {
@@ -258,15 +259,15 @@ StatusOr<std::shared_ptr<Session>> Registry::Install(SessionStore::Loaded loaded
   // not hold the session, or holds an older version) wait for the first, then share its copy.
   const std::shared_ptr<std::mutex> load_lock = LoadLock(id);
   std::lock_guard<std::mutex> loading(*load_lock);
+  std::shared_ptr<Session> held;  // the copy held now (another request may have loaded one)
   {
     std::shared_lock lock(mutex_);
     auto it = sessions_.find(id);
-    if (it != sessions_.end() && it->second != replaced && !it->second->stale() &&
-        it->second->version() >= loaded.version) {
-      // Another request loaded it meanwhile.
-      if (replaced) it->second->KeepUsage(*replaced);
-      return it->second;
-    }
+    if (it != sessions_.end()) held = it->second;
+  }
+  if (held && held != replaced && !held->stale() && held->version() >= loaded.version) {
+    if (replaced) held->KeepUsage(*replaced);  // another request loaded it meanwhile
+    return held;
   }
   // A session holds its particles and tree: none is loaded past the heap bound.
   if (Status heap = CheckHeap(session_limits_, "load a session"); !heap.ok()) return heap;
@@ -279,21 +280,22 @@ StatusOr<std::shared_ptr<Session>> Registry::Install(SessionStore::Loaded loaded
   }
   std::shared_ptr<Session> session = std::move(restored).value();
   metrics_->CountLoaded();
-  // A request still working on the copy replaced by a newer version could only fail to save it,
-  // and DELETE, expiry and keep-alive see only the copy held: its plan stops now.
-  if (replaced && replaced->busy() && replaced->version() < session->version()) {
-    replaced->Supersede();
-  }
   {
     // Only loads (under the load lock) install a session of an existing id.
     std::unique_lock lock(mutex_);
-    if (sessions_.find(id) == sessions_.end() && !MakeRoomLocked(1)) return FullError();
+    if (!held && !MakeRoomLocked(1)) return FullError();
     sessions_[id] = session;
     metrics_->SetSessions(static_cast<int>(sessions_.size()));
   }
-  // A held copy whose save failed or lost a race (stale, or older than the store: no save of
-  // it can succeed) planned meanwhile: the stored record does not count that.
-  if (replaced) session->KeepUsage(*replaced);
+  for (const std::shared_ptr<Session>& old : {replaced, held}) {
+    if (!old || old == session) continue;
+    // A request still working on (or about to work on) a copy older than the new one could only
+    // fail to save it, and DELETE, expiry and keep-alive see only the new copy: it stops now.
+    if (old->version() < session->version()) old->Supersede();
+    // A copy whose save failed or lost a race (stale, or older than the store) planned
+    // meanwhile: the stored record does not count that.
+    session->KeepUsage(*old);
+  }
   return session;
 }
 
@@ -493,16 +495,6 @@ void Registry::Maintain(bool full_round) {
       }
     }
   }
-  // Planning moved to a copy by KeepUsage while a request held it, which then ended unsaved (a
-  // copy whose save conflicts passes it on to the stored version).
-  for (const auto& s : unsaved) {
-    if (s->stale()) {
-      KeepUsageOf(s);
-    } else {
-      (void)s->SaveIfIdle(store_.get());
-    }
-  }
-  unsaved.clear();
   if (!busy.empty()) {
     // A session deleted through another replica (or expired) stops its plan here within a tick.
     auto kept = store_->KeepAlive(busy);
@@ -516,6 +508,24 @@ void Registry::Maintain(bool full_round) {
     }
   }
   if (!full_round) return;
+  // Planning moved to a copy by KeepUsage while a request held it, which then ended unsaved (a
+  // stale copy passes it on to the stored version). After 30 failed rounds (the store refuses or
+  // the session cannot be loaded here) it is given up, so that the copy can go.
+  for (const auto& s : unsaved) {
+    const bool passed_on = s->stale() ? KeepUsageOf(s) : s->SaveIfIdle(store_.get()).ok();
+    int& failures = usage_failures_[s->id()];
+    if (passed_on || ++failures >= 30) {
+      if (!passed_on) spdlog::warn("session {}: planning time not stored, given up", s->id());
+      s->DropUnsavedUsage();
+      usage_failures_.erase(s->id());
+    }
+  }
+  for (auto it = usage_failures_.begin(); it != usage_failures_.end();) {
+    const bool listed = std::any_of(unsaved.begin(), unsaved.end(),
+                                    [&](const auto& s) { return s->id() == it->first; });
+    it = listed ? std::next(it) : usage_failures_.erase(it);
+  }
+  unsaved.clear();
   (void)store_->Ping();
   if (auto expired = store_->DeleteExpired(100); expired.ok()) {
     for (const std::string& id : *expired) {

@@ -55,7 +55,8 @@ class Registry {
   /// Stores the planning a stale copy of a session spent (its save lost to another replica's, or
   /// failed): the usage moves to the stored session, loaded, which is saved unless a request
   /// works on it (which saves it when it ends).
-  void KeepUsageOf(const std::shared_ptr<Session>& stale);
+  /// False when the stored session could not be loaded or saved (the usage stays with `stale`).
+  bool KeepUsageOf(const std::shared_ptr<Session>& stale);
   /// Up to `size` sessions after `token` in id order; `next` gets the token of the next page.
   StatusOr<std::vector<api::SessionView>> Page(const std::string& token, int size,
                                                std::string* next) const;
@@ -110,6 +111,8 @@ class Registry {
   std::map<std::string, std::shared_ptr<Session>> sessions_;
   std::mutex load_locks_mutex_;
   std::map<std::string, std::weak_ptr<std::mutex>> load_locks_;
+  // Upkeep rounds that failed to store a held copy's unsaved planning (the reaper thread's).
+  std::map<std::string, int> usage_failures_;
   std::thread reaper_;
   std::mutex stop_mutex_;
   std::condition_variable stop_cv_;

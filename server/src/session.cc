@@ -242,8 +242,9 @@ StatusOr<api::PlanReply> Session::Plan(const Budget& asked,
   if (cancelled || !d.status.ok()) {
     // The planning was spent: stored, so that a restart or another replica counts it (a client
     // that hangs up on every plan would otherwise plan past --max-session-plan-seconds).
+    const bool spent = d.stats.elapsed_ms > 0.0 || d.stats.simulations > 0;
     state.unlock();
-    (void)SaveUnderOp(store);
+    if (spent) (void)SaveUnderOp(store);
     if (cancelled || d.status.code() == StatusCode::kCancelled) return WhyCancelled();
     return d.status;
   }
@@ -441,6 +442,9 @@ Status Session::SaveUnderOp(SessionStore* store) {
   const api::SessionRecord record = RecordLocked(&seconds, &simulations);
   std::lock_guard<std::mutex> lock(persist_mutex_);
   if (deleted_) return Status(StatusCode::kAborted, "the session was deleted meanwhile");
+  // A copy whose save failed may hold usage KeepUsage moved on to a newer copy: it is never
+  // saved again (the request gets 409; the session is loaded again from the store).
+  if (stale_) return Status(StatusCode::kAborted, "the session changed meanwhile; read it again");
   auto version = store->Save(record, version_);
   if (!version.ok()) {
     stale_ = true;  // this copy is ahead of what was acknowledged
@@ -502,6 +506,12 @@ bool Session::busy() const {
 bool Session::has_unsaved_usage() const {
   std::lock_guard<std::mutex> lock(state_mutex_);
   return unsaved_seconds_ > 1e-9 || unsaved_simulations_ > 0;
+}
+
+void Session::DropUnsavedUsage() {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  unsaved_seconds_ = 0.0;
+  unsaved_simulations_ = 0;
 }
 
 void Session::Supersede() {

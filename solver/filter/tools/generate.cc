@@ -25,8 +25,8 @@ std::optional<Sample> MakeSample(const ObjectSearchModel& model, const GenerateO
   const std::vector<Vec3> probe = SamplePlacements(w, kProbePlacements, rng);
   out.scene = SceneOf(w, rng);
   for (int draw = 0; draw < 8 && out.num_queries() < o.queries_per_sample; ++draw) {
-    const ScoredConfigs scored = ScoreConfigs(model, s, placements, probe,
-                                              o.queries_per_sample - out.num_queries(), rng);
+    const ScoredConfigs scored =
+        ScoreConfigs(model, s, placements, probe, o.queries_per_sample - out.num_queries(), rng);
     out.queries.insert(out.queries.end(), scored.queries.begin(), scored.queries.end());
     out.scores.insert(out.scores.end(), scored.scores.begin(), scored.scores.end());
   }
@@ -74,7 +74,12 @@ StatusOr<Dataset> GenerateDataset(const GenerateOptions& options,
   Dataset data;
   data.queries_per_sample = options.queries_per_sample;
   data.samples.reserve(options.samples);
+  int barren = 0;  // scenes in a row that gave no snapshot
   while (static_cast<int>(data.samples.size()) < options.samples) {
+    if (++barren > 1000) {
+      return FailedPreconditionError(
+          "scenarios: 1,000 scenes in a row leave too few free bases for a snapshot's proposals");
+    }
     sim::Scenario sc;
     if (options.scene_seed != 0) {
       const uint64_t seed = options.scene_seed + rng.UniformInt(options.scene_count);
@@ -132,6 +137,7 @@ StatusOr<Dataset> GenerateDataset(const GenerateOptions& options,
       std::optional<Sample> sample = MakeSample(model, options, rng);
       if (!sample.has_value()) break;  // hardly a free base: no snapshot of this scene
       data.samples.push_back(*std::move(sample));
+      barren = 0;
       if (progress != nullptr) progress(static_cast<int>(data.samples.size()), options.samples);
       if (static_cast<int>(data.samples.size()) >= options.samples) break;
     }

@@ -87,6 +87,8 @@ class Session {
   /// Whether this copy planned more than the store holds (saved by SaveIfIdle, or moved on by
   /// KeepUsage): such a copy is not dropped from memory.
   bool has_unsaved_usage() const;
+  /// Forgets the unsaved planning time (it could not be stored).
+  void DropUnsavedUsage();
   /// Stops this copy's running plan because another replica saved a newer version: its save
   /// could only fail, and the copy is no longer the one requests see (its plan answers ABORTED).
   void Supersede();
