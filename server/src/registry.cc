@@ -233,7 +233,9 @@ bool Registry::KeepUsageOf(const std::shared_ptr<Session>& stale) {
   if (fresh.status().code() == StatusCode::kNotFound) return true;  // deleted: nothing to count
   if (!fresh.ok() || *fresh == stale) return false;
   (*fresh)->KeepUsage(*stale);  // unless Install moved it already (the copy was held)
-  return (*fresh)->SaveIfIdle(store_.get()).ok();
+  // Best effort: the upkeep saves the fresh copy later if this fails or a request holds it.
+  (void)(*fresh)->SaveIfIdle(store_.get());
+  return true;
 }
 
 std::shared_ptr<std::mutex> Registry::LoadLock(const std::string& id) {
@@ -283,7 +285,7 @@ StatusOr<std::shared_ptr<Session>> Registry::Install(SessionStore::Loaded loaded
   {
     // Only loads (under the load lock) install a session of an existing id.
     std::unique_lock lock(mutex_);
-    if (!held && !MakeRoomLocked(1)) return FullError();
+    if (sessions_.find(id) == sessions_.end() && !MakeRoomLocked(1)) return FullError();
     sessions_[id] = session;
     metrics_->SetSessions(static_cast<int>(sessions_.size()));
   }
@@ -291,7 +293,7 @@ StatusOr<std::shared_ptr<Session>> Registry::Install(SessionStore::Loaded loaded
     if (!old || old == session) continue;
     // A request still working on (or about to work on) a copy older than the new one could only
     // fail to save it, and DELETE, expiry and keep-alive see only the new copy: it stops now.
-    if (old->version() < session->version()) old->Supersede();
+    if (old->stale() || old->version() < session->version()) old->Supersede();
     // A copy whose save failed or lost a race (stale, or older than the store) planned
     // meanwhile: the stored record does not count that.
     session->KeepUsage(*old);
@@ -512,10 +514,20 @@ void Registry::Maintain(bool full_round) {
   // stale copy passes it on to the stored version). After 30 failed rounds (the store refuses or
   // the session cannot be loaded here) it is given up, so that the copy can go.
   for (const auto& s : unsaved) {
-    const bool passed_on = s->stale() ? KeepUsageOf(s) : s->SaveIfIdle(store_.get()).ok();
-    int& failures = usage_failures_[s->id()];
-    if (passed_on || ++failures >= 30) {
-      if (!passed_on) spdlog::warn("session {}: planning time not stored, given up", s->id());
+    // A save subtracts what it stored and KeepUsage moves the usage: success needs no more. A
+    // copy a request holds now is that request's to save.
+    bool done = false;
+    if (s->stale()) {
+      done = KeepUsageOf(s);
+    } else {
+      const Status saved = s->SaveIfIdle(store_.get());
+      if (saved.code() == StatusCode::kFailedPrecondition) continue;  // busy
+      done = saved.ok();
+    }
+    if (done) {
+      usage_failures_.erase(s->id());
+    } else if (++usage_failures_[s->id()] >= 30) {
+      spdlog::warn("session {}: planning time not stored, given up", s->id());
       s->DropUnsavedUsage();
       usage_failures_.erase(s->id());
     }

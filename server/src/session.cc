@@ -36,6 +36,12 @@ Status Busy() {
                 "another request is working on this session; retry when it has finished");
 }
 
+// A copy whose save failed: the stored session, loaded again, is the one to work on (this copy
+// may hold planning time already moved on to it).
+Status Stale() {
+  return Status(StatusCode::kAborted, "the session changed meanwhile; read it and try again");
+}
+
 // The bytes the allocator has handed out and not had back, over every arena.
 int64_t HeapInUse() {
   const struct mallinfo2 m = mallinfo2();
@@ -161,6 +167,7 @@ StatusOr<api::PlanReply> Session::Plan(const Budget& asked,
                                        SessionStore* store, const Admit& admit) {
   std::unique_lock<std::mutex> op(op_mutex_, std::try_to_lock);
   if (!op.owns_lock()) return Busy();
+  if (stale_) return Stale();
   Budget budget = asked;
   {
     std::lock_guard<std::mutex> lock(state_mutex_);
@@ -276,6 +283,7 @@ StatusOr<api::PlanReply> Session::Plan(const Budget& asked,
 StatusOr<api::ObserveReply> Session::Observe(api::ObserveRequest req, SessionStore* store) {
   std::unique_lock<std::mutex> op(op_mutex_, std::try_to_lock);
   if (!op.owns_lock()) return Busy();
+  if (stale_) return Stale();
   // An observation grows every particle by the objects it adds.
   if (Status heap = CheckHeap(limits_, "observe"); !heap.ok()) return heap;
   std::shared_ptr<const World> world;
@@ -444,7 +452,7 @@ Status Session::SaveUnderOp(SessionStore* store) {
   if (deleted_) return Status(StatusCode::kAborted, "the session was deleted meanwhile");
   // A copy whose save failed may hold usage KeepUsage moved on to a newer copy: it is never
   // saved again (the request gets 409; the session is loaded again from the store).
-  if (stale_) return Status(StatusCode::kAborted, "the session changed meanwhile; read it again");
+  if (stale_) return Stale();
   auto version = store->Save(record, version_);
   if (!version.ok()) {
     stale_ = true;  // this copy is ahead of what was acknowledged
@@ -475,7 +483,7 @@ Status Session::Save(SessionStore* store) {
 
 Status Session::SaveIfIdle(SessionStore* store) {
   std::unique_lock<std::mutex> op(op_mutex_, std::try_to_lock);
-  if (!op.owns_lock()) return OkStatus();
+  if (!op.owns_lock()) return FailedPreconditionError("a request works on the session");
   return SaveUnderOp(store);
 }
 
