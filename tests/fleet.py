@@ -231,6 +231,13 @@ def call(method, url, deadline, **kwargs):
         delay = 0.2
         try:
             r = requests.request(method, url, timeout=120, **kwargs)
+            # A replica killed while it sent its reply leaves nginx a status line and part of the
+            # body (urllib3 1.26 does not check the length): a transport error, retried.
+            if r.ok and "json" in r.headers.get("Content-Type", ""):
+                try:
+                    r.json()
+                except ValueError:
+                    raise requests.ConnectionError(f"{method} {url}: a truncated reply") from None
             if r.status_code not in (409, 429, 502, 503, 504):
                 return r
             if r.status_code == 429:
