@@ -48,6 +48,16 @@ def create(url, scenario="loose1", seed=1, **extra):
     return r.json()["id"]
 
 
+def plan_in_background(url, sid, budget):
+    """A :plan of session `sid` on `url` in a thread: the started thread, and a dict whose "r"
+    gets the response."""
+    out = {}
+    thread = threading.Thread(target=lambda: out.setdefault("r", requests.post(
+        f"{url}/v1/sessions/{sid}:plan", json={"budget": budget}, timeout=60)))
+    thread.start()
+    return thread, out
+
+
 def test_twelve_robots_survive_a_replica_killed_mid_episode(postgres, store):
     replicas = [start_replica(store, "--plan-slots", "1") for _ in range(3)]
     nginx = Nginx([r.port for r in replicas])
@@ -403,10 +413,7 @@ def test_a_store_outage_is_503_and_the_replica_recovers():
                      json={"actionId": plan["actionId"], "succeeded": False})
             assert r.status_code == 200, r.text
             # The database dies while a plan runs, and comes back on the same data.
-            planned = {}
-            t = threading.Thread(target=lambda: planned.setdefault("r", requests.post(
-                f"{a.url}/v1/sessions/{sid}:plan", json={"budget": {"timeMs": 2000}}, timeout=60)))
-            t.start()
+            t, planned = plan_in_background(a.url, sid, {"timeMs": 2000})
             time.sleep(0.7)
             pg.stop(fast=False)
             t.join()
@@ -435,10 +442,7 @@ def test_a_save_that_loses_the_race_is_not_served_afterwards(postgres, store):
     try:
         sid = create(a.url)
         assert requests.get(f"{b.url}/v1/sessions/{sid}").status_code == 200
-        slow = {}
-        t = threading.Thread(target=lambda: slow.setdefault("r", requests.post(
-            f"{a.url}/v1/sessions/{sid}:plan", json={"budget": {"timeMs": 2000}})))
-        t.start()
+        t, slow = plan_in_background(a.url, sid, {"timeMs": 2000})
         time.sleep(0.3)
         quick = requests.post(f"{b.url}/v1/sessions/{sid}:plan", json={"budget": {"cpuMs": 20}})
         assert quick.status_code == 200, quick.text
@@ -505,10 +509,7 @@ def test_a_delete_through_another_replica_stops_the_plan(postgres, store):
     a, b = start_replica(store), start_replica(store)
     try:
         sid = create(a.url)
-        planned = {}
-        t = threading.Thread(target=lambda: planned.setdefault("r", requests.post(
-            f"{a.url}/v1/sessions/{sid}:plan", json={"budget": {"timeMs": 15000}}, timeout=60)))
-        t.start()
+        t, planned = plan_in_background(a.url, sid, {"timeMs": 15000})
         time.sleep(1.0)
         assert requests.delete(f"{b.url}/v1/sessions/{sid}").status_code == 200
         deleted = time.monotonic()
@@ -529,10 +530,7 @@ def test_a_plan_stops_when_its_replica_loads_a_newer_version(postgres, store):
     try:
         sid = create(a.url)
         assert requests.get(f"{b.url}/v1/sessions/{sid}").status_code == 200
-        planned = {}
-        t = threading.Thread(target=lambda: planned.setdefault("r", requests.post(
-            f"{b.url}/v1/sessions/{sid}:plan", json={"budget": {"timeMs": 15000}}, timeout=60)))
-        t.start()
+        t, planned = plan_in_background(b.url, sid, {"timeMs": 15000})
         time.sleep(1.0)
         hang_up_plan(a.port, sid, 5000, 0.3)  # A saves the session (its planning time)
         time.sleep(0.5)

@@ -1574,6 +1574,20 @@ def test_a_second_server_cannot_take_a_state_directory_in_use(tmp_path):
     assert_clean_exit(second)
 
 
+def frame_cpu_seconds(server, rec, sid, body_for, timeout):
+    """Plans a step of session `sid` (20 simulations), observes it with the body
+    `body_for(action_id)` and returns the server's CPU seconds for the observation (a 200)."""
+    url, pid = server.url, server.proc.pid
+    action_id = http("POST", f"{url}/v1/sessions/{sid}:plan", rec,
+                     json={"budget": {"simulations": 20}}).json()["actionId"]
+    body = body_for(action_id)
+    before = cpu_seconds(pid)
+    r = http("POST", f"{url}/v1/sessions/{sid}:observe", rec, json=body, timeout=timeout)
+    used = cpu_seconds(pid) - before
+    assert r.status_code == 200, r.text
+    return used
+
+
 def test_a_frame_in_a_large_room_costs_what_the_view_covers(hostile_server):
     # The example session's world in a 20 m room (a 1.3 kB create) and frames of three 0.6 m
     # squares that ICP cannot fit from the reported pose: RANSAC computed features over the
@@ -1581,7 +1595,7 @@ def test_a_frame_in_a_large_room_costs_what_the_view_covers(hostile_server):
     # the first frame and 20 s for each later one; scripts/perception_attacks.py big-room).
     # Registration now uses the map within reach of the view. The first frame builds the
     # session's prior map, which still grows with the room (up to its 4,000,000-point bound).
-    url, rec, pid = hostile_server.url, Recorder(), hostile_server.proc.pid
+    url, rec = hostile_server.url, Recorder()
     world = example("create_session_request.json")["world"]
     robot_state = example("observe_request_raw.json")["robotState"]
     world["room"] = {"min": [-10, -10], "max": [10, 10]}
@@ -1593,15 +1607,12 @@ def test_a_frame_in_a_large_room_costs_what_the_view_covers(hostile_server):
     corner, spread = three_squares(1.2, -1.2, 1.6), registration_edge_points()
     limit = 2.0 * (3 if SANITIZED else 1)
     for frame in ("first", "second", "spread"):
-        action_id = http("POST", f"{url}/v1/sessions/{sid}:plan", rec,
-                         json={"budget": {"simulations": 20}}).json()["actionId"]
-        body = dict(raw_observation(action_id, points), robotState=robot_state)
-        if frame == "spread":
-            body = raw_observation(action_id, corner + spread, "map")
-        before = cpu_seconds(pid)
-        r = http("POST", f"{url}/v1/sessions/{sid}:observe", rec, json=body, timeout=120)
-        used = cpu_seconds(pid) - before
-        assert r.status_code == 200, r.text
+        def body_for(action_id):
+            if frame == "spread":
+                return raw_observation(action_id, corner + spread, "map")
+            return dict(raw_observation(action_id, points), robotState=robot_state)
+
+        used = frame_cpu_seconds(hostile_server, rec, sid, body_for, timeout=120)
         assert frame == "first" or used < limit, f"the {frame} frame took {used:.1f} s of CPU"
     rec.check()
 
@@ -1612,7 +1623,7 @@ def test_a_frame_of_dense_volumes_costs_what_surfaces_cost(hostile_server):
     # apart beside 28 furniture shells 3 cm apart (a 2.6 kB create) gives each about 520, and a
     # frame cost 8.5 s of CPU (scripts/perception_attacks.py nested-shells). Both clouds are
     # thinned until a bound on their neighbour pairs holds (max_ransac_pairs): 2.7 s.
-    url, rec, pid = hostile_server.url, Recorder(), hostile_server.proc.pid
+    url, rec = hostile_server.url, Recorder()
     world = example("create_session_request.json")["world"]
     world["room"] = {"min": [-4, -4], "max": [4, 4]}
     world["furniture"] += [{"name": f"shell{i}", "center": [-2.5, -2.5],
@@ -1622,15 +1633,11 @@ def test_a_frame_of_dense_volumes_costs_what_surfaces_cost(hostile_server):
     lattice = [(-3.0 + 0.03 * i + 0.011, -3.0 + 0.03 * k + 0.007, 0.05 + 0.03 * m)
                for i in range(22) for k in range(22) for m in range(22)]
     limit = 5.0 * (4 if SANITIZED else 1)
+    robot_state = {"x": -1.5, "y": -1.5, "yaw": 3.9, "lift": 0.2, "pan": 0, "tilt": 0.4}
     for frame in ("first", "second"):  # the first builds the session's prior map
-        action_id = http("POST", f"{url}/v1/sessions/{sid}:plan", rec,
-                         json={"budget": {"simulations": 20}}).json()["actionId"]
-        body = dict(raw_observation(action_id, lattice, "map"),
-                    robotState={"x": -1.5, "y": -1.5, "yaw": 3.9, "lift": 0.2, "pan": 0,
-                                "tilt": 0.4})
-        before = cpu_seconds(pid)
-        r = http("POST", f"{url}/v1/sessions/{sid}:observe", rec, json=body, timeout=300)
-        used = cpu_seconds(pid) - before
-        assert r.status_code == 200, r.text
+        used = frame_cpu_seconds(
+            hostile_server, rec, sid,
+            lambda action_id: dict(raw_observation(action_id, lattice, "map"),
+                                   robotState=robot_state), timeout=300)
         assert frame == "first" or used < limit, f"the {frame} frame took {used:.1f} s of CPU"
     rec.check()
