@@ -34,6 +34,9 @@ std::string Lower(std::string s) {
 // The longest header line httplib reads (its CPPHTTPLIB_HEADER_MAX_LENGTH); it would answer a
 // longer one with 400.
 constexpr size_t kMaxHeaderLine = 8192;
+// The longest request line the front passes on: below httplib's CPPHTTPLIB_REQUEST_URI_MAX_LENGTH
+// (8,192 with the line's CRLF), past which httplib answers a bare 414.
+constexpr size_t kMaxRequestLine = 8000;
 
 // A header field name: one or more tchar (RFC 9110 5.6.2).
 bool IsToken(const std::string& s) {
@@ -54,6 +57,21 @@ bool WellFormedRequestLine(const std::string& line) {
   return version.size() == 8 && version.substr(0, 5) == "HTTP/" &&
          std::isdigit(static_cast<unsigned char>(version[5])) && version[6] == '.' &&
          std::isdigit(static_cast<unsigned char>(version[7]));
+}
+
+// Whether the path of a request line (its target before any query) holds a percent-encoded '/'
+// or ':'.
+bool EncodesSeparator(std::string_view line) {
+  const size_t sp1 = line.find(' ');
+  const size_t sp2 = line.find(' ', sp1 + 1);
+  std::string_view path = line.substr(sp1 + 1, sp2 - sp1 - 1);
+  path = path.substr(0, path.find('?'));
+  for (size_t i = path.find('%'); i != std::string_view::npos && i + 2 < path.size();
+       i = path.find('%', i + 1)) {
+    const char hi = path[i + 1], lo = static_cast<char>(std::tolower(path[i + 2]));
+    if ((hi == '2' && lo == 'f') || (hi == '3' && lo == 'a')) return true;
+  }
+  return false;
 }
 
 // Whether a head (up to its final CRLF) holds a NUL, or a CR or LF that is not part of a CRLF:
@@ -102,6 +120,10 @@ const char* Reason(int status) {
   switch (status) {
     case 400:
       return "Bad Request";
+    case 401:
+      return "Unauthorized";
+    case 404:
+      return "Not Found";
     case 408:
       return "Request Timeout";
     case 413:
@@ -112,14 +134,28 @@ const char* Reason(int status) {
       return "Range Not Satisfiable";
     case 429:
       return "Too Many Requests";
+    case 414:
+      return "URI Too Long";
     case 431:
       return "Request Header Fields Too Large";
+    case 505:
+      return "HTTP Version Not Supported";
     default:
       return "Error";
   }
 }
 
 }  // namespace
+
+bool SameSecret(std::string_view a, std::string_view b) {
+  size_t diff = a.size() ^ b.size();
+  const size_t n = std::max(a.size(), b.size());
+  for (size_t i = 0; i < n; ++i) {
+    const unsigned char x = i < a.size() ? a[i] : 0, y = i < b.size() ? b[i] : 0;
+    diff |= x ^ y;
+  }
+  return diff == 0;
+}
 
 // A connection and the bytes of its current request.
 struct HttpFront::Conn {
@@ -593,7 +629,27 @@ void HttpFront::Reactor() {
                "spaces");
         return -1;
       }
-      std::string content_length, transfer_encoding, content_encoding;
+      // HTTP/1.1 and HTTP/1.0 only (httplib answered others with a bare 400).
+      if (!request_line.ends_with(" HTTP/1.1") && !request_line.ends_with(" HTTP/1.0")) {
+        refuse(std::move(c), 505, "the HTTP version: only HTTP/1.1 and HTTP/1.0 are served");
+        return -1;
+      }
+      // httplib's own bound on the request line (a bare 414), with a message that says which part.
+      if (request_line.size() > kMaxRequestLine) {
+        refuse(std::move(c), 414,
+               "the request target (path and query) is too long: the request line holds at most " +
+                   std::to_string(kMaxRequestLine) + " bytes");
+        return -1;
+      }
+      // httplib decodes the path before routing: an encoded '/' or ':' would reach another route
+      // than the one the raw path names (RFC 3986 2.2), past any proxy rule on the raw path.
+      if (EncodesSeparator(request_line)) {
+        refuse(std::move(c), 404,
+               "no route for a path with an encoded '/' or ':' (%2F, %3A): send them as they are");
+        return -1;
+      }
+      std::string content_length, transfer_encoding, content_encoding, authorization;
+      bool authorization_seen = false;
       int content_length_count = 0;
       bool expect_continue = false, keep_alive_asked = false;
       c->close_asked = false;
@@ -630,6 +686,9 @@ void HttpFront::Reactor() {
         } else if (name == "transfer-encoding") {
           if (!transfer_encoding.empty()) transfer_encoding.push_back(',');
           transfer_encoding.append(Lower(value));
+        } else if (name == "authorization" && !authorization_seen) {
+          authorization = value;  // the first, as httplib's get_header_value reads it
+          authorization_seen = true;
         } else if (name == "content-encoding") {
           content_encoding = Lower(value);
         } else if (name == "connection") {
@@ -685,6 +744,15 @@ void HttpFront::Reactor() {
           return -1;
         }
       }
+      // A body is read, counted and answered with 100 Continue only for a client with the
+      // server's bearer token: without it, clients could hold the in-flight bound unauthenticated.
+      if (!options_.body_authorization.empty() && (c->chunked || c->content_length > 0) &&
+          !SameSecret(authorization, options_.body_authorization)) {
+        refuse(std::move(c), 401,
+               "missing or wrong bearer token (Authorization header): a request body is read only "
+               "from an authenticated client");
+        return -1;
+      }
       // Requests without Content-Length or Transfer-Encoding have no body (RFC 9112 6.3).
       size_t head_end = end + 4;
       if (expect_continue) {
@@ -695,6 +763,7 @@ void HttpFront::Reactor() {
       for (auto it = hidden.rbegin(); it != hidden.rend(); ++it) {
         c->buf.erase(it->first, it->second);
         head_end -= it->second;
+        ReleaseBytes(c.get(), it->second);  // no longer buffered
       }
       c->head_end = head_end;
       c->chunk_pos = head_end;

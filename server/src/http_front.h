@@ -23,6 +23,7 @@
 #include <memory>
 #include <mutex>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <vector>
 
@@ -45,7 +46,14 @@ struct HttpFrontOptions {
   /// reactor and goes on; past it the worker waits for the socket (up to write_timeout_s).
   size_t max_inflight_bytes = 128 << 20;
   int keep_alive_max = 100;  ///< Requests per connection.
+  /// When set, the whole Authorization header a request with a body must carry ("Bearer KEY"):
+  /// the body of any other is neither read nor counted, and the request is refused (401).
+  std::string body_authorization;
 };
+
+/// Whether two secrets are equal, in a time that depends on their lengths only (a comparison that
+/// stops at the first difference tells a timing client how much of its guess was right).
+bool SameSecret(std::string_view a, std::string_view b);
 
 /// One client connection, as a handler sees it.
 struct Connection {
@@ -85,6 +93,8 @@ class HttpFront : public httplib::Server {
   static bool ClientGone(const Connection* connection);
   /// Connections accepted and not closed yet (those refused at the limit never count).
   int open_connections() const { return open_connections_.load(); }
+  /// Request bytes buffered across all connections (read but not yet answered).
+  size_t inflight_bytes() const { return inflight_.load(); }
 
   struct Conn;  // a connection and its buffered bytes (http_front.cc)
 

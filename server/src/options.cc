@@ -85,6 +85,7 @@ HttpFrontOptions FrontOptions(const ServerOptions& o) {
   front.idle_timeout_s = o.idle_timeout_seconds;
   front.max_body_bytes = o.max_body_bytes;
   front.max_inflight_bytes = o.max_inflight_bytes;
+  if (!o.api_key.empty()) front.body_authorization = "Bearer " + o.api_key;
   return front;
 }
 
@@ -132,7 +133,9 @@ Status ServerOptions::Validate() const {
 
 HttpFront::ErrorRenderer FrontErrors() {
   return [](int code, const std::string& message) {
-    const StatusCode status = code == 408   ? StatusCode::kDeadlineExceeded
+    const StatusCode status = code == 401   ? StatusCode::kUnauthenticated
+                              : code == 404 ? StatusCode::kNotFound
+                              : code == 408 ? StatusCode::kDeadlineExceeded
                               : code == 416 ? StatusCode::kOutOfRange
                               : code == 413 ? StatusCode::kResourceExhausted
                               : code == 429 ? StatusCode::kResourceExhausted
@@ -168,7 +171,11 @@ httplib::Server::HandlerWithResponse HttpErrorBodies() {
                               : code == 416 ? StatusCode::kOutOfRange
                               : code >= 500 ? StatusCode::kInternal
                                             : StatusCode::kInvalidArgument;
-    res.set_content(api::RenderError(Status(status, "HTTP " + std::to_string(code)), code),
+    res.set_content(api::RenderError(Status(status, "the HTTP layer refused the request (HTTP " +
+                                                        std::to_string(code) +
+                                                        "): check its request line "
+                                                        "and headers"),
+                                     code),
                     "application/json");
     return R::Handled;
   };

@@ -45,18 +45,6 @@ bool Matches(std::string_view route, std::string_view path) {
   return id.find_first_of("/:") == std::string_view::npos;
 }
 
-// Whether two secrets are equal, in a time that depends on their lengths only (a comparison that
-// stops at the first difference tells a timing client how much of its guess was right).
-bool SameSecret(std::string_view a, std::string_view b) {
-  size_t diff = a.size() ^ b.size();
-  const size_t n = std::max(a.size(), b.size());
-  for (size_t i = 0; i < n; ++i) {
-    const unsigned char x = i < a.size() ? a[i] : 0, y = i < b.size() ? b[i] : 0;
-    diff |= x ^ y;
-  }
-  return diff == 0;
-}
-
 // UNAVAILABLE (the session store did not answer) is worth retrying in a second; a 429 of the
 // server's resources names when to retry (5 s unless the caller knows better: the heap bound, a
 // full store). A 429 naming a field is the request's own limit (a session's planning budget),
