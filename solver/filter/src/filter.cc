@@ -6,6 +6,7 @@
 #include <cmath>
 #include <mutex>
 #include <numeric>
+#include <tuple>
 
 #include "network.h"
 #include "npfkct/object_search/proposals.h"
@@ -24,7 +25,7 @@ void SetComputeThreads(int threads) {
 }
 
 struct NeuralFilter::Impl {
-  NpNet net{nullptr};
+  std::vector<NpNet> members;
 };
 
 namespace {
@@ -231,14 +232,30 @@ NeuralFilter::~NeuralFilter() = default;
 
 StatusOr<std::shared_ptr<NeuralFilter>> NeuralFilter::Load(const std::string& path) {
   SingleThreaded();
-  auto net = LoadNet(path);
-  if (!net.ok()) return net.status();
+  auto members = LoadMembers(path);
+  if (!members.ok()) return members.status();
   std::shared_ptr<NeuralFilter> f(new NeuralFilter());
   f->impl_ = std::make_unique<Impl>();
-  f->impl_->net = *std::move(net);
+  f->impl_->members = *std::move(members);
   f->path_ = path;
   return f;
 }
+
+Status NeuralFilter::Combine(const std::vector<std::string>& paths, const std::string& out) {
+  std::vector<NpNet> all;
+  for (const std::string& path : paths) {
+    auto members = LoadMembers(path);
+    if (!members.ok()) return members.status();
+    if (all.size() + members->size() > static_cast<size_t>(kMaxMembers)) {
+      return InvalidArgumentError("an ensemble holds at most " + std::to_string(kMaxMembers) +
+                                  " networks");
+    }
+    for (NpNet& net : *members) all.push_back(net);
+  }
+  return SaveMembers(all, out);
+}
+
+int NeuralFilter::members() const { return static_cast<int>(impl_->members.size()); }
 
 Prediction NeuralFilter::Predict(const SceneFeatures& scene,
                                  const std::vector<float>& context_queries,
@@ -256,14 +273,23 @@ Prediction NeuralFilter::Predict(const SceneFeatures& scene,
     out.sigma.assign(n, static_cast<float>(kMinSigma));
     return out;
   }
-  NpNet& net = impl_->net;
-  const torch::Tensor sc =
-      net->EncodeScene(FromVector(scene.points, {1, kPoints, kPointDim}),
-                       FromVector(scene.image, {1, kImageChannels, kImageSize, kImageSize}));
-  const torch::Tensor xc = net->EncodeQuery(FromVector(context_queries, {1, m, kQueryDim}));
+  // Per network: the scene and the context encoded once, then the queries in blocks (given the
+  // context, each query's prediction is its own: blocks change no result).
+  struct Encoded {
+    torch::Tensor scene, xc, z;
+  };
   const torch::Tensor yc = FromVector(context_scores, {1, m, 1});
-  const torch::Tensor z = net->Latent(sc, xc, yc).first;
-  // Given the context, each query's prediction is its own: blocks change no result.
+  std::vector<Encoded> encoded;
+  for (NpNet& net : impl_->members) {
+    Encoded e;
+    e.scene =
+        net->EncodeScene(FromVector(scene.points, {1, kPoints, kPointDim}),
+                         FromVector(scene.image, {1, kImageChannels, kImageSize, kImageSize}));
+    e.xc = net->EncodeQuery(FromVector(context_queries, {1, m, kQueryDim}));
+    e.z = net->Latent(e.scene, e.xc, yc).first;
+    encoded.push_back(std::move(e));
+  }
+  const double members = static_cast<double>(impl_->members.size());
   constexpr int64_t kBlock = 4096;
   out.mu.reserve(n);
   out.sigma.reserve(n);
@@ -272,8 +298,29 @@ Prediction NeuralFilter::Predict(const SceneFeatures& scene,
     const int64_t rows = std::min(kBlock, n - a);
     const torch::Tensor block = torch::from_blob(const_cast<float*>(queries.data() + a * kQueryDim),
                                                  {1, rows, kQueryDim}, torch::kFloat32);
-    const torch::Tensor xt = net->EncodeQuery(block);
-    auto [mu, sigma] = net->Decode(sc, xt, net->Deterministic(sc, xc, yc, xt), z);
+    torch::Tensor mu, sigma;
+    if (members == 1) {
+      NpNet& net = impl_->members[0];
+      const Encoded& e = encoded[0];
+      const torch::Tensor xt = net->EncodeQuery(block);
+      std::tie(mu, sigma) =
+          net->Decode(e.scene, xt, net->Deterministic(e.scene, e.xc, yc, xt), e.z);
+    } else {
+      // The mixture's first two moments.
+      torch::Tensor sum_mu, sum_second;
+      for (size_t k = 0; k < impl_->members.size(); ++k) {
+        NpNet& net = impl_->members[k];
+        const Encoded& e = encoded[k];
+        const torch::Tensor xt = net->EncodeQuery(block);
+        auto [mu_k, sigma_k] =
+            net->Decode(e.scene, xt, net->Deterministic(e.scene, e.xc, yc, xt), e.z);
+        const torch::Tensor second = sigma_k * sigma_k + mu_k * mu_k;
+        sum_mu = k == 0 ? mu_k : sum_mu + mu_k;
+        sum_second = k == 0 ? second : sum_second + second;
+      }
+      mu = sum_mu / members;
+      sigma = torch::sqrt(torch::clamp_min(sum_second / members - mu * mu, kMinSigma * kMinSigma));
+    }
     mu = mu.contiguous();
     sigma = sigma.contiguous();
     out.mu.insert(out.mu.end(), mu.data_ptr<float>(), mu.data_ptr<float>() + rows);

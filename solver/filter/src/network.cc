@@ -182,26 +182,88 @@ Status SaveNet(NpNet& net, const std::string& path) {
   return OkStatus();
 }
 
-StatusOr<NpNet> LoadNet(const std::string& path) {
+namespace {
+
+constexpr char kMembersKey[] = "npfkct_filter_members";
+
+std::string MemberKey(int i) { return "member" + std::to_string(i); }
+
+// The format marker of a loaded network: the one this build writes.
+bool CurrentFormat(const NpNet& net) {
+  return net->format.defined() && net->format.numel() == FormatMarker().numel() &&
+         torch::equal(net->format, FormatMarker());
+}
+
+}  // namespace
+
+Status SaveMembers(const std::vector<NpNet>& members, const std::string& path) {
+  if (members.empty() || members.size() > static_cast<size_t>(kMaxMembers)) {
+    return InvalidArgumentError("a model file holds 1 to " + std::to_string(kMaxMembers) +
+                                " networks, not " + std::to_string(members.size()));
+  }
+  try {
+    torch::serialize::OutputArchive archive;
+    archive.write(kMembersKey, torch::tensor({static_cast<int64_t>(members.size())}), true);
+    for (size_t i = 0; i < members.size(); ++i) {
+      torch::serialize::OutputArchive member;
+      members[i]->save(member);
+      archive.write(MemberKey(static_cast<int>(i)), member);
+    }
+    archive.save_to(path);
+  } catch (const c10::Error& e) {
+    return InternalError("cannot save the filter model to " + path + ": " +
+                         e.what_without_backtrace());
+  }
+  return OkStatus();
+}
+
+StatusOr<std::vector<NpNet>> LoadMembers(const std::string& path) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) {
     return InvalidArgumentError("no filter model file at '" + path + "'");
   }
-  NpNet net;
+  auto unreadable = [&](const std::string& why) {
+    return InvalidArgumentError("'" + path +
+                                "' is not a readable filter model: " + why.substr(0, 200));
+  };
+  std::vector<NpNet> members;
   try {
-    torch::load(net, path);
+    torch::serialize::InputArchive archive;
+    archive.load_from(path);
+    torch::Tensor count;
+    if (!archive.try_read(kMembersKey, count, true)) {
+      members.emplace_back();
+      members.back()->load(archive);  // one network, as SaveNet writes it
+    } else {
+      if (count.numel() != 1 || count.scalar_type() != torch::kInt64) {
+        return unreadable("its member count is not one integer");
+      }
+      const int64_t n = count.item<int64_t>();
+      if (n < 1 || n > kMaxMembers) {
+        return unreadable("it names " + std::to_string(n) + " networks (1 to " +
+                          std::to_string(kMaxMembers) + ")");
+      }
+      for (int i = 0; i < n; ++i) {
+        torch::serialize::InputArchive member;
+        if (!archive.try_read(MemberKey(i), member)) {
+          return unreadable("network " + std::to_string(i) + " is missing");
+        }
+        members.emplace_back();
+        members.back()->load(member);
+      }
+    }
   } catch (const c10::Error& e) {
-    return InvalidArgumentError("'" + path + "' is not a readable filter model: " +
-                                std::string(e.what_without_backtrace()).substr(0, 200));
+    return unreadable(e.what_without_backtrace());
   } catch (const std::exception& e) {
-    return InvalidArgumentError("'" + path + "' is not a readable filter model: " + e.what());
+    return unreadable(e.what());
   }
-  if (!net->format.defined() || net->format.numel() != FormatMarker().numel() ||
-      !torch::equal(net->format, FormatMarker())) {
-    return InvalidArgumentError("'" + path + "' was saved by an incompatible filter version");
+  for (NpNet& net : members) {
+    if (!CurrentFormat(net)) {
+      return InvalidArgumentError("'" + path + "' was saved by an incompatible filter version");
+    }
+    net->eval();
   }
-  net->eval();
-  return net;
+  return members;
 }
 
 }  // namespace npfkct::filter

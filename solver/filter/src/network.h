@@ -81,9 +81,16 @@ torch::Tensor GaussianNll(const torch::Tensor& mu, const torch::Tensor& sigma,
 /// Predictions with z at the mean of the context's latent distribution: mu, sigma [B, Nt].
 std::pair<torch::Tensor, torch::Tensor> PredictBatch(NpNet& net, const Batch& b);
 
+/// The most networks one model file holds.
+inline constexpr int kMaxMembers = 8;
+
 /// Saves the weights with the format marker.
 Status SaveNet(NpNet& net, const std::string& path);
-/// Loads weights saved by SaveNet; missing, corrupt or foreign files are INVALID_ARGUMENT.
-StatusOr<NpNet> LoadNet(const std::string& path);
+/// Saves 1 to kMaxMembers networks as one model file (an ensemble): their count, then each
+/// network's weights with its format marker.
+Status SaveMembers(const std::vector<NpNet>& members, const std::string& path);
+/// Loads the networks of a model file: one saved by SaveNet, or those saved by SaveMembers.
+/// Missing, corrupt or foreign files are INVALID_ARGUMENT.
+StatusOr<std::vector<NpNet>> LoadMembers(const std::string& path);
 
 }  // namespace npfkct::filter

@@ -541,5 +541,70 @@ TEST(TrainTest, TrainsSavesTheBestEpochAndReloads) {
   fs::remove(path);
 }
 
+TEST(TrainTest, AnEnsemblePredictsTheMixtureOfItsNetworks) {
+  auto train = GenerateDataset(SmallGeneration(16, 31));
+  auto val = GenerateDataset(SmallGeneration(4, 32));
+  ASSERT_TRUE(train.ok() && val.ok());
+  TrainOptions o;
+  o.epochs = 1;
+  o.batch = 8;
+  o.min_context = 4;
+  o.max_context = 12;
+  o.eval_context = 8;
+  const std::string a = TempPath("a.pt"), b = TempPath("b.pt"), out = TempPath("ab.pt");
+  ASSERT_TRUE(TrainFilter(*train, *val, o, a).ok());
+  o.seed = 2;
+  ASSERT_TRUE(TrainFilter(*train, *val, o, b).ok());
+  const Sample& s = val->samples[0];
+  const std::vector<float> cq(s.queries.begin(), s.queries.begin() + 8 * kQueryDim);
+  const std::vector<float> cs(s.scores.begin(), s.scores.begin() + 8);
+  const std::vector<float> q(s.queries.begin() + 8 * kQueryDim, s.queries.end());
+  auto predict = [&](const std::string& path, int members) {
+    auto f = NeuralFilter::Load(path);
+    EXPECT_TRUE(f.ok()) << f.status().ToString();
+    if (!f.ok()) return Prediction();
+    EXPECT_EQ((*f)->members(), members);
+    return (*f)->Predict(s.scene, cq, cs, q);
+  };
+  const Prediction pa = predict(a, 1), pb = predict(b, 1);
+  ASSERT_EQ(pa.mu.size(), 16u);
+  // One network written as an ensemble predicts as it did; two copies of it too (a mixture of
+  // equal Gaussians); two networks: mu their mean, sigma^2 the mean of sigma^2 + mu's variance.
+  ASSERT_TRUE(NeuralFilter::Combine({a}, out).ok());
+  const Prediction one = predict(out, 1);
+  ASSERT_TRUE(NeuralFilter::Combine({a, a}, out).ok());
+  const Prediction twice = predict(out, 2);
+  ASSERT_TRUE(NeuralFilter::Combine({a, b}, out).ok());
+  const Prediction mixed = predict(out, 2);
+  ASSERT_EQ(mixed.mu.size(), 16u);
+  bool differ = false;
+  for (size_t i = 0; i < pa.mu.size(); ++i) {
+    EXPECT_EQ(one.mu[i], pa.mu[i]);
+    EXPECT_EQ(one.sigma[i], pa.sigma[i]);
+    EXPECT_NEAR(twice.mu[i], pa.mu[i], 1e-6);
+    EXPECT_NEAR(twice.sigma[i], pa.sigma[i], 1e-5);
+    const double mu = (pa.mu[i] + pb.mu[i]) / 2.0;
+    const double spread = (pa.mu[i] - pb.mu[i]) / 2.0;
+    const double var = (pa.sigma[i] * pa.sigma[i] + pb.sigma[i] * pb.sigma[i]) / 2.0;
+    EXPECT_NEAR(mixed.mu[i], mu, 1e-6);
+    EXPECT_NEAR(mixed.sigma[i], std::sqrt(var + spread * spread), 1e-5);
+    differ = differ || std::abs(pa.mu[i] - pb.mu[i]) > 1e-4;
+  }
+  EXPECT_TRUE(differ);  // the two seeds trained two different networks
+  // An ensemble of ensembles is flattened; more than 8 networks, or no file, is refused.
+  ASSERT_TRUE(NeuralFilter::Combine({out, out, a}, out).ok());
+  predict(out, 5);
+  const Status nine = NeuralFilter::Combine({out, out}, TempPath("nine.pt"));
+  EXPECT_EQ(nine.code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(nine.message().find("at most 8"), std::string::npos) << nine.ToString();
+  EXPECT_FALSE(NeuralFilter::Combine({"/nonexistent/x.pt"}, TempPath("none.pt")).ok());
+  // A truncated ensemble is a clear error.
+  fs::resize_file(out, fs::file_size(out) / 2);
+  auto truncated = NeuralFilter::Load(out);
+  ASSERT_FALSE(truncated.ok());
+  EXPECT_EQ(truncated.status().code(), StatusCode::kInvalidArgument);
+  for (const std::string& p : {a, b, out}) fs::remove(p);
+}
+
 }  // namespace
 }  // namespace npfkct::filter

@@ -1,6 +1,7 @@
 // npfkct-train: the neural process filter's dataset generation, training, evaluation and timing.
 //   npfkct-train generate --out train.bin --samples 4000 --seed 1
 //   npfkct-train train --train train.bin --val val.bin --out filter.pt
+//   npfkct-train ensemble --models a.pt,b.pt,c.pt --out filter.pt
 //   npfkct-train evaluate --model filter.pt --test test.bin
 //   npfkct-train bench --model filter.pt
 #include <torch/torch.h>
@@ -89,6 +90,15 @@ int main(int argc, char** argv) {
   tr->add_option("--seed", train.seed, "random seed");
   tr->add_option("--threads", threads, "libtorch threads");
 
+  std::vector<std::string> member_files;
+  std::string ensemble_out;
+  auto* ens = app.add_subcommand(
+      "ensemble", "write the networks of several model files as one ensemble model file");
+  ens->add_option("--models", member_files, "model files (1 to 8 networks in all)")
+      ->required()
+      ->delimiter(',');
+  ens->add_option("--out", ensemble_out, "model file to write")->required();
+
   FilterOptions fo;
   std::string model_file, test_file, json_out;
   auto* ev = app.add_subcommand("evaluate", "test-set accuracy (paper appendix G)");
@@ -157,6 +167,14 @@ int main(int argc, char** argv) {
     if (!report.ok()) return Fail(report.status());
     std::printf("{\"best_epoch\": %d, \"best_val_loss\": %.5f, \"model\": \"%s\"}\n",
                 report->best_epoch, report->best_val_loss, model_out.c_str());
+    return 0;
+  }
+  if (*ens) {
+    if (Status s = NeuralFilter::Combine(member_files, ensemble_out); !s.ok()) return Fail(s);
+    auto written = NeuralFilter::Load(ensemble_out);
+    if (!written.ok()) return Fail(written.status());
+    std::printf("{\"networks\": %d, \"model\": \"%s\"}\n", (*written)->members(),
+                ensemble_out.c_str());
     return 0;
   }
   auto filter = NeuralFilter::Load(model_file);
@@ -238,11 +256,12 @@ int main(int argc, char** argv) {
     }
     std::snprintf(
         line, sizeof(line),
-        "{\"scenario\": \"%s\", \"candidates\": %d, \"runs\": %d, \"threads\": 1, "
+        "{\"scenario\": \"%s\", \"networks\": %d, \"candidates\": %d, \"runs\": %d, "
+        "\"threads\": 1, "
         "\"clock\": \"thread CPU\", \"median_network_ms\": %.3f, \"median_net_sam_ms\": %.3f, "
         "\"median_scene_features_ms\": %.3f, \"median_exact_score_ms\": %.3f}",
-        sc->name.c_str(), fo.candidates, runs, Median(network), Median(netsam), Median(scene_ms),
-        Median(exact));
+        sc->name.c_str(), (*filter)->members(), fo.candidates, runs, Median(network),
+        Median(netsam), Median(scene_ms), Median(exact));
   }
   std::printf("%s\n", line);
   if (!json_out.empty()) {

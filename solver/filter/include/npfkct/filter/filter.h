@@ -52,20 +52,27 @@ struct Prediction {
   std::vector<float> sigma;
 };
 
-/// A trained filter network loaded from a file written by npfkct-train. Thread-safe.
+/// A trained filter loaded from a file written by npfkct-train: one network, or an ensemble of
+/// networks trained alike from different seeds. Thread-safe.
 class NeuralFilter {
  public:
   ~NeuralFilter();
   /// Loads a model; a missing, truncated or foreign file is INVALID_ARGUMENT saying why.
   static StatusOr<std::shared_ptr<NeuralFilter>> Load(const std::string& path);
+  /// Writes the networks of the model files `paths` (1 to 8 networks in all) as one ensemble
+  /// model file at `out`.
+  static Status Combine(const std::vector<std::string>& paths, const std::string& out);
   /// Predicts the scores of `queries` (n x kQueryDim) in `scene`, conditioned on context queries
   /// (m >= 1 rows of kQueryDim) with their exact scores. The queries are scored in blocks of
   /// 4,096; when `stop` (if given) says the search must stop, the predictions of the first blocks
-  /// only (fewer than n).
+  /// only (fewer than n). An ensemble's prediction is the mixture of its networks' Gaussians:
+  /// mu their mean, sigma^2 the mean of their sigma^2 plus the variance of their mu.
   Prediction Predict(const SceneFeatures& scene, const std::vector<float>& context_queries,
                      const std::vector<float>& context_scores, const std::vector<float>& queries,
                      const TerminationCondition* stop = nullptr) const;
   const std::string& path() const { return path_; }
+  /// The number of networks (1 unless an ensemble).
+  int members() const;
 
   struct Impl;
 
