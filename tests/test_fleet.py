@@ -1,6 +1,7 @@
 """Fleet mode: a real PostgreSQL (a throwaway cluster on loopback), real npfkct-server replicas
 sharing it (--store) and Debian's nginx routing with deploy/nginx/npfkct.conf."""
 
+import base64
 import concurrent.futures
 import json
 import os
@@ -287,35 +288,56 @@ def test_ids_are_random_across_replicas(store):
 
 
 def test_the_stored_snapshot_is_the_directory_format(postgres, store, tmp_path):
+    from test_hostile import rgb_png
     a = start_replica(store)
     db = store.rsplit("/", 1)[1]
+    photo = rgb_png(64, 48, lambda y: bytes((x * 4 + y) % 256 for x in range(3 * 64)))
+    target = {"description": "mug", "photos": [base64.b64encode(photo).decode()] * 2}
     try:
-        sid = create(a.url)
-        assert requests.post(f"{a.url}/v1/sessions/{sid}:plan",
-                             json={"budget": {"cpuMs": 20}}).status_code == 200
-        assert postgres.psql("SELECT max(version) FROM npfkct_schema", db=db) == [["2"]]
+        sid = create(a.url, target=target)
+        plan = requests.post(f"{a.url}/v1/sessions/{sid}:plan", json={"budget": {"cpuMs": 20}})
+        assert plan.status_code == 200, plan.text
+        assert postgres.psql("SELECT max(version) FROM npfkct_schema", db=db) == [["3"]]
         columns = postgres.psql("SELECT column_name, data_type FROM information_schema.columns "
                                 "WHERE table_name = 'npfkct_sessions' ORDER BY ordinal_position",
                                 db=db)
         assert [c[0] for c in columns] == ["id", "version", "snapshot", "ttl_seconds",
                                            "expires_at", "created_at", "updated_at", "updated_by",
-                                           "summary"]
-        hexdump = postgres.psql(f"SELECT encode(snapshot, 'hex'), version FROM npfkct_sessions "
-                                f"WHERE id = '{sid}'", db=db)[0]
-        snapshot = bytes.fromhex(hexdump[0])
+                                           "summary", "photos"]
+        hexdump = postgres.psql(f"SELECT encode(snapshot, 'hex'), version, encode(photos, 'hex')"
+                                f" FROM npfkct_sessions WHERE id = '{sid}'", db=db)[0]
+        snapshot, photos = bytes.fromhex(hexdump[0]), bytes.fromhex(hexdump[2])
         assert snapshot.startswith(f"npfkct-snapshot 2 {hexdump[1]} ".encode())
-        # The row's bytes, as a file, are a snapshot the directory store restores.
+        # The photos, written once, are kept apart from the snapshot that every step rewrites.
+        assert b"photosKeptApart" in snapshot and target["photos"][0].encode() not in snapshot
+        assert json.loads(photos)["photos"] == target["photos"]
+        # The row's bytes, as files, are a snapshot the directory store restores.
         state = tmp_path / "state"
         state.mkdir()
         (state / f"{sid}.snap").write_bytes(snapshot)
+        (state / f"{sid}.photos").write_bytes(photos)
         single = ServerProcess("--state-dir", str(state))
         try:
-            assert requests.get(f"{single.url}/v1/sessions/{sid}").json()["state"] == \
-                "ACTION_PENDING"
+            got = requests.get(f"{single.url}/v1/sessions/{sid}").json()
+            assert got["state"] == "ACTION_PENDING" and got["target"]["photoCount"] == 2, got
             assert requests.get(f"{single.url}/v1/sessions/{sid}/belief").json() == \
                 requests.get(f"{a.url}/v1/sessions/{sid}/belief").json()
         finally:
             stop_all(single)
+        # Another replica restores the photos from the row, and its saves name them too.
+        b = start_replica(store)
+        try:
+            assert requests.get(f"{b.url}/v1/sessions/{sid}").json()["target"]["photoCount"] == 2
+            r = requests.post(f"{b.url}/v1/sessions/{sid}:observe",
+                              json={"actionId": plan.json()["actionId"], "succeeded": False})
+            assert r.status_code == 200, r.text
+            row = postgres.psql(f"SELECT version, encode(photos, 'hex') FROM npfkct_sessions"
+                                f" WHERE id = '{sid}'", db=db)[0]
+            assert int(row[0]) > int(hexdump[1]) and bytes.fromhex(row[1]) == photos
+        finally:
+            stop_all(b)
+        got = requests.get(f"{a.url}/v1/sessions/{sid}").json()
+        assert got["target"]["photoCount"] == 2, got
     finally:
         stop_all(a)
 
@@ -334,7 +356,7 @@ def test_a_database_of_schema_version_1_is_migrated(postgres, store):
                   " UPDATE npfkct_schema SET version = 1", db=db)
     b = start_replica(store)
     try:
-        assert postgres.psql("SELECT max(version) FROM npfkct_schema", db=db) == [["2"]]
+        assert postgres.psql("SELECT max(version) FROM npfkct_schema", db=db) == [["3"]]
         assert postgres.psql("SELECT id, octet_length(summary) FROM npfkct_sessions ORDER BY id",
                              db=db) == [[old, "0"], [new, "0"]]
         listed = requests.get(f"{b.url}/v1/sessions").json()["sessions"]
@@ -349,10 +371,10 @@ def test_a_database_of_schema_version_1_is_migrated(postgres, store):
     finally:
         stop_all(b)
     # A database of a later version than this server knows is refused, not changed.
-    postgres.psql("UPDATE npfkct_schema SET version = 3", db=db)
+    postgres.psql("UPDATE npfkct_schema SET version = 4", db=db)
     refused = subprocess.run([SERVER_BIN, "--port", "0", "--store", store, "--store-wait", "2"],
                              capture_output=True, text=True, timeout=60)
-    assert refused.returncode != 0 and "version is 3" in refused.stderr, refused.stderr[-500:]
+    assert refused.returncode != 0 and "version is 4" in refused.stderr, refused.stderr[-500:]
 
 
 def test_bad_store_flags_are_clear_errors_at_start(postgres):

@@ -10,7 +10,9 @@
 #include <cmath>
 #include <condition_variable>
 #include <cstdio>
+#include <map>
 #include <mutex>
+#include <optional>
 #include <thread>
 #include <utility>
 #include <vector>
@@ -94,7 +96,7 @@ using Conn = std::unique_ptr<PGconn, ConnDeleter>;
 constexpr char kTable[] = "npfkct_sessions";
 // Version 2 added `summary`: each session's API view beside its record, which lists read
 // instead of the records. A database of version 1 is migrated at start-up.
-constexpr int kSchemaVersion = 2;
+constexpr int kSchemaVersion = 3;
 
 // When a row used now expires, given its time to live (an SQL expression): no sooner than 2 s,
 // whatever the TTL. Replicas keep the sessions their requests work on alive every 250 ms; a
@@ -212,6 +214,13 @@ StatusOr<Result> Exec(PGconn* c, const std::string& sql, const std::vector<Param
 std::string_view Value(const PGresult* r, int row, int column) {
   return std::string_view(PQgetvalue(r, row, column),
                           static_cast<size_t>(PQgetlength(r, row, column)));
+}
+
+// The result columns of a row's photos: the bytes when within the cap (the parameter `cap`),
+// and their length.
+std::string PhotosColumns(const std::string& cap) {
+  return "CASE WHEN octet_length(photos) <= " + cap +
+         "::bigint THEN photos END, octet_length(photos)::text";
 }
 
 int64_t IntValue(const PGresult* r, int row, int column) {
@@ -341,17 +350,24 @@ class PostgresStore : public SessionStore {
         "  created_at timestamptz NOT NULL DEFAULT now(),"
         "  updated_at timestamptz NOT NULL DEFAULT now(),"
         "  updated_by text NOT NULL DEFAULT '',"
-        "  summary bytea NOT NULL DEFAULT ''::bytea);"
+        "  summary bytea NOT NULL DEFAULT ''::bytea,"
+        "  photos bytea);"
         " CREATE INDEX IF NOT EXISTS npfkct_sessions_expires_at ON " +
         kTable +
         " (expires_at);"
         // Version 1 to 2: rows saved before have an empty summary and are listed from their
         // records until saved again (a server of version 1 still running keeps writing them).
-        " DO $$ BEGIN IF (SELECT max(version) FROM npfkct_schema) = 1 THEN"
+        // 2 to 3: the target photos kept apart, written once; rows saved before hold them in
+        // their snapshot until saved again (a server of version 2 still running keeps writing
+        // them there, and reads a snapshot of version 3 as a session without photos).
+        " DO $$ BEGIN IF (SELECT max(version) FROM npfkct_schema) < 3 THEN"
         " ALTER TABLE " +
         kTable +
         " ADD COLUMN IF NOT EXISTS summary bytea NOT NULL DEFAULT ''::bytea;"
-        " UPDATE npfkct_schema SET version = 2 WHERE version = 1; END IF; END $$;"
+        " ALTER TABLE " +
+        kTable +
+        " ADD COLUMN IF NOT EXISTS photos bytea;"
+        " UPDATE npfkct_schema SET version = 3 WHERE version < 3; END IF; END $$;"
         " COMMIT; SELECT max(version)::text FROM npfkct_schema;";
     auto r = Query(kSchema, {}, false, /*simple=*/true);
     if (!r.ok()) return r.status();
@@ -367,32 +383,70 @@ class PostgresStore : public SessionStore {
   StatusOr<int64_t> Save(const api::SessionRecord& record, int64_t expected) override {
     if (!api::IsSessionId(record.id)) return InvalidArgumentError("store: bad session id");
     const int64_t version = expected + 1;
-    Param snapshot{EncodeSnapshot(record, version), true};
+    // The photos are written with the row's first save (or the first after a save of a
+    // server that kept them in the snapshot), then named by their digest.
+    std::string digest;
+    std::optional<Param> photos;
+    if (!record.target.photos.empty()) {
+      {
+        std::lock_guard<std::mutex> lock(photos_mutex_);
+        auto it = photos_kept_.find(record.id);
+        if (it != photos_kept_.end() && expected > 0) digest = it->second;
+      }
+      if (digest.empty()) {
+        PhotosBlob blob = EncodePhotosBlob(record.target.photos);
+        if (blob.bytes.size() > options_.max_snapshot_bytes) {
+          return ResourceExhaustedError("the session's target photos are " +
+                                        std::to_string(blob.bytes.size()) +
+                                        " bytes, more than the store's limit of " +
+                                        std::to_string(options_.max_snapshot_bytes));
+        }
+        digest = std::move(blob.digest);
+        photos = Param{std::move(blob.bytes), true};
+      }
+    }
+    Param snapshot{EncodeSnapshot(record, version, digest), true};
     if (snapshot.value.size() > options_.max_snapshot_bytes) {
       return ResourceExhaustedError(
           "the session's snapshot is " + std::to_string(snapshot.value.size()) +
           " bytes, more than the store's limit of " + std::to_string(options_.max_snapshot_bytes));
     }
+    auto saved = SaveRow(record, expected, version, std::move(snapshot), std::move(photos));
+    if (saved.ok() && !digest.empty()) {
+      std::lock_guard<std::mutex> lock(photos_mutex_);
+      if (photos_kept_.size() >= kMaxPhotoDigestsKept) photos_kept_.clear();
+      photos_kept_[record.id] = digest;
+    }
+    return saved;
+  }
+
+  // The INSERT of a new session or the UPDATE of a stored version; `photos`, when given, is
+  // written to the row too.
+  StatusOr<int64_t> SaveRow(const api::SessionRecord& record, int64_t expected, int64_t version,
+                            Param snapshot, std::optional<Param> photos) {
     char ttl[64];
     std::snprintf(ttl, sizeof ttl, "%.17g", record.ttl_seconds);
     const std::string& id = record.id;
     Param summary{SummaryOf(record), true};
     if (expected == 0) {
       // A new session: inserted only when the id is free and the table below its limit.
-      auto r = Query(std::string("INSERT INTO ") + kTable +
-                         " (id, version, snapshot, ttl_seconds, expires_at, updated_by, summary)"
-                         " SELECT $1::text, 1, $2::bytea, $3::float8, " +
-                         ExpiresAt("$3::float8") +
-                         ", $4::text, $6::bytea"
-                         " WHERE (SELECT count(*) FROM " +
-                         kTable + ") < $5::bigint ON CONFLICT (id) DO NOTHING RETURNING 1",
-                     {{id},
-                      std::move(snapshot),
-                      {ttl},
-                      {options_.replica},
-                      {std::to_string(options_.max_sessions)},
-                      std::move(summary)},
-                     false);
+      std::vector<Param> params = {{id},
+                                   std::move(snapshot),
+                                   {ttl},
+                                   {options_.replica},
+                                   {std::to_string(options_.max_sessions)},
+                                   std::move(summary)};
+      if (photos) params.push_back(std::move(*photos));
+      auto r =
+          Query(std::string("INSERT INTO ") + kTable +
+                    " (id, version, snapshot, ttl_seconds, expires_at, updated_by, summary" +
+                    (params.size() > 6 ? ", photos" : "") +
+                    ")"
+                    " SELECT $1::text, 1, $2::bytea, $3::float8, " +
+                    ExpiresAt("$3::float8") + ", $4::text, $6::bytea" +
+                    (params.size() > 6 ? ", $7::bytea" : "") + " WHERE (SELECT count(*) FROM " +
+                    kTable + ") < $5::bigint ON CONFLICT (id) DO NOTHING RETURNING 1",
+                params, false);
       if (!r.ok()) return r.status();
       if (PQntuples(r->get()) == 1) return version;
       auto exists = Query(std::string("SELECT 1 FROM ") + kTable + " WHERE id = $1", {{id}}, true);
@@ -406,21 +460,23 @@ class PostgresStore : public SessionStore {
     }
     // The version check is the statement's WHERE: of two replicas saving over one version, the
     // second waits for the first's row lock, then finds another version and updates nothing.
+    std::vector<Param> params = {{id},
+                                 std::move(snapshot),
+                                 {std::to_string(version)},
+                                 {ttl},
+                                 {options_.replica},
+                                 {std::to_string(expected)},
+                                 std::move(summary)};
+    if (photos) params.push_back(std::move(*photos));
     auto r = Query(std::string("UPDATE ") + kTable +
                        " SET version = $3::bigint, snapshot = $2::bytea, ttl_seconds = $4::float8,"
                        " expires_at = " +
                        ExpiresAt("$4::float8") +
                        ","
-                       " updated_at = now(), updated_by = $5::text, summary = $7::bytea"
+                       " updated_at = now(), updated_by = $5::text, summary = $7::bytea" +
+                       (params.size() > 7 ? ", photos = $8::bytea" : "") +
                        " WHERE id = $1::text AND version = $6::bigint RETURNING 1",
-                   {{id},
-                    std::move(snapshot),
-                    {std::to_string(version)},
-                    {ttl},
-                    {options_.replica},
-                    {std::to_string(expected)},
-                    std::move(summary)},
-                   false);
+                   params, false);
     if (!r.ok()) return r.status();
     if (PQntuples(r->get()) == 1) return version;
     auto now =
@@ -442,6 +498,8 @@ class PostgresStore : public SessionStore {
         Query(std::string("DELETE FROM ") + kTable + " WHERE id = $1 RETURNING 1", {{id}}, true);
     if (!r.ok()) return r.status();
     if (existed) *existed = PQntuples(r->get()) > 0;
+    std::lock_guard<std::mutex> lock(photos_mutex_);
+    photos_kept_.erase(id);
     return OkStatus();
   }
 
@@ -476,10 +534,11 @@ class PostgresStore : public SessionStore {
 
   StatusOr<Loaded> Load(const std::string& id) override {
     if (!api::IsSessionId(id)) return NotFoundError("not a session id");
-    auto r = Query(std::string("SELECT version::text, CASE WHEN octet_length(snapshot) <= "
-                               "$2::bigint THEN snapshot END, octet_length(snapshot)::text FROM ") +
-                       kTable + " WHERE id = $1 AND expires_at > now()",
-                   {{id}, {std::to_string(options_.max_snapshot_bytes)}}, true);
+    auto r =
+        Query(std::string("SELECT version::text, CASE WHEN octet_length(snapshot) <= "
+                          "$2::bigint THEN snapshot END, octet_length(snapshot)::text, ") +
+                  PhotosColumns("$2") + " FROM " + kTable + " WHERE id = $1 AND expires_at > now()",
+              {{id}, {std::to_string(options_.max_snapshot_bytes)}}, true);
     if (!r.ok()) return r.status();
     if (PQntuples(r->get()) == 0) return NotFoundError("sessions/" + id + " is not stored");
     return Decode(r->get(), id);
@@ -492,7 +551,8 @@ class PostgresStore : public SessionStore {
         Query(std::string("UPDATE ") + kTable + " SET expires_at = " + ExpiresAt("ttl_seconds") +
                   " WHERE id = $1 AND expires_at > now() RETURNING version::text,"
                   " CASE WHEN version <> $2::bigint AND octet_length(snapshot) <= $3::bigint"
-                  " THEN snapshot END, octet_length(snapshot)::text",
+                  " THEN snapshot END, octet_length(snapshot)::text, " +
+                  PhotosColumns("$3"),
               {{id}, {std::to_string(held_version)}, {std::to_string(options_.max_snapshot_bytes)}},
               true);
     if (!r.ok()) return r.status();
@@ -542,16 +602,37 @@ class PostgresStore : public SessionStore {
 
  private:
   // Columns: version, snapshot (NULL when larger than the limit), its length.
-  StatusOr<Loaded> Decode(const PGresult* r, const std::string& id) const {
+  StatusOr<Loaded> Decode(const PGresult* r, const std::string& id) {
     const int64_t version = IntValue(r, 0, 0);
     if (PQgetisnull(r, 0, 1)) {
       return Status(StatusCode::kDataLoss,
                     "snapshot: " + std::string(Value(r, 0, 2)) + " bytes, more than the cap");
     }
-    auto loaded = DecodeSnapshot(Value(r, 0, 1), id, limits_);
+    std::string digest;
+    auto loaded = DecodeSnapshot(Value(r, 0, 1), id, limits_, &digest);
     if (!loaded.ok()) return loaded.status();
     if (loaded->version != version) {
       return Status(StatusCode::kDataLoss, "snapshot: its version is not the row's");
+    }
+    if (!digest.empty()) {
+      // Columns 3 and 4 (PhotosColumns): the photos within the cap, and their length.
+      if (PQgetisnull(r, 0, 3)) {
+        return Status(StatusCode::kDataLoss,
+                      PQgetisnull(r, 0, 4)
+                          ? std::string("snapshot: the target photos it names are not stored")
+                          : "snapshot: target photos of " + std::string(Value(r, 0, 4)) +
+                                " bytes, more than the cap");
+      }
+      auto photos = DecodePhotosBlob(Value(r, 0, 3), digest, limits_);
+      if (!photos.ok()) return photos.status();
+      loaded->record.target.photos = std::move(photos).value();
+    }
+    std::lock_guard<std::mutex> lock(photos_mutex_);
+    if (digest.empty()) {
+      photos_kept_.erase(id);
+    } else {
+      if (photos_kept_.size() >= kMaxPhotoDigestsKept) photos_kept_.clear();
+      photos_kept_[id] = digest;
     }
     return loaded;
   }
@@ -580,6 +661,10 @@ class PostgresStore : public SessionStore {
   const PostgresStoreOptions options_;
   const api::Limits limits_;
   Pool pool_;
+  // The digest of the photos this replica wrote to or read from a row, per id: a save names
+  // them instead of writing them again (absent: the save writes them).
+  std::mutex photos_mutex_;
+  std::map<std::string, std::string> photos_kept_;
 };
 
 }  // namespace

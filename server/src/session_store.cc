@@ -67,16 +67,23 @@ uint32_t Crc32(std::string_view data) {
   return static_cast<uint32_t>(crc);
 }
 
-// "<32 hex>.snap" and "<32 hex>.snap.tmp.<hex>".
+// "<32 hex>.snap", "<32 hex>.photos", and either with ".tmp.<hex>" after it.
 bool IsSnapshotName(const std::string& name, std::string* id) {
   if (name.size() != 37 || name.compare(32, 5, ".snap") != 0) return false;
   *id = name.substr(0, 32);
   return api::IsSessionId(*id);
 }
+bool IsPhotosName(const std::string& name, std::string* id) {
+  if (name.size() != 39 || name.compare(32, 7, ".photos") != 0) return false;
+  *id = name.substr(0, 32);
+  return api::IsSessionId(*id);
+}
 bool IsTempName(const std::string& name) {
   std::string id;
-  return name.size() > 42 && IsSnapshotName(name.substr(0, 37), &id) &&
-         name.compare(37, 5, ".tmp.") == 0;
+  return (name.size() > 42 && IsSnapshotName(name.substr(0, 37), &id) &&
+          name.compare(37, 5, ".tmp.") == 0) ||
+         (name.size() > 44 && IsPhotosName(name.substr(0, 39), &id) &&
+          name.compare(39, 5, ".tmp.") == 0);
 }
 
 std::string RandomHex() {
@@ -84,6 +91,59 @@ std::string RandomHex() {
   char buf[17];
   std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(gen()));
   return buf;
+}
+
+// Writes `data` to `path` through a new temporary file (O_CREAT | O_EXCL | O_NOFOLLOW: never
+// through a planted file or symbolic link), fsync, rename, fsync of the directory.
+bool WriteDurably(const std::string& dir, const std::string& path, const std::string& data) {
+  const std::string tmp = path + ".tmp." + RandomHex();
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0600);
+  if (fd < 0) return false;
+  const bool written = WriteAll(fd, data) && ::fsync(fd) == 0;
+  ::close(fd);
+  if (!written || ::rename(tmp.c_str(), path.c_str()) != 0 || !FsyncPath(dir, true)) {
+    ::unlink(tmp.c_str());
+    return false;
+  }
+  return true;
+}
+
+// Reads a regular file of at most `max_bytes` (O_NOFOLLOW; O_NONBLOCK: a FIFO planted under the
+// name must not hang). NOT_FOUND when absent, DATA_LOSS naming `what` otherwise.
+StatusOr<std::string> ReadCapped(const std::string& path, size_t max_bytes,
+                                 const std::string& what) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) {
+    return errno == ENOENT ? NotFoundError(what + " is not stored")
+                           : Status(StatusCode::kDataLoss, what + ": cannot open");
+  }
+  struct stat st {};
+  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+    ::close(fd);
+    return Status(StatusCode::kDataLoss, what + ": not a regular file");
+  }
+  if (static_cast<uint64_t>(st.st_size) > max_bytes) {
+    ::close(fd);
+    return Status(StatusCode::kDataLoss,
+                  what + ": " + std::to_string(st.st_size) + " bytes, more than the cap");
+  }
+  std::string data(static_cast<size_t>(st.st_size), '\0');
+  size_t done = 0;
+  while (done < data.size()) {
+    const ssize_t n = ::read(fd, data.data() + done, data.size() - done);
+    if (n < 0 && (errno == EINTR || errno == EAGAIN)) continue;
+    if (n <= 0) break;
+    done += static_cast<size_t>(n);
+  }
+  ::close(fd);
+  data.resize(done);
+  return data;
+}
+
+std::string DigestOf(std::string_view bytes) {
+  char digest[40];
+  std::snprintf(digest, sizeof digest, "%08x-%zu", Crc32(bytes), bytes.size());
+  return digest;
 }
 
 }  // namespace
@@ -106,8 +166,25 @@ StatusOr<std::vector<std::string>> SessionStore::DeleteExpired(size_t) {
   return std::vector<std::string>{};
 }
 
-std::string EncodeSnapshot(const api::SessionRecord& record, int64_t version) {
-  const std::string payload = api::EncodeRecord(record);
+PhotosBlob EncodePhotosBlob(const std::vector<std::string>& photos) {
+  PhotosBlob blob;
+  blob.bytes = api::EncodePhotos(photos);
+  blob.digest = DigestOf(blob.bytes);
+  return blob;
+}
+
+StatusOr<std::vector<std::string>> DecodePhotosBlob(std::string_view bytes, std::string_view digest,
+                                                    const api::Limits& limits) {
+  if (DigestOf(bytes) != digest) {
+    return Status(StatusCode::kDataLoss,
+                  "snapshot: the target photos kept apart are not those the record names");
+  }
+  return api::DecodePhotos(bytes, limits);
+}
+
+std::string EncodeSnapshot(const api::SessionRecord& record, int64_t version,
+                           std::string_view photos_digest) {
+  const std::string payload = api::EncodeRecord(record, photos_digest);
   char header[128];
   std::snprintf(header, sizeof header, "%s %lld %zu %08x\n", kMagic,
                 static_cast<long long>(version), payload.size(), Crc32(payload));
@@ -115,7 +192,8 @@ std::string EncodeSnapshot(const api::SessionRecord& record, int64_t version) {
 }
 
 StatusOr<SessionStore::Loaded> DecodeSnapshot(std::string_view data, const std::string& id,
-                                              const api::Limits& limits) {
+                                              const api::Limits& limits,
+                                              std::string* photos_digest) {
   const size_t newline = data.find('\n');
   long long version = 0;
   size_t length = 0;
@@ -131,7 +209,7 @@ StatusOr<SessionStore::Loaded> DecodeSnapshot(std::string_view data, const std::
   if (payload.size() != length || Crc32(payload) != crc) {
     return Status(StatusCode::kDataLoss, "snapshot: truncated or corrupted (checksum)");
   }
-  auto record = api::DecodeRecord(payload, limits);
+  auto record = api::DecodeRecord(payload, limits, photos_digest);
   if (!record.ok()) return record.status();
   if (record->id != id) return Status(StatusCode::kDataLoss, "snapshot: its id is not its name");
   return SessionStore::Loaded{std::move(record).value(), version};
@@ -173,10 +251,19 @@ StatusOr<std::unique_ptr<DirectoryStore>> DirectoryStore::Open(const std::string
   }
   // Temporary files of a save that never finished (a crash between write and rename), or planted
   // there: unlink removes the entry itself, never what a symbolic link points to.
+  // Photos files without their snapshot (a create that stopped between the two writes, or a
+  // delete between the two removals) are removed as well.
   if (DIR* d = ::opendir(dir.c_str())) {
     while (dirent* e = ::readdir(d)) {
       const std::string name = e->d_name;
-      if (IsTempName(name)) ::unlinkat(::dirfd(d), name.c_str(), 0);
+      std::string id;
+      struct stat st {};
+      if (IsTempName(name) ||
+          (IsPhotosName(name, &id) &&
+           ::fstatat(::dirfd(d), (id + ".snap").c_str(), &st, AT_SYMLINK_NOFOLLOW) != 0 &&
+           errno == ENOENT)) {
+        ::unlinkat(::dirfd(d), name.c_str(), 0);
+      }
     }
     ::closedir(d);
   }
@@ -200,20 +287,31 @@ StatusOr<int64_t> DirectoryStore::Save(const api::SessionRecord& record, int64_t
     }
   }
   const int64_t version = expected_version + 1;
-  const std::string snapshot = EncodeSnapshot(record, version);
-  const std::string path = PathOf(record.id);
-  const std::string tmp = path + ".tmp." + RandomHex();
-  // O_EXCL | O_NOFOLLOW: never write through a planted file or symbolic link.
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0600);
-  if (fd < 0) return Status(StatusCode::kUnavailable, "cannot write the session snapshot");
-  const bool written = WriteAll(fd, snapshot) && ::fsync(fd) == 0;
-  ::close(fd);
-  if (!written || ::rename(tmp.c_str(), path.c_str()) != 0 || !FsyncPath(dir_, true)) {
-    ::unlink(tmp.c_str());
+  // The photos are written once, before the first snapshot that names them.
+  std::string digest;
+  if (!record.target.photos.empty()) {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      auto it = photos_kept_.find(record.id);
+      if (it != photos_kept_.end()) digest = it->second;
+    }
+    if (digest.empty()) {
+      const PhotosBlob blob = EncodePhotosBlob(record.target.photos);
+      if (!WriteDurably(dir_, PhotosPathOf(record.id), blob.bytes)) {
+        return Status(StatusCode::kUnavailable, "cannot store the session's target photos");
+      }
+      digest = blob.digest;
+    }
+  }
+  if (!WriteDurably(dir_, PathOf(record.id), EncodeSnapshot(record, version, digest))) {
     return Status(StatusCode::kUnavailable, "cannot store the session snapshot");
   }
   std::lock_guard<std::mutex> lock(mutex_);
   versions_[record.id] = version;
+  if (!digest.empty()) {
+    if (photos_kept_.size() >= kMaxPhotoDigestsKept) photos_kept_.clear();
+    photos_kept_[record.id] = digest;
+  }
   return version;
 }
 
@@ -225,9 +323,11 @@ Status DirectoryStore::Delete(const std::string& id, bool* existed) {
     return Status(StatusCode::kUnavailable, "cannot remove the session snapshot");
   }
   if (existed) *existed = r == 0;
+  ::unlink(PhotosPathOf(id).c_str());  // an orphan left by a failure here goes at the next Open
   FsyncPath(dir_, true);
   std::lock_guard<std::mutex> lock(mutex_);
   versions_.erase(id);
+  photos_kept_.erase(id);
   return OkStatus();
 }
 
@@ -253,36 +353,30 @@ StatusOr<std::vector<std::string>> DirectoryStore::List(size_t limit, const std:
 
 StatusOr<SessionStore::Loaded> DirectoryStore::Load(const std::string& id) {
   if (!api::IsSessionId(id)) return NotFoundError("not a session id");
-  // O_NONBLOCK: opening a FIFO planted under a snapshot's name must not hang.
-  const int fd = ::open(PathOf(id).c_str(), O_RDONLY | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC);
-  if (fd < 0) {
-    return errno == ENOENT ? NotFoundError("sessions/" + id + " is not stored")
-                           : Status(StatusCode::kDataLoss, "snapshot: cannot open");
+  auto data = ReadCapped(PathOf(id), max_bytes_, "snapshot");
+  if (!data.ok()) {
+    return data.status().code() == StatusCode::kNotFound
+               ? NotFoundError("sessions/" + id + " is not stored")
+               : data.status();
   }
-  struct stat st {};
-  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
-    ::close(fd);
-    return Status(StatusCode::kDataLoss, "snapshot: not a regular file");
-  }
-  if (static_cast<uint64_t>(st.st_size) > max_bytes_) {
-    ::close(fd);
-    return Status(StatusCode::kDataLoss,
-                  "snapshot: " + std::to_string(st.st_size) + " bytes, more than the cap");
-  }
-  std::string data(static_cast<size_t>(st.st_size), '\0');
-  size_t done = 0;
-  while (done < data.size()) {
-    const ssize_t n = ::read(fd, data.data() + done, data.size() - done);
-    if (n < 0 && (errno == EINTR || errno == EAGAIN)) continue;
-    if (n <= 0) break;
-    done += static_cast<size_t>(n);
-  }
-  ::close(fd);
-  data.resize(done);
-  auto loaded = DecodeSnapshot(data, id, limits_);
+  std::string digest;
+  auto loaded = DecodeSnapshot(*data, id, limits_, &digest);
   if (!loaded.ok()) return loaded.status();
+  if (!digest.empty()) {
+    auto blob = ReadCapped(PhotosPathOf(id), max_bytes_, "snapshot: the target photos");
+    if (!blob.ok()) return Status(StatusCode::kDataLoss, std::string(blob.status().message()));
+    auto photos = DecodePhotosBlob(*blob, digest, limits_);
+    if (!photos.ok()) return photos.status();
+    loaded->record.target.photos = std::move(photos).value();
+  }
   std::lock_guard<std::mutex> lock(mutex_);
   versions_[id] = loaded->version;
+  if (digest.empty()) {
+    photos_kept_.erase(id);  // photos in the snapshot: kept apart from the next save on
+  } else {
+    if (photos_kept_.size() >= kMaxPhotoDigestsKept) photos_kept_.clear();
+    photos_kept_[id] = digest;
+  }
   return loaded;
 }
 

@@ -85,9 +85,50 @@ SessionState ReadState(const json& j) {
                                      : SessionState::kReady;
 }
 
+// Each photo of a JSON array of base64 strings, checked as a request's photos are.
+Status ReadPhotos(const json& photos, const Limits& limits, std::vector<std::string>* out) {
+  if (!photos.is_array() || static_cast<int64_t>(photos.size()) > limits.max_photos) {
+    return Lost("target photos");
+  }
+  for (const json& photo : photos) {
+    if (!photo.is_string()) return Lost("target photo");
+    auto bytes = Base64Decode(photo.get<std::string>(), "photo");
+    if (!bytes.ok()) return Lost("target photo");
+    auto info = ProbeImage(*bytes, "photo");
+    if (!info.ok() || info->width * info->height > limits.max_photo_pixels) {
+      return Lost("target photo");
+    }
+    out->push_back(std::move(bytes).value());
+  }
+  return OkStatus();
+}
+
+json PhotosJson(const std::vector<std::string>& photos) {
+  json out = json::array();
+  for (const std::string& p : photos) out.push_back(Base64Encode(p));
+  return out;
+}
+
 }  // namespace
 
-std::string EncodeRecord(const SessionRecord& r) {
+std::string EncodePhotos(const std::vector<std::string>& photos) {
+  return internal::Dump(json{{"version", kRecordVersion}, {"photos", PhotosJson(photos)}});
+}
+
+StatusOr<std::vector<std::string>> DecodePhotos(std::string_view bytes, const Limits& limits) {
+  auto parsed = internal::ParseBody(bytes, limits.max_json_depth, limits.max_photos + 16, false);
+  if (!parsed.ok()) return Lost(parsed.status().message());
+  const json& j = *parsed;
+  if (!j.is_object() || internal::Integer(j, "version") != kRecordVersion ||
+      !j.contains("photos")) {
+    return Lost("not a photos record");
+  }
+  std::vector<std::string> photos;
+  if (Status s = ReadPhotos(j.at("photos"), limits, &photos); !s.ok()) return s;
+  return photos;
+}
+
+std::string EncodeRecord(const SessionRecord& r, std::string_view photos_digest) {
   json j;
   j["version"] = kRecordVersion;
   j["id"] = r.id;
@@ -110,9 +151,12 @@ std::string EncodeRecord(const SessionRecord& r) {
                                   r.pending_action.x.data() + r.pending_action.x.size())}};
   }
   j["world"] = internal::WorldJson(r.world);
-  json photos = json::array();
-  for (const std::string& p : r.target.photos) photos.push_back(Base64Encode(p));
-  j["target"] = {{"description", r.target.description}, {"photos", photos}};
+  j["target"] = {{"description", r.target.description}};
+  if (photos_digest.empty()) {
+    j["target"]["photos"] = PhotosJson(r.target.photos);
+  } else {
+    j["target"]["photosKeptApart"] = std::string(photos_digest);
+  }
   if (r.perception) {
     json tracks = json::array();
     for (const perception::TrackState& t : r.perception->second) {
@@ -128,7 +172,9 @@ std::string EncodeRecord(const SessionRecord& r) {
   return internal::Dump(j);
 }
 
-StatusOr<SessionRecord> DecodeRecord(std::string_view bytes, const Limits& limits) {
+StatusOr<SessionRecord> DecodeRecord(std::string_view bytes, const Limits& limits,
+                                     std::string* photos_digest) {
+  if (photos_digest != nullptr) photos_digest->clear();
   // A snapshot holds a world (grid cells, occupancy runs) and perception tracks, so it may hold
   // more JSON values than a request; still bounded.
   Limits record_limits = limits;
@@ -188,20 +234,13 @@ StatusOr<SessionRecord> DecodeRecord(std::string_view bytes, const Limits& limit
     r.target.description =
         internal::Utf8Prefix(internal::String(t, "description"), limits.max_description);
     if (t.contains("photos")) {
-      const json& photos = t.at("photos");
-      if (!photos.is_array() || static_cast<int64_t>(photos.size()) > limits.max_photos) {
-        return Lost("target photos");
+      if (Status s = ReadPhotos(t.at("photos"), limits, &r.target.photos); !s.ok()) return s;
+    } else if (t.contains("photosKeptApart")) {
+      const std::string digest = internal::String(t, "photosKeptApart");
+      if (photos_digest == nullptr || digest.empty() || digest.size() > 64) {
+        return Lost("target photos kept apart");
       }
-      for (const json& photo : photos) {
-        if (!photo.is_string()) return Lost("target photo");
-        auto bytes = Base64Decode(photo.get<std::string>(), "photo");
-        if (!bytes.ok()) return Lost("target photo");
-        auto info = ProbeImage(*bytes, "photo");
-        if (!info.ok() || info->width * info->height > limits.max_photo_pixels) {
-          return Lost("target photo");
-        }
-        r.target.photos.push_back(std::move(bytes).value());
-      }
+      *photos_digest = digest;
     }
   }
   if (j.contains("perception")) {

@@ -84,12 +84,34 @@ class SessionStore {
 
 /// The bytes of a snapshot, one format for every store: a header line "npfkct-snapshot 2
 /// <version> <payload length> <CRC-32 of the payload, 8 hex digits>" then the record
-/// (api::EncodeRecord).
-std::string EncodeSnapshot(const api::SessionRecord& record, int64_t version);
+/// (api::EncodeRecord). With a `photos_digest`, the target's photos are kept apart (PhotosBlob)
+/// and the record names them by it.
+std::string EncodeSnapshot(const api::SessionRecord& record, int64_t version,
+                           std::string_view photos_digest = {});
 /// Reads snapshot bytes that should hold session `id`: DATA_LOSS when they are not a snapshot,
-/// are truncated or corrupted (checksum), break a limit, or hold another session.
+/// are truncated or corrupted (checksum), break a limit, or hold another session. A record whose
+/// photos are kept apart comes without them, and their digest goes to `photos_digest`.
 StatusOr<SessionStore::Loaded> DecodeSnapshot(std::string_view bytes, const std::string& id,
-                                              const api::Limits& limits);
+                                              const api::Limits& limits,
+                                              std::string* photos_digest = nullptr);
+
+/// A target's photos as a store keeps them apart from the snapshots: they never change after
+/// creation, and a session is saved at every step (eight large photos made every 150-byte plan
+/// or observation rewrite and fsync 31 MB). `digest` ("<CRC-32>-<length>") names them.
+struct PhotosBlob {
+  std::string bytes;
+  std::string digest;
+};
+/// The blob of `photos` (api::EncodePhotos) with its digest.
+PhotosBlob EncodePhotosBlob(const std::vector<std::string>& photos);
+/// The photos of a blob that a snapshot names by `digest`: DATA_LOSS when the bytes are not
+/// those (another digest: truncated, corrupted or another session's) or break a limit.
+StatusOr<std::vector<std::string>> DecodePhotosBlob(std::string_view bytes, std::string_view digest,
+                                                    const api::Limits& limits);
+/// Ids whose photos a store remembers having stored (and their digests) before it forgets them
+/// all, so that a long-running store's memory stays bounded (each then stores its photos again
+/// once).
+inline constexpr size_t kMaxPhotoDigestsKept = 100'000;
 
 /// What a store that lists from summaries keeps beside `record`: its API view
 /// (api::EncodeSessionSummary of Session::ViewOf), a few hundred bytes.
@@ -98,7 +120,8 @@ std::string SummaryOf(const api::SessionRecord& record);
 /// A store that keeps nothing (sessions live in memory only).
 std::unique_ptr<SessionStore> MakeMemoryStore();
 
-/// Snapshots in a directory, one file "<id>.snap" per session (EncodeSnapshot). Writes go
+/// Snapshots in a directory, one file "<id>.snap" per session (EncodeSnapshot), and "<id>.photos"
+/// (PhotosBlob) for a session with target photos, written once. Writes go
 /// to a new temporary file (O_CREAT | O_EXCL | O_NOFOLLOW), fsync, rename, fsync of the
 /// directory. Reads open with O_NOFOLLOW | O_NONBLOCK, skip anything that is not a regular file,
 /// cap the size before reading, and check the checksum and the record's limits.
@@ -121,6 +144,7 @@ class DirectoryStore : public SessionStore {
   DirectoryStore(std::string dir, int lock_fd, const api::Limits& limits, size_t max_bytes)
       : dir_(std::move(dir)), lock_fd_(lock_fd), limits_(limits), max_bytes_(max_bytes) {}
   std::string PathOf(const std::string& id) const { return dir_ + "/" + id + ".snap"; }
+  std::string PhotosPathOf(const std::string& id) const { return dir_ + "/" + id + ".photos"; }
 
   std::string dir_;
   int lock_fd_;  // holds the directory's flock
@@ -128,6 +152,8 @@ class DirectoryStore : public SessionStore {
   size_t max_bytes_;
   std::mutex mutex_;
   std::map<std::string, int64_t> versions_;  // last version saved or loaded, per id
+  // The digest of the photos file written or read, per id (absent: write it at the next save).
+  std::map<std::string, std::string> photos_kept_;
 };
 
 }  // namespace npfkct::server

@@ -81,11 +81,20 @@ std::string RenderEmpty();
 
 // ---- records ----
 
-/// A session record as snapshot bytes (JSON).
-std::string EncodeRecord(const SessionRecord& record);
+/// A session record as snapshot bytes (JSON). With a non-empty `photos_digest`, the target's
+/// photos are left out and the digest written in their place: the store keeps them apart (they
+/// never change after creation, and a record is saved at every step).
+std::string EncodeRecord(const SessionRecord& record, std::string_view photos_digest = {});
 /// Reads snapshot bytes; malformed, truncated or out-of-limit records are DATA_LOSS, never a
-/// crash or an allocation beyond the limits.
-StatusOr<SessionRecord> DecodeRecord(std::string_view bytes, const Limits& limits);
+/// crash or an allocation beyond the limits. A record whose photos are kept apart has none; its
+/// digest goes to `photos_digest` (DATA_LOSS when the caller gives none to take it).
+StatusOr<SessionRecord> DecodeRecord(std::string_view bytes, const Limits& limits,
+                                     std::string* photos_digest = nullptr);
+/// A target's photos as the bytes a store keeps apart from the record.
+std::string EncodePhotos(const std::vector<std::string>& photos);
+/// Reads EncodePhotos' bytes, with DecodeRecord's checks of each photo: DATA_LOSS when malformed
+/// or out of limits.
+StatusOr<std::vector<std::string>> DecodePhotos(std::string_view bytes, const Limits& limits);
 /// Longest summary DecodeSessionSummary reads.
 inline constexpr size_t kMaxSummaryBytes = 64 * 1024;
 /// A session's API resource as the few hundred bytes a shared store keeps beside its record, so
