@@ -59,16 +59,23 @@ bool WellFormedRequestLine(const std::string& line) {
          std::isdigit(static_cast<unsigned char>(version[7]));
 }
 
-// Whether the path of a request line (its target before any query) holds a percent-encoded '/'
-// or ':'.
-bool EncodesSeparator(std::string_view line) {
+// The target of a well-formed request line.
+std::string_view TargetOf(std::string_view line) {
   const size_t sp1 = line.find(' ');
   const size_t sp2 = line.find(' ', sp1 + 1);
-  std::string_view path = line.substr(sp1 + 1, sp2 - sp1 - 1);
-  path = path.substr(0, path.find('?'));
-  for (size_t i = path.find('%'); i != std::string_view::npos && i + 2 < path.size();
+  return line.substr(sp1 + 1, sp2 - sp1 - 1);
+}
+
+// Whether the path of a request target (before any query) holds a percent-encoded '/' or ':'
+// (%2F, %3A in any case) or a %uXXXX escape, which httplib decodes too.
+bool EncodesSeparator(std::string_view target) {
+  const std::string_view path = target.substr(0, target.find('?'));
+  for (size_t i = path.find('%'); i != std::string_view::npos && i + 1 < path.size();
        i = path.find('%', i + 1)) {
-    const char hi = path[i + 1], lo = static_cast<char>(std::tolower(path[i + 2]));
+    const char hi = static_cast<char>(std::tolower(path[i + 1]));
+    if (hi == 'u') return true;
+    if (i + 2 >= path.size()) break;
+    const char lo = static_cast<char>(std::tolower(path[i + 2]));
     if ((hi == '2' && lo == 'f') || (hi == '3' && lo == 'a')) return true;
   }
   return false;
@@ -641,11 +648,17 @@ void HttpFront::Reactor() {
                    std::to_string(kMaxRequestLine) + " bytes");
         return -1;
       }
+      // Origin form only: httplib takes the query of a target such as "?/v1/..." for its path.
+      if (!TargetOf(request_line).starts_with('/')) {
+        refuse(std::move(c), 400, "the request target must be a path starting with '/'");
+        return -1;
+      }
       // httplib decodes the path before routing: an encoded '/' or ':' would reach another route
       // than the one the raw path names (RFC 3986 2.2), past any proxy rule on the raw path.
-      if (EncodesSeparator(request_line)) {
+      if (EncodesSeparator(TargetOf(request_line))) {
         refuse(std::move(c), 404,
-               "no route for a path with an encoded '/' or ':' (%2F, %3A): send them as they are");
+               "no route for a path with an encoded '/' or ':' (%2F, %3A, %u...): send them as "
+               "they are");
         return -1;
       }
       std::string content_length, transfer_encoding, content_encoding, authorization;
@@ -686,8 +699,9 @@ void HttpFront::Reactor() {
         } else if (name == "transfer-encoding") {
           if (!transfer_encoding.empty()) transfer_encoding.push_back(',');
           transfer_encoding.append(Lower(value));
-        } else if (name == "authorization" && !authorization_seen) {
-          authorization = value;  // the first, as httplib's get_header_value reads it
+        } else if (name == "authorization" && !authorization_seen && !value.empty()) {
+          // As httplib reads it for the server's check: the first non-empty value, decoded.
+          authorization = httplib::detail::decode_url(value, false);
           authorization_seen = true;
         } else if (name == "content-encoding") {
           content_encoding = Lower(value);

@@ -216,10 +216,10 @@ std::string_view Value(const PGresult* r, int row, int column) {
                           static_cast<size_t>(PQgetlength(r, row, column)));
 }
 
-// The result columns of a row's photos: the bytes when within the cap (the parameter `cap`),
-// and their length.
-std::string PhotosColumns(const std::string& cap) {
-  return "CASE WHEN octet_length(photos) <= " + cap +
+// The result columns of a row's photos: the bytes when within the cap (the parameter `cap`) and
+// `condition` holds, and their length.
+std::string PhotosColumns(const std::string& cap, const std::string& condition = "true") {
+  return "CASE WHEN " + condition + " AND octet_length(photos) <= " + cap +
          "::bigint THEN photos END, octet_length(photos)::text";
 }
 
@@ -552,7 +552,8 @@ class PostgresStore : public SessionStore {
                   " WHERE id = $1 AND expires_at > now() RETURNING version::text,"
                   " CASE WHEN version <> $2::bigint AND octet_length(snapshot) <= $3::bigint"
                   " THEN snapshot END, octet_length(snapshot)::text, " +
-                  PhotosColumns("$3"),
+                  // The photos, like the record, only when the version is another.
+                  PhotosColumns("$3", "version <> $2::bigint"),
               {{id}, {std::to_string(held_version)}, {std::to_string(options_.max_snapshot_bytes)}},
               true);
     if (!r.ok()) return r.status();

@@ -239,11 +239,16 @@ TEST_F(HttpFrontTest, VersionsTargetsAndEncodedSeparatorsTheRoutesCannotServeAre
   reply = Exchange("GET /healthz?q=" + std::string(9000, 'a') + " HTTP/1.1\r\n\r\n");
   EXPECT_EQ(reply.rfind("HTTP/1.1 414", 0), 0u) << reply.substr(0, 200);
   EXPECT_NE(reply.find("request target"), std::string::npos) << reply.substr(0, 200);
-  for (const char* path : {"/x%2Fhealthz", "/x%2fhealthz", "/v1/sessions/ab%3Aplan"}) {
+  for (const char* path :
+       {"/x%2Fhealthz", "/x%2fhealthz", "/v1/sessions/ab%3Aplan", "/x%u002Fhealthz", "/x%U003a"}) {
     reply = Exchange(std::string("GET ") + path + "?a=%2F HTTP/1.1\r\n\r\n");
     EXPECT_EQ(reply.rfind("HTTP/1.1 404", 0), 0u) << path << ": " << reply;
     EXPECT_NE(reply.find("encoded '/' or ':'"), std::string::npos) << reply;
   }
+  // A target that is not a path: httplib took the query of "?/healthz" for its path.
+  reply = Exchange("GET ?/x%2Fhealthz HTTP/1.1\r\n\r\n");
+  EXPECT_EQ(reply.rfind("HTTP/1.1 400", 0), 0u) << reply;
+  EXPECT_NE(reply.find("starting with '/'"), std::string::npos) << reply;
   // An encoded separator in the query, and other encodings in the path, are routed as before.
   EXPECT_EQ(Exchange("GET /healthz?a=%2F%3A HTTP/1.1\r\nConnection: close\r\n\r\n")
                 .rfind("HTTP/1.1 200", 0),
@@ -294,6 +299,11 @@ TEST_F(HttpFrontTest, ABodyIsReadOnlyFromAClientWithTheBearerToken) {
       "POST /echo HTTP/1.1\r\nAuthorization: Bearer k3z\r\nTransfer-Encoding: "
       "chunked\r\n\r\n3\r\nabc\r\n0\r\n\r\n");
   EXPECT_EQ(reply.rfind("HTTP/1.1 401", 0), 0u) << reply;
+  // The token as httplib reads it for the routes: the first non-empty value, percent-decoded.
+  reply = Exchange(
+      "POST /echo HTTP/1.1\r\nAuthorization:\r\nAuthorization: Bearer k%33y\r\n"
+      "Content-Length: 3\r\nConnection: close\r\n\r\nabc");
+  EXPECT_NE(reply.find("3:abc"), std::string::npos) << reply;
   // With the token the body is read; requests without a body are the routes' to judge.
   reply = Exchange(
       "POST /echo HTTP/1.1\r\nAuthorization: Bearer k3y\r\nContent-Length: 3\r\n"

@@ -15,7 +15,11 @@ namespace {
 
 using internal::json;
 
+// Version 3: the target's photos kept apart (a server that knows version 2 only refuses such a
+// record instead of reading, and then saving, a session without photos).
 constexpr int kRecordVersion = 2;
+constexpr int kRecordVersionPhotosApart = 3;
+constexpr int kPhotosVersion = 1;
 constexpr int kSummaryVersion = 1;
 
 const char* StateName(SessionState s) {
@@ -112,14 +116,14 @@ json PhotosJson(const std::vector<std::string>& photos) {
 }  // namespace
 
 std::string EncodePhotos(const std::vector<std::string>& photos) {
-  return internal::Dump(json{{"version", kRecordVersion}, {"photos", PhotosJson(photos)}});
+  return internal::Dump(json{{"version", kPhotosVersion}, {"photos", PhotosJson(photos)}});
 }
 
 StatusOr<std::vector<std::string>> DecodePhotos(std::string_view bytes, const Limits& limits) {
   auto parsed = internal::ParseBody(bytes, limits.max_json_depth, limits.max_photos + 16, false);
   if (!parsed.ok()) return Lost(parsed.status().message());
   const json& j = *parsed;
-  if (!j.is_object() || internal::Integer(j, "version") != kRecordVersion ||
+  if (!j.is_object() || internal::Integer(j, "version") != kPhotosVersion ||
       !j.contains("photos")) {
     return Lost("not a photos record");
   }
@@ -130,7 +134,7 @@ StatusOr<std::vector<std::string>> DecodePhotos(std::string_view bytes, const Li
 
 std::string EncodeRecord(const SessionRecord& r, std::string_view photos_digest) {
   json j;
-  j["version"] = kRecordVersion;
+  j["version"] = photos_digest.empty() ? kRecordVersion : kRecordVersionPhotosApart;
   j["id"] = r.id;
   j["displayName"] = r.display_name;
   j["planner"] = PlannerJson(r.planner);
@@ -183,7 +187,10 @@ StatusOr<SessionRecord> DecodeRecord(std::string_view bytes, const Limits& limit
       internal::ParseBody(bytes, limits.max_json_depth, record_limits.max_json_values, false);
   if (!parsed.ok()) return Lost(parsed.status().message());
   const json& j = *parsed;
-  if (internal::Integer(j, "version") != kRecordVersion) return Lost("unknown version");
+  const int64_t version = internal::Integer(j, "version");
+  if (version != kRecordVersion && version != kRecordVersionPhotosApart) {
+    return Lost("unknown version");
+  }
   SessionRecord r;
   r.id = internal::String(j, "id");
   if (!IsSessionId(r.id)) return Lost("bad id");
@@ -233,9 +240,11 @@ StatusOr<SessionRecord> DecodeRecord(std::string_view bytes, const Limits& limit
     const json& t = j.at("target");
     r.target.description =
         internal::Utf8Prefix(internal::String(t, "description"), limits.max_description);
-    if (t.contains("photos")) {
-      if (Status s = ReadPhotos(t.at("photos"), limits, &r.target.photos); !s.ok()) return s;
-    } else if (t.contains("photosKeptApart")) {
+    if (version == kRecordVersion) {
+      if (t.contains("photos")) {
+        if (Status s = ReadPhotos(t.at("photos"), limits, &r.target.photos); !s.ok()) return s;
+      }
+    } else {
       const std::string digest = internal::String(t, "photosKeptApart");
       if (photos_digest == nullptr || digest.empty() || digest.size() > 64) {
         return Lost("target photos kept apart");

@@ -510,6 +510,21 @@ TEST(Records, RoundTripAndRefuseCorruptOrOversizedSnapshots) {
   j = json::parse(bytes);
   j["ttlSeconds"] = 1e15;
   EXPECT_EQ(DecodeRecord(j.dump(), kLimits).status().code(), StatusCode::kDataLoss);
+  // A record whose photos are kept apart is of version 3, which a server knowing version 2 only
+  // refuses (it read such a record as a session without photos, and saved it so); a reader that
+  // takes no digest refuses it too, and a version-2 record never names photos kept apart.
+  const std::string apart = EncodeRecord(r, "0badc0de-123");
+  EXPECT_EQ(json::parse(apart)["version"], 3);
+  EXPECT_EQ(json::parse(bytes)["version"], 2);
+  std::string digest;
+  auto named = DecodeRecord(apart, kLimits, &digest);
+  ASSERT_TRUE(named.ok()) << named.status().ToString();
+  EXPECT_EQ(digest, "0badc0de-123");
+  EXPECT_EQ(DecodeRecord(apart, kLimits).status().code(), StatusCode::kDataLoss);
+  j = json::parse(apart);
+  j["version"] = 2;
+  ASSERT_TRUE(DecodeRecord(j.dump(), kLimits, &digest).ok());
+  EXPECT_TRUE(digest.empty());
 }
 
 TEST(Records, SessionSummariesRenderAsTheViewTheyWereMadeOf) {

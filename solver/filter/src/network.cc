@@ -194,6 +194,30 @@ bool CurrentFormat(const NpNet& net) {
          torch::equal(net->format, FormatMarker());
 }
 
+// Whether every weight of a loaded network has the shape and type of a new one's, laid out
+// densely within its storage: a file could declare a weight of any shape over a small storage.
+bool WellShaped(const NpNet& net) {
+  const NpNet fresh;
+  auto dense = [](const torch::Tensor& t, const torch::Tensor& like) {
+    return t.defined() && t.sizes() == like.sizes() && t.scalar_type() == like.scalar_type() &&
+           t.is_contiguous() &&
+           static_cast<size_t>(t.storage_offset() + t.numel()) * t.element_size() <=
+               t.storage().nbytes();
+  };
+  const auto params = net->named_parameters(), want_params = fresh->named_parameters();
+  const auto buffers = net->named_buffers(), want_buffers = fresh->named_buffers();
+  if (params.size() != want_params.size() || buffers.size() != want_buffers.size()) return false;
+  for (const auto& p : want_params) {
+    const torch::Tensor* t = params.find(p.key());
+    if (t == nullptr || !dense(*t, p.value())) return false;
+  }
+  for (const auto& b : want_buffers) {
+    const torch::Tensor* t = buffers.find(b.key());
+    if (t == nullptr || !dense(*t, b.value())) return false;
+  }
+  return true;
+}
+
 }  // namespace
 
 Status SaveMembers(const std::vector<NpNet>& members, const std::string& path) {
@@ -261,6 +285,7 @@ StatusOr<std::vector<NpNet>> LoadMembers(const std::string& path) {
     if (!CurrentFormat(net)) {
       return InvalidArgumentError("'" + path + "' was saved by an incompatible filter version");
     }
+    if (!WellShaped(net)) return unreadable("a weight has another shape or layout than the net's");
     net->eval();
   }
   return members;

@@ -10,6 +10,7 @@
 #include <numeric>
 #include <string>
 
+#include "../src/network.h"
 #include "generate.h"
 #include "npfkct/filter/dataset.h"
 #include "npfkct/filter/features.h"
@@ -326,6 +327,34 @@ TEST(FilterTest, MissingOrCorruptModelIsAClearError) {
   auto truncated = NeuralFilter::Load(path);
   ASSERT_FALSE(truncated.ok());
   EXPECT_EQ(truncated.status().code(), StatusCode::kInvalidArgument);
+  fs::remove(path);
+}
+
+TEST(FilterTest, AModelWithAWeightOfAnotherShapeIsRefused) {
+  // The archive takes a weight's shape from the file: a file could declare a weight of any
+  // shape (and stride) over a small storage.
+  const std::string path = TempPath("shape.pt");
+  for (int variant = 0; variant < 2; ++variant) {
+    NpNet net;
+    {
+      torch::NoGradGuard no_grad;
+      torch::Tensor w = net->named_parameters()["decoder.0.weight"];
+      if (variant == 0) {
+        w.set_(torch::zeros({3, 3}));
+      } else {
+        w.set_(torch::zeros({1}).as_strided(w.sizes(), {0, 0}));
+      }
+    }
+    ASSERT_TRUE(SaveNet(net, path).ok());
+    auto loaded = NeuralFilter::Load(path);
+    ASSERT_FALSE(loaded.ok()) << variant;
+    EXPECT_EQ(loaded.status().code(), StatusCode::kInvalidArgument);
+    EXPECT_NE(loaded.status().message().find("shape"), std::string::npos)
+        << loaded.status().message();
+  }
+  NpNet good;
+  ASSERT_TRUE(SaveNet(good, path).ok());
+  EXPECT_TRUE(NeuralFilter::Load(path).ok());
   fs::remove(path);
 }
 
