@@ -309,8 +309,9 @@ Prediction NeuralFilter::Predict(const SceneFeatures& scene,
       // The mixture's first two moments.
       torch::Tensor sum_mu, sum_second;
       for (size_t k = 0; k < impl_->members.size(); ++k) {
-        // Each network costs one prediction: the search's stop is heard between them too.
-        if ((a > 0 || k > 0) && stop != nullptr && stop->ShouldStop(0)) return out;
+        // Each network costs one prediction: after the first block the search's stop is heard
+        // between them too (the block is then dropped).
+        if (a > 0 && k > 0 && stop != nullptr && stop->ShouldStop(0)) return out;
         NpNet& net = impl_->members[k];
         const Encoded& e = encoded[k];
         const torch::Tensor xt = net->EncodeQuery(block);
