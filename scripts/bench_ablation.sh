@@ -13,8 +13,11 @@
 #   w2-rule      + w2 by appendix J's rule from this step's initial radii (= the kct planner)
 #   filter       + the neural filter (the npfkct planner with the greedy rollout)
 #   rollout      + the aimed rollout (half of the rollout's moves look at a grid-world placement
-#                that no standing box hides; = the npfkct planner)
-# Every row above rollout runs with --rollout greedy, the model's rollout before it.
+#                that no standing box hides)
+#   ensemble     + the filter model an ensemble of three networks (= the npfkct planner)
+# Every row above rollout runs with --rollout greedy, the model's rollout before it; the rows
+# filter, rollout and lcb use the single network shipped before the ensemble,
+# bench/models/filter-single.pt.
 # and a change measured and not kept (run only when named in ROWS; results_table.py gives its
 # change against the kept row it modifies):
 #   visits       sibling with the most visited root sphere executed (instead of the highest Qhat)
@@ -30,7 +33,8 @@
 set -euo pipefail
 NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 source "$NPFKCT_ROOT/scripts/deps.sh"
-ROW_NAMES="paper aimed candidates sibling w2-rule filter rollout"
+ROW_NAMES="paper aimed candidates sibling w2-rule filter rollout ensemble"
+SINGLE="$NPFKCT_ROOT/bench/models/filter-single.pt"
 if [ "${1:-}" = --generated ]; then
   shift
   npfkct_bench_args 250 5 22 --run generated "$@"
@@ -49,7 +53,7 @@ fi
 ROWS="${ROWS:-$ROW_NAMES}"
 PAPER="proposals.aimed=0 sample_candidates=0 final_choice=0 normalization=1 w2=0.5"
 row_args() {
-  local opts planner=kct rollout=greedy
+  local opts planner=kct rollout=greedy model=""
   case "$1" in
     paper) opts="$PAPER" ;;
     aimed) opts="${PAPER/proposals.aimed=0/proposals.aimed=1}" ;;
@@ -57,13 +61,15 @@ row_args() {
     sibling) opts="proposals.aimed=1 sample_candidates=1 final_choice=0 normalization=2 w2=0.5" ;;
     visits) opts="proposals.aimed=1 sample_candidates=1 final_choice=1 normalization=2 w2=0.5" ;;
     w2-rule) opts="" ;;
-    filter) opts="" planner=npfkct ;;
-    rollout) opts="" planner=npfkct rollout=aimed ;;
-    lcb) opts="final_choice=2 final_lcb=1" planner=npfkct ;;
+    filter) opts="" planner=npfkct model="$SINGLE" ;;
+    rollout) opts="" planner=npfkct rollout=aimed model="$SINGLE" ;;
+    ensemble) opts="" planner=npfkct rollout=aimed ;;
+    lcb) opts="final_choice=2 final_lcb=1" planner=npfkct model="$SINGLE" ;;
     oracle) opts="" planner=oracle ;;
     *) echo "bench_ablation.sh: unknown row $1" >&2; exit 2 ;;
   esac
   ARGS=(--planner "$planner" --rollout "$rollout")
+  if [ -n "$model" ]; then ARGS+=(--model "$model"); fi
   for o in $opts; do ARGS+=(--opt "$o"); done
 }
 OUT="$NPFKCT_ROOT/bench/results/ablation/$RUN"

@@ -267,7 +267,8 @@ def generated(root, scenes_dir=None):
         by_placement(cells, planners, scenes, scenes_dir)
 
 
-ABLATION_ROWS = ["paper", "aimed", "candidates", "sibling", "w2-rule", "filter", "rollout"]
+ABLATION_ROWS = ["paper", "aimed", "candidates", "sibling", "w2-rule", "filter", "rollout",
+                 "ensemble"]
 # Changes measured and not kept: each row and the kept row it changes (scripts/bench_ablation.sh).
 REJECTED_ROWS = {"visits": "sibling", "lcb": "filter"}
 
@@ -300,7 +301,11 @@ def row_planner(cells, row):
     opts = " ".join(first.get("options", []))
     # Cells from before npfkct-bench recorded its rollout ran the greedy one.
     rollout = first.get("rollout", "greedy")
-    return f"`{first['planner']}{' ' + opts if opts else ''} --rollout {rollout}`"
+    # The model when it is not the shipped one (cells before c8a7c60 ran the single network that
+    # was shipped then, bench/models/filter-single.pt, under the name filter.pt).
+    model = first.get("model", "filter.pt")
+    model = f" --model {model}" if first["planner"] == "npfkct" and model != "filter.pt" else ""
+    return f"`{first['planner']}{' ' + opts if opts else ''} --rollout {rollout}{model}`"
 
 
 SHARE_HEADER = ("| Row | Planner and options | Share of the oracle's reward | Change | Success | "
