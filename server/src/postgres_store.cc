@@ -602,7 +602,8 @@ class PostgresStore : public SessionStore {
   }
 
  private:
-  // Columns: version, snapshot (NULL when larger than the limit), its length.
+  // Columns: version, snapshot (NULL when larger than the limit), its length, then the photos
+  // and their length (PhotosColumns). Remembers the digest of the photos the row holds.
   StatusOr<Loaded> Decode(const PGresult* r, const std::string& id) {
     const int64_t version = IntValue(r, 0, 0);
     if (PQgetisnull(r, 0, 1)) {
