@@ -569,7 +569,9 @@ void HttpFront::Reactor() {
   // Answers an error itself and closes the connection after a lingering close: the client
   // may still be sending the request it is refused, and closing with unread bytes would reset
   // the connection and lose the answer, so what it sends is read and dropped for a while.
-  auto refuse = [&](std::unique_ptr<Conn> c, int status, const std::string& message) {
+  // `drain` (and `drain_s`): how much of the request to read and drop, and for how long.
+  auto refuse = [&](std::unique_ptr<Conn> c, int status, const std::string& message,
+                    size_t drain = 4u << 20, double drain_s = 1.0) {
     const std::string body = render_error_(status, message);
     std::string reply = "HTTP/1.1 " + std::to_string(status) + " " + Reason(status) +
                         "\r\nContent-Type: application/json\r\nConnection: close\r\n";
@@ -582,8 +584,8 @@ void HttpFront::Reactor() {
     c->buf.clear();
     c->buf.shrink_to_fit();
     c->closing = true;
-    c->discard = 4u << 20;
-    c->deadline = Clock::now() + std::chrono::seconds(1);
+    c->discard = drain;
+    c->deadline = Clock::now() + Seconds(drain_s);
     if (!c->registered) {
       epoll_event ev{};
       ev.events = EPOLLIN | EPOLLRDHUP;
@@ -672,7 +674,7 @@ void HttpFront::Reactor() {
         const size_t next = c->buf.find("\r\n", pos);
         const std::string line = c->buf.substr(pos, next - pos);
         const size_t colon = line.find(':');
-        if (line.size() > kMaxHeaderLine) {
+        if (line.size() + 2 > kMaxHeaderLine) {  // httplib counts the CRLF
           refuse(std::move(c), 431,
                  "a header line is longer than " + std::to_string(kMaxHeaderLine) + " bytes");
           return -1;
@@ -762,14 +764,20 @@ void HttpFront::Reactor() {
       // server's bearer token: without it, clients could hold the in-flight bound unauthenticated.
       if (!options_.body_authorization.empty() && (c->chunked || c->content_length > 0) &&
           !SameSecret(authorization, options_.body_authorization)) {
+        // The body it announced is read and dropped, never kept, so that the client (a robot
+        // with a mistyped key sending photos) reads the 401 instead of a reset connection.
+        const size_t announced = c->chunked ? options_.max_body_bytes + 4096 : c->content_length;
         refuse(std::move(c), 401,
                "missing or wrong bearer token (Authorization header): a request body is read only "
-               "from an authenticated client");
+               "from an authenticated client",
+               announced, std::max(1.0, options_.head_timeout_s));
         return -1;
       }
       // Requests without Content-Length or Transfer-Encoding have no body (RFC 9112 6.3).
       size_t head_end = end + 4;
-      if (expect_continue) {
+      // Not to HTTP/1.0 clients (RFC 9110 15.2), nor for a request without a body.
+      if (expect_continue && request_line.ends_with(" HTTP/1.1") &&
+          (c->chunked || c->content_length > 0)) {
         // The body is read here: answer the 100 here (httplib never sees the header).
         static const char kContinue[] = "HTTP/1.1 100 Continue\r\n\r\n";
         WriteAll(c->fd, kContinue, sizeof kContinue - 1, std::chrono::milliseconds(100));

@@ -66,13 +66,24 @@ StatusOr<std::shared_ptr<const filter::NeuralFilter>> ModelRegistry::Get(const s
       return loaded_.front().second;
     }
   }
-  auto net = filter::NeuralFilter::Load(file->second);
-  if (!net.ok()) {
-    return InvalidFieldError("planner.model",
-                             "model '" + name + "' does not load: " + net.status().message());
+  std::shared_ptr<const filter::NeuralFilter> held;
+  if (auto it = dropped_.find(name); it != dropped_.end()) {
+    held = it->second.lock();
+    dropped_.erase(it);
   }
-  loaded_.emplace_front(name, *net);
-  while (loaded_.size() > max_loaded_) loaded_.pop_back();
+  if (!held) {
+    auto net = filter::NeuralFilter::Load(file->second);
+    if (!net.ok()) {
+      return InvalidFieldError("planner.model",
+                               "model '" + name + "' does not load: " + net.status().message());
+    }
+    held = *net;
+  }
+  loaded_.emplace_front(name, held);
+  while (loaded_.size() > max_loaded_) {
+    dropped_[loaded_.back().first] = loaded_.back().second;  // names of the listing only
+    loaded_.pop_back();
+  }
   return loaded_.front().second;
 }
 

@@ -114,6 +114,16 @@ Status ServerOptions::Validate() const {
     if (!(t > 0.0 && t <= 3600.0)) return InvalidFieldError("timeouts", "must be in (0, 3600] s");
   }
   if (max_models < 1) return InvalidFieldError("max-models", "must be >= 1");
+  // httplib percent-decodes and trims header values before the server compares them: a key with
+  // '%', a space or a control character could never be sent as it is.
+  if (std::any_of(api_key.begin(), api_key.end(), [](char ch) {
+        const auto u = static_cast<unsigned char>(ch);
+        return ch == '%' || u <= 0x20 || u == 0x7f;
+      })) {
+    return InvalidFieldError("api-key",
+                             "must not hold '%', spaces or control characters (httplib decodes "
+                             "and trims the Authorization header)");
+  }
   if (api_key.empty() && !insecure && !IsLoopbackHost(host)) {
     return InvalidFieldError(
         "api-key", "listening on " + host +

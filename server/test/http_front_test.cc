@@ -313,6 +313,51 @@ TEST_F(HttpFrontTest, ABodyIsReadOnlyFromAClientWithTheBearerToken) {
             0u);
 }
 
+TEST_F(HttpFrontTest, AKeylessClientSendingALargeBodyReadsTheRefusal) {
+  // The refusal's lingering close dropped 4 MiB, then reset the connection: a robot with a
+  // mistyped key sending 24 MB of photos saw a broken pipe, not the 401.
+  HttpFrontOptions o;
+  o.max_body_bytes = 32 << 20;
+  o.body_authorization = "Bearer k3y";
+  Start(o);
+  const int fd = Connect();
+  const std::string chunk(64 << 10, 'x');
+  Send(fd,
+       "POST /echo HTTP/1.1\r\nContent-Length: " + std::to_string(384 * chunk.size()) + "\r\n\r\n");
+  bool sent = true;
+  for (int i = 0; i < 384 && sent; ++i) {
+    sent =
+        ::send(fd, chunk.data(), chunk.size(), MSG_NOSIGNAL) == static_cast<ssize_t>(chunk.size());
+  }
+  EXPECT_TRUE(sent);
+  const std::string reply = Read(fd);
+  EXPECT_EQ(reply.rfind("HTTP/1.1 401", 0), 0u) << reply.substr(0, 200);
+  ::close(fd);
+}
+
+TEST_F(HttpFrontTest, ContinueOnlyForHttp11RequestsWithABodyAndHeaderLinesAsHttplibCounts) {
+  Start(HttpFrontOptions{});
+  // RFC 9110 15.2: no 1xx to an HTTP/1.0 client; and none for a request without a body.
+  std::string reply = Exchange(
+      "POST /echo HTTP/1.0\r\nContent-Length: 3\r\n"
+      "Expect: 100-continue\r\n\r\nabc");
+  EXPECT_EQ(reply.find("100 Continue"), std::string::npos) << reply;
+  EXPECT_NE(reply.find("3:abc"), std::string::npos) << reply;
+  reply = Exchange("GET /healthz HTTP/1.1\r\nExpect: 100-continue\r\nConnection: close\r\n\r\n");
+  EXPECT_EQ(reply.rfind("HTTP/1.1 200", 0), 0u) << reply;
+  reply = Exchange(
+      "POST /echo HTTP/1.1\r\nContent-Length: 3\r\nExpect: 100-continue\r\n"
+      "Connection: close\r\n\r\nabc");
+  EXPECT_EQ(reply.rfind("HTTP/1.1 100 Continue", 0), 0u) << reply;
+  // httplib's header line bound counts the CRLF: 8,191 bytes and more are the front's 431.
+  for (size_t size : {8190u, 8191u}) {
+    const std::string line = "X-Pad: " + std::string(size - 7, 'p');
+    reply = Exchange("GET /healthz HTTP/1.1\r\n" + line + "\r\nConnection: close\r\n\r\n");
+    EXPECT_EQ(reply.rfind(size == 8190 ? "HTTP/1.1 200" : "HTTP/1.1 431", 0), 0u)
+        << size << ": " << reply.substr(0, 120);
+  }
+}
+
 TEST_F(HttpFrontTest, AHandlerSeesItsClientHangUp) {
   Start(HttpFrontOptions());
   const int fd = Connect();

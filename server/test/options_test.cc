@@ -35,6 +35,16 @@ TEST(ServerOptions, NetworkHostWithoutKeyIsRefusedNamingTheFlags) {
   }
 }
 
+TEST(ServerOptions, KeysHttplibWouldDecodeOrTrimAreRefused) {
+  // httplib percent-decodes and trims the Authorization header: such a key never matched.
+  for (const char* key : {"ab%41cd", "k ", "two words", "tab\tkey"}) {
+    const Status s = Listening("0.0.0.0", key).Validate();
+    EXPECT_FALSE(s.ok()) << key;
+    EXPECT_NE(s.message().find("api-key"), std::string::npos) << s.message();
+  }
+  EXPECT_TRUE(Listening("0.0.0.0", "s3cr-t_~+/=").Validate().ok());
+}
+
 TEST(ServerOptions, NetworkHostWithKeyOrInsecureIsAccepted) {
   EXPECT_TRUE(Listening("0.0.0.0", "a-key").Validate().ok());
   ServerOptions open = Listening("0.0.0.0");

@@ -11,6 +11,7 @@
 #include <fstream>
 #include <thread>
 
+#include "npfkct/server/models.h"
 #include "server_fixture.h"
 
 namespace npfkct::server {
@@ -159,6 +160,27 @@ TEST_F(ServerTest, BadInputGetsClearErrorsNamingTheField) {
   EXPECT_EQ(unknown_route.body["error"]["status"], "NOT_FOUND");
   // The session is intact after all that.
   EXPECT_EQ(Post(base + ":plan", {{"budget", {{"simulations", 50}}}}).status, 200);
+}
+
+TEST(ModelRegistryTest, AModelDroppedFromTheCacheIsReusedWhileSessionsHoldIt) {
+  // With --max-models 1, sessions alternating two models each loaded a copy of their own
+  // (+430 MiB for 160 sessions).
+  const std::string dir = ::testing::TempDir() + "/npfkct_models_lru_" + std::to_string(getpid());
+  std::filesystem::create_directories(dir);
+  for (const char* name : {"/a.pt", "/b.pt"}) {
+    std::filesystem::copy_file(NPFKCT_FILTER_MODEL, dir + name,
+                               std::filesystem::copy_options::overwrite_existing);
+  }
+  auto models = ModelRegistry::Open(dir, 1);
+  auto a = models->Get("a.pt");
+  auto b = models->Get("b.pt");  // drops a from the cache; the caller still holds it
+  auto again = models->Get("a.pt");
+  ASSERT_TRUE(a.ok() && b.ok() && again.ok());
+  EXPECT_EQ(a->get(), again->get());
+  auto b_again = models->Get("b.pt");
+  ASSERT_TRUE(b_again.ok());
+  EXPECT_EQ(b->get(), b_again->get());
+  std::filesystem::remove_all(dir);
 }
 
 TEST_F(ServerTest, FilterModelsAreNamedNeverPathsAndLoadedAtCreation) {

@@ -20,7 +20,8 @@ class NeuralFilter;
 
 namespace npfkct::server {
 
-/// The model files of one folder, loaded on first use and kept in a bounded cache.
+/// The model files of one folder, loaded on first use and kept in a bounded cache; a model
+/// dropped from it is loaded again only once no session holds it.
 class ModelRegistry {
  public:
   /// Lists `dir` once: regular files named like api::IsModelName ending in ".pt", of at most
@@ -43,6 +44,9 @@ class ModelRegistry {
   size_t max_loaded_ = 4;
   std::mutex mutex_;
   std::list<std::pair<std::string, std::shared_ptr<const filter::NeuralFilter>>> loaded_;  // LRU
+  // Models dropped from the cache, while sessions still hold them: reused instead of loading a
+  // second copy (with --max-models 1, sessions alternating two models each held their own copy).
+  std::map<std::string, std::weak_ptr<const filter::NeuralFilter>> dropped_;
 };
 
 /// Supplies NPF-kCT's candidate sampler for a session (Net_sam over a named model), or null for
