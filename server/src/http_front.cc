@@ -639,7 +639,8 @@ void HttpFront::Reactor() {
         return -1;
       }
       // HTTP/1.1 and HTTP/1.0 only (httplib answered others with a bare 400).
-      if (!request_line.ends_with(" HTTP/1.1") && !request_line.ends_with(" HTTP/1.0")) {
+      const bool http10 = request_line.ends_with(" HTTP/1.0");
+      if (!http10 && !request_line.ends_with(" HTTP/1.1")) {
         refuse(std::move(c), 505, "the HTTP version: only HTTP/1.1 and HTTP/1.0 are served");
         return -1;
       }
@@ -651,13 +652,14 @@ void HttpFront::Reactor() {
         return -1;
       }
       // Origin form only: httplib takes the query of a target such as "?/v1/..." for its path.
-      if (!TargetOf(request_line).starts_with('/')) {
+      const std::string_view target = TargetOf(request_line);
+      if (!target.starts_with('/')) {
         refuse(std::move(c), 400, "the request target must be a path starting with '/'");
         return -1;
       }
       // httplib decodes the path before routing: an encoded '/' or ':' would reach another route
       // than the one the raw path names (RFC 3986 2.2), past any proxy rule on the raw path.
-      if (EncodesSeparator(TargetOf(request_line))) {
+      if (EncodesSeparator(target)) {
         refuse(std::move(c), 404,
                "no route for a path with an encoded '/' or ':' (%2F, %3A, %u...): send them as "
                "they are");
@@ -776,8 +778,7 @@ void HttpFront::Reactor() {
       // Requests without Content-Length or Transfer-Encoding have no body (RFC 9112 6.3).
       size_t head_end = end + 4;
       // Not to HTTP/1.0 clients (RFC 9110 15.2), nor for a request without a body.
-      if (expect_continue && request_line.ends_with(" HTTP/1.1") &&
-          (c->chunked || c->content_length > 0)) {
+      if (expect_continue && !http10 && (c->chunked || c->content_length > 0)) {
         // The body is read here: answer the 100 here (httplib never sees the header).
         static const char kContinue[] = "HTTP/1.1 100 Continue\r\n\r\n";
         WriteAll(c->fd, kContinue, sizeof kContinue - 1, std::chrono::milliseconds(100));
@@ -790,19 +791,12 @@ void HttpFront::Reactor() {
       c->head_end = head_end;
       c->chunk_pos = head_end;
       // HTTP/1.0 closes unless the client asked to keep the connection (RFC 9112 9.3).
-      if (request_line.size() >= 8 &&
-          request_line.compare(request_line.size() - 8, 8, "HTTP/1.0") == 0 && !keep_alive_asked) {
-        c->close_asked = true;
-      }
-      const size_t sp1 = request_line.find(' ');
-      const size_t sp2 = request_line.find(' ', sp1 == std::string::npos ? 0 : sp1 + 1);
-      if (sp1 != std::string::npos && sp2 != std::string::npos) {
-        const std::string method = request_line.substr(0, sp1);
-        std::string path = request_line.substr(sp1 + 1, sp2 - sp1 - 1);
-        path = path.substr(0, path.find('?'));
-        c->health =
-            (method == "GET" || method == "HEAD") && (path == "/healthz" || path == "/metrics");
-      }
+      if (http10 && !keep_alive_asked) c->close_asked = true;
+      const std::string_view method =
+          std::string_view(request_line).substr(0, request_line.find(' '));
+      const std::string_view path = target.substr(0, target.find('?'));
+      c->health =
+          (method == "GET" || method == "HEAD") && (path == "/healthz" || path == "/metrics");
       c->deadline = Clock::now() + Seconds(options_.body_timeout_s);
     }
     if (!c->chunked) {

@@ -10,7 +10,6 @@
 #include <cmath>
 #include <condition_variable>
 #include <cstdio>
-#include <map>
 #include <mutex>
 #include <optional>
 #include <thread>
@@ -388,11 +387,7 @@ class PostgresStore : public SessionStore {
     std::string digest;
     std::optional<Param> photos;
     if (!record.target.photos.empty()) {
-      {
-        std::lock_guard<std::mutex> lock(photos_mutex_);
-        auto it = photos_kept_.find(record.id);
-        if (it != photos_kept_.end() && expected > 0) digest = it->second;
-      }
+      if (expected > 0) digest = photos_kept_.Find(record.id);
       if (digest.empty()) {
         PhotosBlob blob = EncodePhotosBlob(record.target.photos);
         if (blob.bytes.size() > options_.max_snapshot_bytes) {
@@ -412,11 +407,7 @@ class PostgresStore : public SessionStore {
           " bytes, more than the store's limit of " + std::to_string(options_.max_snapshot_bytes));
     }
     auto saved = SaveRow(record, expected, version, std::move(snapshot), std::move(photos));
-    if (saved.ok() && !digest.empty()) {
-      std::lock_guard<std::mutex> lock(photos_mutex_);
-      if (photos_kept_.size() >= kMaxPhotoDigestsKept) photos_kept_.clear();
-      photos_kept_[record.id] = digest;
-    }
+    if (saved.ok() && !digest.empty()) photos_kept_.Remember(record.id, digest);
     return saved;
   }
 
@@ -498,8 +489,7 @@ class PostgresStore : public SessionStore {
         Query(std::string("DELETE FROM ") + kTable + " WHERE id = $1 RETURNING 1", {{id}}, true);
     if (!r.ok()) return r.status();
     if (existed) *existed = PQntuples(r->get()) > 0;
-    std::lock_guard<std::mutex> lock(photos_mutex_);
-    photos_kept_.erase(id);
+    photos_kept_.Remember(id, "");
     return OkStatus();
   }
 
@@ -629,13 +619,7 @@ class PostgresStore : public SessionStore {
       if (!photos.ok()) return photos.status();
       loaded->record.target.photos = std::move(photos).value();
     }
-    std::lock_guard<std::mutex> lock(photos_mutex_);
-    if (digest.empty()) {
-      photos_kept_.erase(id);
-    } else {
-      if (photos_kept_.size() >= kMaxPhotoDigestsKept) photos_kept_.clear();
-      photos_kept_[id] = digest;
-    }
+    photos_kept_.Remember(id, digest);  // "" (photos in the snapshot) forgets
     return loaded;
   }
 
@@ -663,10 +647,7 @@ class PostgresStore : public SessionStore {
   const PostgresStoreOptions options_;
   const api::Limits limits_;
   Pool pool_;
-  // The digest of the photos this replica wrote to or read from a row, per id: a save names
-  // them instead of writing them again (absent: the save writes them).
-  std::mutex photos_mutex_;
-  std::map<std::string, std::string> photos_kept_;
+  PhotoDigests photos_kept_;  // of the photos this replica wrote to or read from a row
 };
 
 }  // namespace

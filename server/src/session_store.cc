@@ -166,6 +166,22 @@ StatusOr<std::vector<std::string>> SessionStore::DeleteExpired(size_t) {
   return std::vector<std::string>{};
 }
 
+std::string PhotoDigests::Find(const std::string& id) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  auto it = digests_.find(id);
+  return it == digests_.end() ? std::string() : it->second;
+}
+
+void PhotoDigests::Remember(const std::string& id, const std::string& digest) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (digest.empty()) {
+    digests_.erase(id);
+    return;
+  }
+  if (digests_.size() >= kMaxPhotoDigestsKept) digests_.clear();
+  digests_[id] = digest;
+}
+
 PhotosBlob EncodePhotosBlob(const std::vector<std::string>& photos) {
   PhotosBlob blob;
   blob.bytes = api::EncodePhotos(photos);
@@ -290,11 +306,7 @@ StatusOr<int64_t> DirectoryStore::Save(const api::SessionRecord& record, int64_t
   // The photos are written once, before the first snapshot that names them.
   std::string digest;
   if (!record.target.photos.empty()) {
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      auto it = photos_kept_.find(record.id);
-      if (it != photos_kept_.end()) digest = it->second;
-    }
+    digest = photos_kept_.Find(record.id);
     if (digest.empty()) {
       const PhotosBlob blob = EncodePhotosBlob(record.target.photos);
       if (!WriteDurably(dir_, PhotosPathOf(record.id), blob.bytes)) {
@@ -306,12 +318,9 @@ StatusOr<int64_t> DirectoryStore::Save(const api::SessionRecord& record, int64_t
   if (!WriteDurably(dir_, PathOf(record.id), EncodeSnapshot(record, version, digest))) {
     return Status(StatusCode::kUnavailable, "cannot store the session snapshot");
   }
+  if (!digest.empty()) photos_kept_.Remember(record.id, digest);
   std::lock_guard<std::mutex> lock(mutex_);
   versions_[record.id] = version;
-  if (!digest.empty()) {
-    if (photos_kept_.size() >= kMaxPhotoDigestsKept) photos_kept_.clear();
-    photos_kept_[record.id] = digest;
-  }
   return version;
 }
 
@@ -325,9 +334,9 @@ Status DirectoryStore::Delete(const std::string& id, bool* existed) {
   if (existed) *existed = r == 0;
   ::unlink(PhotosPathOf(id).c_str());  // an orphan left by a failure here goes at the next Open
   FsyncPath(dir_, true);
+  photos_kept_.Remember(id, "");
   std::lock_guard<std::mutex> lock(mutex_);
   versions_.erase(id);
-  photos_kept_.erase(id);
   return OkStatus();
 }
 
@@ -369,14 +378,10 @@ StatusOr<SessionStore::Loaded> DirectoryStore::Load(const std::string& id) {
     if (!photos.ok()) return photos.status();
     loaded->record.target.photos = std::move(photos).value();
   }
+  // Photos in the snapshot (digest ""): kept apart from the next save on.
+  photos_kept_.Remember(id, digest);
   std::lock_guard<std::mutex> lock(mutex_);
   versions_[id] = loaded->version;
-  if (digest.empty()) {
-    photos_kept_.erase(id);  // photos in the snapshot: kept apart from the next save on
-  } else {
-    if (photos_kept_.size() >= kMaxPhotoDigestsKept) photos_kept_.clear();
-    photos_kept_[id] = digest;
-  }
   return loaded;
 }
 

@@ -6,7 +6,6 @@
 #include <gtest/gtest.h>
 #include <sys/stat.h>
 #include <unistd.h>
-#include <zlib.h>
 
 #include <chrono>
 #include <filesystem>
@@ -14,6 +13,7 @@
 #include <thread>
 
 #include "npfkct/api/api.h"
+#include "npfkct/api/wire.h"
 
 namespace npfkct::server {
 namespace {
@@ -33,29 +33,7 @@ api::SessionRecord Record(const std::string& id) {
 
 // A grey PNG of `side` x `side` pixels of value `shade`.
 std::string Png(int side, unsigned char shade) {
-  auto chunk = [](const std::string& type, const std::string& data) {
-    std::string out;
-    for (int shift : {24, 16, 8, 0}) out.push_back(static_cast<char>(data.size() >> shift));
-    const std::string body = type + data;
-    out += body;
-    const uLong crc = crc32(0L, reinterpret_cast<const Bytef*>(body.data()), body.size());
-    for (int shift : {24, 16, 8, 0}) out.push_back(static_cast<char>(crc >> shift));
-    return out;
-  };
-  std::string ihdr;
-  for (int v : {side, side}) {
-    for (int shift : {24, 16, 8, 0}) ihdr.push_back(static_cast<char>(v >> shift));
-  }
-  ihdr += std::string("\x08\x00\x00\x00\x00", 5);  // 8-bit grey, no interlace
-  std::string raw;
-  for (int y = 0; y < side; ++y) raw += '\0' + std::string(side, static_cast<char>(shade));
-  uLongf size = compressBound(raw.size());
-  std::string idat(size, '\0');
-  compress(reinterpret_cast<Bytef*>(idat.data()), &size, reinterpret_cast<const Bytef*>(raw.data()),
-           raw.size());
-  idat.resize(size);
-  return std::string("\x89PNG\r\n\x1a\n", 8) + chunk("IHDR", ihdr) + chunk("IDAT", idat) +
-         chunk("IEND", "");
+  return api::EncodePng(cv::Mat(side, side, CV_8UC1, cv::Scalar(shade))).value();
 }
 
 std::string ReadFile(const fs::path& p) {

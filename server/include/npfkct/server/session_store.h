@@ -113,6 +113,20 @@ StatusOr<std::vector<std::string>> DecodePhotosBlob(std::string_view bytes, std:
 /// once).
 inline constexpr size_t kMaxPhotoDigestsKept = 100'000;
 
+/// The digest of the photos a store wrote or read, per session id: a save that finds one names
+/// the photos instead of writing them again. Bounded by kMaxPhotoDigestsKept. Thread-safe.
+class PhotoDigests {
+ public:
+  /// The digest remembered for `id`, or "" (the next save writes the photos).
+  std::string Find(const std::string& id) const;
+  /// Remembers `digest` for `id`; an empty one forgets it.
+  void Remember(const std::string& id, const std::string& digest);
+
+ private:
+  mutable std::mutex mutex_;
+  std::map<std::string, std::string> digests_;
+};
+
 /// What a store that lists from summaries keeps beside `record`: its API view
 /// (api::EncodeSessionSummary of Session::ViewOf), a few hundred bytes.
 std::string SummaryOf(const api::SessionRecord& record);
@@ -152,8 +166,7 @@ class DirectoryStore : public SessionStore {
   size_t max_bytes_;
   std::mutex mutex_;
   std::map<std::string, int64_t> versions_;  // last version saved or loaded, per id
-  // The digest of the photos file written or read, per id (absent: write it at the next save).
-  std::map<std::string, std::string> photos_kept_;
+  PhotoDigests photos_kept_;                 // of the photos files written or read
 };
 
 }  // namespace npfkct::server
