@@ -298,13 +298,16 @@ Prediction NeuralFilter::Predict(const SceneFeatures& scene,
     const int64_t rows = std::min(kBlock, n - a);
     const torch::Tensor block = torch::from_blob(const_cast<float*>(queries.data() + a * kQueryDim),
                                                  {1, rows, kQueryDim}, torch::kFloat32);
+    // Network k's mu and sigma of the block.
+    auto predict = [&](size_t k) {
+      NpNet& net = impl_->members[k];
+      const Encoded& e = encoded[k];
+      const torch::Tensor xt = net->EncodeQuery(block);
+      return net->Decode(e.scene, xt, net->Deterministic(e.scene, e.xc, yc, xt), e.z);
+    };
     torch::Tensor mu, sigma;
     if (members == 1) {
-      NpNet& net = impl_->members[0];
-      const Encoded& e = encoded[0];
-      const torch::Tensor xt = net->EncodeQuery(block);
-      std::tie(mu, sigma) =
-          net->Decode(e.scene, xt, net->Deterministic(e.scene, e.xc, yc, xt), e.z);
+      std::tie(mu, sigma) = predict(0);
     } else {
       // The mixture's first two moments.
       torch::Tensor sum_mu, sum_second;
@@ -312,11 +315,7 @@ Prediction NeuralFilter::Predict(const SceneFeatures& scene,
         // Each network costs one prediction: after the first block the search's stop is heard
         // between them too (the block is then dropped).
         if (a > 0 && k > 0 && stop != nullptr && stop->ShouldStop(0)) return out;
-        NpNet& net = impl_->members[k];
-        const Encoded& e = encoded[k];
-        const torch::Tensor xt = net->EncodeQuery(block);
-        auto [mu_k, sigma_k] =
-            net->Decode(e.scene, xt, net->Deterministic(e.scene, e.xc, yc, xt), e.z);
+        auto [mu_k, sigma_k] = predict(k);
         const torch::Tensor second = sigma_k * sigma_k + mu_k * mu_k;
         sum_mu = k == 0 ? mu_k : sum_mu + mu_k;
         sum_second = k == 0 ? second : sum_second + second;

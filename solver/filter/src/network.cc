@@ -204,18 +204,18 @@ bool WellShaped(const NpNet& net) {
            static_cast<size_t>(t.storage_offset() + t.numel()) * t.element_size() <=
                t.storage().nbytes();
   };
-  const auto params = net->named_parameters(), want_params = fresh->named_parameters();
-  const auto buffers = net->named_buffers(), want_buffers = fresh->named_buffers();
-  if (params.size() != want_params.size() || buffers.size() != want_buffers.size()) return false;
-  for (const auto& p : want_params) {
-    const torch::Tensor* t = params.find(p.key());
-    if (t == nullptr || !dense(*t, p.value())) return false;
-  }
-  for (const auto& b : want_buffers) {
-    const torch::Tensor* t = buffers.find(b.key());
-    if (t == nullptr || !dense(*t, b.value())) return false;
-  }
-  return true;
+  // The same names, each tensor dense with the shape and type of the new network's.
+  auto same = [&](const torch::OrderedDict<std::string, torch::Tensor>& have,
+                  const torch::OrderedDict<std::string, torch::Tensor>& want) {
+    if (have.size() != want.size()) return false;
+    for (const auto& w : want) {
+      const torch::Tensor* t = have.find(w.key());
+      if (t == nullptr || !dense(*t, w.value())) return false;
+    }
+    return true;
+  };
+  return same(net->named_parameters(), fresh->named_parameters()) &&
+         same(net->named_buffers(), fresh->named_buffers());
 }
 
 }  // namespace

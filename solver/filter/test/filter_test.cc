@@ -536,16 +536,32 @@ TEST(TrainTest, ScheduleOptionsNameTheBadField) {
   EXPECT_NE(o.Validate().message().find("patience"), std::string::npos);
 }
 
-TEST(TrainTest, TrainsSavesTheBestEpochAndReloads) {
-  auto train = GenerateDataset(SmallGeneration(24, 21));
-  auto val = GenerateDataset(SmallGeneration(8, 22));
-  ASSERT_TRUE(train.ok() && val.ok());
+// Training options for the small data sets of these tests.
+TrainOptions SmallTraining(int epochs) {
   TrainOptions o;
-  o.epochs = 2;
+  o.epochs = epochs;
   o.batch = 8;
   o.min_context = 4;
   o.max_context = 12;
   o.eval_context = 8;
+  return o;
+}
+
+// A sample's first `context` queries with their scores, and the rest, as Predict takes them.
+struct ContextAndQueries {
+  std::vector<float> context_queries, context_scores, queries;
+};
+ContextAndQueries Split(const Sample& s, size_t context) {
+  return {std::vector<float>(s.queries.begin(), s.queries.begin() + context * kQueryDim),
+          std::vector<float>(s.scores.begin(), s.scores.begin() + context),
+          std::vector<float>(s.queries.begin() + context * kQueryDim, s.queries.end())};
+}
+
+TEST(TrainTest, TrainsSavesTheBestEpochAndReloads) {
+  auto train = GenerateDataset(SmallGeneration(24, 21));
+  auto val = GenerateDataset(SmallGeneration(8, 22));
+  ASSERT_TRUE(train.ok() && val.ok());
+  TrainOptions o = SmallTraining(2);
   const std::string path = TempPath("model.pt");
   int steps = 0;
   auto report = TrainFilter(*train, *val, o, path, [&](int, int, int, double) { ++steps; });
@@ -557,10 +573,9 @@ TEST(TrainTest, TrainsSavesTheBestEpochAndReloads) {
   auto filter = NeuralFilter::Load(path);
   ASSERT_TRUE(filter.ok()) << filter.status().ToString();
   const Sample& s = val->samples[0];
-  const std::vector<float> cq(s.queries.begin(), s.queries.begin() + 8 * kQueryDim);
-  const std::vector<float> cs(s.scores.begin(), s.scores.begin() + 8);
-  const std::vector<float> q(s.queries.begin() + 8 * kQueryDim, s.queries.end());
-  const Prediction p = (*filter)->Predict(s.scene, cq, cs, q);
+  const ContextAndQueries in = Split(s, 8);
+  const Prediction p =
+      (*filter)->Predict(s.scene, in.context_queries, in.context_scores, in.queries);
   ASSERT_EQ(p.mu.size(), 16u);
   for (size_t i = 0; i < p.mu.size(); ++i) {
     EXPECT_GE(p.mu[i], 0.0f);
@@ -577,26 +592,19 @@ TEST(TrainTest, AnEnsemblePredictsTheMixtureOfItsNetworks) {
   auto train = GenerateDataset(SmallGeneration(16, 31));
   auto val = GenerateDataset(SmallGeneration(4, 32));
   ASSERT_TRUE(train.ok() && val.ok());
-  TrainOptions o;
-  o.epochs = 1;
-  o.batch = 8;
-  o.min_context = 4;
-  o.max_context = 12;
-  o.eval_context = 8;
+  TrainOptions o = SmallTraining(1);
   const std::string a = TempPath("a.pt"), b = TempPath("b.pt"), out = TempPath("ab.pt");
   ASSERT_TRUE(TrainFilter(*train, *val, o, a).ok());
   o.seed = 2;
   ASSERT_TRUE(TrainFilter(*train, *val, o, b).ok());
   const Sample& s = val->samples[0];
-  const std::vector<float> cq(s.queries.begin(), s.queries.begin() + 8 * kQueryDim);
-  const std::vector<float> cs(s.scores.begin(), s.scores.begin() + 8);
-  const std::vector<float> q(s.queries.begin() + 8 * kQueryDim, s.queries.end());
+  const ContextAndQueries in = Split(s, 8);
   auto predict = [&](const std::string& path, int members) {
     auto f = NeuralFilter::Load(path);
     EXPECT_TRUE(f.ok()) << f.status().ToString();
     if (!f.ok()) return Prediction();
     EXPECT_EQ((*f)->members(), members);
-    return (*f)->Predict(s.scene, cq, cs, q);
+    return (*f)->Predict(s.scene, in.context_queries, in.context_scores, in.queries);
   };
   const Prediction pa = predict(a, 1), pb = predict(b, 1);
   ASSERT_EQ(pa.mu.size(), 16u);
