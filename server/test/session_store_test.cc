@@ -127,6 +127,15 @@ TEST_F(DirectoryStoreTest, TargetPhotosAreWrittenOnceAndRestored) {
     auto store = Open();
     EXPECT_EQ(store->Load(kA).status().code(), StatusCode::kDataLoss) << bad.size();
   }
+  // One past the store's cap (a sparse 2 GiB file) is refused by its size, unread.
+  std::ofstream(photos, std::ios::binary | std::ios::trunc) << good;
+  fs::resize_file(photos, 2ull << 30);
+  {
+    auto store = Open();
+    const Status huge = store->Load(kA).status();
+    EXPECT_EQ(huge.code(), StatusCode::kDataLoss);
+    EXPECT_NE(huge.message().find("more than the cap"), std::string::npos) << huge.ToString();
+  }
   std::ofstream(photos, std::ios::binary | std::ios::trunc) << good;
   // A snapshot of before, with its photos inside, loads; its next save keeps them apart.
   api::SessionRecord b = Record(kB);
