@@ -645,6 +645,22 @@ def test_bodies_past_the_limit_in_any_framing_and_ranges(hostile_server):
     reply = raw_exchange(port, b"POST /v1/sessions HTTP/1.1\r\nContent-Encoding: gzip\r\n"
                          b"Content-Length: %d\r\n\r\n" % len(gz) + gz)
     assert status_of(reply) == 415, reply[:200]
+    assert b"X-Content-Type-Options: nosniff" in reply  # the front's own answers too
+    # Every Content-Encoding header counts, not the last (httplib inflates by the first): a
+    # valid create compressed, then an empty or identity header, was inflated and answered 200.
+    small = zlib.compressobj(6, zlib.DEFLATED, 31)
+    body = json.dumps({"world": world_of("loose1"), "seed": 1,
+                       "planner": {"name": "kct", "particles": 50}}).encode()
+    gz = small.compress(body) + small.flush()
+    for heads in [[b"gzip", b""], [b"gzip", b"identity"], [b"identity", b"gzip"],
+                  [b"identity, gzip"], [b"deflate", b"identity"]]:
+        head = b"".join(b"Content-Encoding: " + h + b"\r\n" for h in heads)
+        reply = raw_exchange(port, b"POST /v1/sessions HTTP/1.1\r\n" + head +
+                             b"Content-Length: %d\r\n\r\n" % len(gz) + gz)
+        assert status_of(reply) == 415, (heads, reply[:300])
+    reply = raw_exchange(port, b"POST /v1/sessions HTTP/1.1\r\nContent-Encoding: identity\r\n"
+                         b"Content-Encoding:\r\nContent-Length: 2\r\n\r\n{}")
+    assert status_of(reply) == 400, reply[:300]  # read as is: an empty create names its field
     # No length, no chunking: no body (answered at once, not read until the client closes).
     t = time.monotonic()
     reply = raw_exchange(port, b"POST /v1/sessions HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n{\"world\": 1}")

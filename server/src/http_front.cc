@@ -465,7 +465,8 @@ bool HttpFront::process_and_close_socket(socket_t sock) {
     const std::string body = render_error_(429, "too many open connections; retry later");
     const std::string reply =
         "HTTP/1.1 429 Too Many Requests\r\nContent-Type: application/json\r\n"
-        "Retry-After: 1\r\nConnection: close\r\nContent-Length: " +
+        "X-Content-Type-Options: nosniff\r\nRetry-After: 1\r\nConnection: close\r\n"
+        "Content-Length: " +
         std::to_string(body.size()) + "\r\n\r\n" + body;
     WriteAll(sock, reply.data(), reply.size(), std::chrono::milliseconds(100));
     if (observe_) observe_(429);
@@ -574,7 +575,8 @@ void HttpFront::Reactor() {
                     size_t drain = 4u << 20, double drain_s = 1.0) {
     const std::string body = render_error_(status, message);
     std::string reply = "HTTP/1.1 " + std::to_string(status) + " " + Reason(status) +
-                        "\r\nContent-Type: application/json\r\nConnection: close\r\n";
+                        "\r\nContent-Type: application/json\r\nX-Content-Type-Options: "
+                        "nosniff\r\nConnection: close\r\n";
     if (status == 429) reply += "Retry-After: 1\r\n";
     reply += "Content-Length: " + std::to_string(body.size()) + "\r\n\r\n" + body;
     WriteAll(c->fd, reply.data(), reply.size(), std::chrono::milliseconds(100));
@@ -708,7 +710,17 @@ void HttpFront::Reactor() {
           authorization = httplib::detail::decode_url(value, false);
           authorization_seen = true;
         } else if (name == "content-encoding") {
-          content_encoding = Lower(value);
+          // Every value and every coding in it: httplib inflates by the first header alone, so
+          // "gzip" then "identity" would pass a check of the last one. Hidden from httplib too.
+          for (size_t a = 0; a <= value.size();) {
+            const size_t b = std::min(value.find(',', a), value.size());
+            const std::string coding = Lower(Trim(value.substr(a, b - a)));
+            if (!coding.empty() && coding != "identity" && content_encoding.empty()) {
+              content_encoding = coding;
+            }
+            a = b + 1;
+          }
+          hidden.emplace_back(pos, next + 2 - pos);
         } else if (name == "connection") {
           // A list of case-insensitive tokens (RFC 9110 7.6.1); httplib matches "close" alone.
           for (size_t a = 0; a <= value.size();) {
@@ -733,9 +745,9 @@ void HttpFront::Reactor() {
         }
         pos = next + 2;
       }
-      if (!content_encoding.empty() && content_encoding != "identity") {
+      if (!content_encoding.empty()) {
         refuse(std::move(c), 415,
-               "Content-Encoding '" + content_encoding + "' is not accepted; send the body as is");
+               "Content-Encoding: only 'identity' is accepted; send the body as is");
         return -1;
       }
       if (!transfer_encoding.empty()) {
