@@ -32,10 +32,11 @@ for step in $(seq 50); do
   action="$(echo "$plan" | field 'json.dumps(d["action"])')"
   echo "$action" >&3
   read -r reply <&4
-  echo "$reply" | python3 -c "
+  # The server's answers reach Python as data (argv), never as source.
+  echo "$reply" | python3 -c '
 import json, sys
-d = json.load(sys.stdin); o = d['observation']; o['actionId'] = '$action_id'
-json.dump(o, open('$tmp/observe.json', 'w'))" 
+d = json.load(sys.stdin); o = d["observation"]; o["actionId"] = sys.argv[1]
+json.dump(o, open(sys.argv[2], "w"))' "$action_id" "$tmp/observe.json"
   "$here/observe.sh" "$id" "$tmp/observe.json" > "$tmp/observed.json"
   echo "step $step: $(echo "$plan" | field 'd["action"]["type"]') -> $(echo "$reply" | field 'd["outcome"]["detail"]')"
   if [ "$(echo "$reply" | field 'd["outcome"]["terminal"]')" = "True" ]; then

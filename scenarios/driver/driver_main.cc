@@ -31,12 +31,15 @@ struct Options {
   bool keep = false;
   bool quiet = false;
   bool raw = false;
+  double timeout_s = 120;
 };
 
 std::string Describe(const json& action) {
   const std::string type = action.value("type", "?");
   if (type != "MOVE") return type + " " + action.value("objectId", "?");
-  const json& c = action["configuration"];
+  const auto it = action.find("configuration");
+  if (it == action.end() || !it->is_object()) return "MOVE ?";
+  const json& c = *it;
   char buf[160];
   std::snprintf(buf, sizeof buf, "MOVE x=%.2f y=%.2f yaw=%.2f lift=%.2f pan=%.2f tilt=%.2f",
                 c.value("x", 0.0), c.value("y", 0.0), c.value("yaw", 0.0), c.value("lift", 0.0),
@@ -47,6 +50,55 @@ std::string Describe(const json& action) {
 int Fail(const std::string& what, const npfkct::Status& status) {
   std::cerr << "npfkct-drive: " << what << ": " << status.ToString() << "\n";
   return 1;
+}
+
+// Plays the scenario in session `created` (the create call's reply); the exit status.
+int Drive(const Options& o, const npfkct::sim::Scenario& scenario, npfkct::sim::ApiRobot* robot_ptr,
+          npfkct::client::Client* api_ptr, const json& created, int max_steps) {
+  npfkct::sim::ApiRobot& robot = *robot_ptr;
+  npfkct::client::Client& api = *api_ptr;
+  const std::string id = created.at("id").get<std::string>();
+  if (!o.quiet) {
+    const std::string model = created.at("planner").value("model", "");
+    std::printf("session %s (%s%s) on %s\n", id.c_str(), o.planner.c_str(),
+                o.planner != "npfkct" ? ""
+                : model.empty()       ? ", uniform candidates"
+                                      : (", model " + model).c_str(),
+                scenario.name.c_str());
+  }
+
+  double discounted = 0.0, discount = 1.0;
+  bool success = false;
+  int steps = 0;
+  for (int t = 0; t < max_steps; ++t) {
+    auto planned = api.Plan(id, o.budget_ms, o.simulations);
+    if (!planned.ok()) return Fail("planning", planned.status());
+    const json& plan = *planned;
+    const json& action = plan.at("action");
+    const npfkct::sim::ExecutionOutcome outcome = robot.Execute(action);
+    discounted += discount * outcome.reward;
+    discount *= scenario.params.discount;
+    ++steps;
+    json observation = o.raw ? robot.ObserveRaw(!outcome.illegal) : robot.Observe(!outcome.illegal);
+    observation["actionId"] = plan.at("actionId");
+    auto observed = api.Observe(id, observation);
+    if (!observed.ok()) return Fail("observing", observed.status());
+    if (!o.quiet) {
+      std::printf("step %2d: %-62s %-38s sims %8lld  value %9.1f\n", t + 1,
+                  Describe(action).c_str(), outcome.detail.c_str(),
+                  static_cast<long long>(plan.at("stats").at("simulations").get<int64_t>()),
+                  plan.at("expectedValue").get<double>());
+      std::fflush(stdout);
+    }
+    if (outcome.terminal) {
+      success = true;
+      break;
+    }
+  }
+  std::printf("outcome: %s after %d steps, discounted reward %.1f\n",
+              success ? "target removed" : "target not removed", steps, discounted);
+  if (!o.keep) (void)api.DeleteSession(id);
+  return success ? 0 : 3;
 }
 
 }  // namespace
@@ -62,6 +114,8 @@ int main(int argc, char** argv) {
                  "the server's --model-dir, e.g. filter.pt; \"\" for none; default: the "
                  "server's default model)");
   app.add_option("--api-key", o.api_key, "bearer token");
+  app.add_option("--timeout", o.timeout_s, "seconds a call to the server may take in all")
+      ->check(CLI::Range(0.001, 1e6));
   app.add_option("--budget-ms", o.budget_ms, "planning time per step");
   app.add_option("--simulations", o.simulations, "simulations per step (0: time only)");
   app.add_option("--seed", o.seed, "seed of the simulated world and of the session");
@@ -85,7 +139,7 @@ int main(int argc, char** argv) {
   npfkct::sim::ApiRobot robot(*scenario, o.seed);
   const int max_steps = o.max_steps > 0 ? o.max_steps : scenario->params.max_steps;
 
-  npfkct::client::Client api(o.server, o.api_key);
+  npfkct::client::Client api(o.server, o.api_key, o.timeout_s);
   json create = {{"displayName", "npfkct-drive " + scenario->name},
                  {"world", npfkct::sim::WorldJsonOf(scenario_json)},
                  {"planner", {{"name", o.planner}}},
@@ -94,46 +148,13 @@ int main(int argc, char** argv) {
   if (o.raw) create["target"] = {{"photos", robot.TargetPhotosJson()}};
   auto session = api.CreateSession(create);
   if (!session.ok()) return Fail("creating the session", session.status());
-  const std::string id = (*session)["id"];
-  if (!o.quiet) {
-    const std::string model = (*session)["planner"].value("model", "");
-    std::printf("session %s (%s%s) on %s\n", id.c_str(), o.planner.c_str(),
-                o.planner != "npfkct" ? ""
-                : model.empty()       ? ", uniform candidates"
-                                      : (", model " + model).c_str(),
-                scenario->name.c_str());
+  // The server's replies are read with checked access: a reply that is not what the API
+  // describes ends the run with an error naming it, not an abort.
+  try {
+    return Drive(o, *scenario, &robot, &api, *session, max_steps);
+  } catch (const json::exception& e) {
+    std::cerr << "npfkct-drive: the server's reply is not what the API describes: " << e.what()
+              << "\n";
+    return 1;
   }
-
-  double discounted = 0.0, discount = 1.0;
-  bool success = false;
-  int steps = 0;
-  for (int t = 0; t < max_steps; ++t) {
-    auto planned = api.Plan(id, o.budget_ms, o.simulations);
-    if (!planned.ok()) return Fail("planning", planned.status());
-    const json& plan = *planned;
-    const json& action = plan["action"];
-    const npfkct::sim::ExecutionOutcome outcome = robot.Execute(action);
-    discounted += discount * outcome.reward;
-    discount *= scenario->params.discount;
-    ++steps;
-    json observation = o.raw ? robot.ObserveRaw(!outcome.illegal) : robot.Observe(!outcome.illegal);
-    observation["actionId"] = plan["actionId"];
-    auto observed = api.Observe(id, observation);
-    if (!observed.ok()) return Fail("observing", observed.status());
-    if (!o.quiet) {
-      std::printf("step %2d: %-62s %-38s sims %8lld  value %9.1f\n", t + 1,
-                  Describe(action).c_str(), outcome.detail.c_str(),
-                  static_cast<long long>(plan["stats"]["simulations"].get<int64_t>()),
-                  plan["expectedValue"].get<double>());
-      std::fflush(stdout);
-    }
-    if (outcome.terminal) {
-      success = true;
-      break;
-    }
-  }
-  std::printf("outcome: %s after %d steps, discounted reward %.1f\n",
-              success ? "target removed" : "target not removed", steps, discounted);
-  if (!o.keep) (void)api.DeleteSession(id);
-  return success ? 0 : 3;
 }

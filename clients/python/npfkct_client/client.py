@@ -4,9 +4,14 @@ from __future__ import annotations
 
 import base64
 import dataclasses
+import email.utils
 import json
+import math
+import socket
 import struct
-from typing import Any, Dict, Iterable, List, Optional, Sequence, Tuple
+import threading
+import time
+from typing import Any, Callable, Dict, Iterable, List, Optional, Sequence, Tuple
 
 import requests
 
@@ -206,39 +211,129 @@ class Observation:
     perception: Optional[Dict[str, Any]] = None  # what perception made of raw data
 
 
-class NpfkctClient:
-    """Client of one npfkct server. Every call raises ApiError on an error response."""
+def _retry_after(value: Optional[str]) -> Optional[float]:
+    """Retry-After as seconds (RFC 9110 10.2.3: a number of seconds or an HTTP date); None when
+    absent or unreadable."""
+    if not value:
+        return None
+    try:
+        seconds = float(value)
+    except ValueError:
+        try:
+            when = email.utils.parsedate_to_datetime(value)
+        except (TypeError, ValueError, IndexError):
+            return None
+        if when is None or when.tzinfo is None:
+            return None
+        seconds = when.timestamp() - time.time()
+    return max(seconds, 0.0) if math.isfinite(seconds) else None
 
-    def __init__(self, base_url: str, api_key: Optional[str] = None, timeout: float = 120.0):
+
+def _strings(j: Any, *keys: str) -> List[str]:
+    """The members `keys` of `j` as strings ("" where `j` is no object or a member no string)."""
+    return [j.get(k) if isinstance(j, dict) and isinstance(j.get(k), str) else "" for k in keys]
+
+
+def _typed(convert: Callable[[Any], Any], reply: Any) -> Any:
+    """convert(reply), an ApiError (DATA_LOSS) where the reply is not what the API describes."""
+    try:
+        return convert(reply)
+    except (KeyError, TypeError, ValueError, AttributeError, IndexError) as e:
+        raise ApiError(200, "DATA_LOSS",
+                       f"the server's reply is not what the API describes: {e!r}") from None
+
+
+class NpfkctClient:
+    """Client of one npfkct server. Every call raises ApiError on an error response, and on a
+    reply larger than `max_reply_bytes`, not JSON or nested deeper than Python's parser goes;
+    `timeout` bounds each wait for the server, and, once the reply's head has come, the whole
+    reply (a server sending a byte at a time is cut off)."""
+
+    def __init__(self, base_url: str, api_key: Optional[str] = None, timeout: float = 120.0,
+                 max_reply_bytes: int = 64 << 20):
         self.base_url = base_url.rstrip("/")
         self.timeout = timeout
+        self.max_reply_bytes = max_reply_bytes
         self._http = requests.Session()
         if api_key:
             self._http.headers["Authorization"] = f"Bearer {api_key}"
 
     # -- transport --
 
+    def _read(self, response: requests.Response) -> bytes:
+        """The reply's body, up to max_reply_bytes, within `timeout` seconds in all."""
+        expired = threading.Event()
+
+        def cut_off():
+            expired.set()
+            # Shut the socket: a read blocked in another thread wakes only then (close() alone
+            # leaves it waiting for the next byte).
+            try:
+                response.raw._fp.fp.raw._sock.shutdown(socket.SHUT_RDWR)
+            except (AttributeError, OSError):
+                pass
+            response.close()
+
+        timer = threading.Timer(self.timeout, cut_off)
+        timer.daemon = True
+        timer.start()
+        chunks, size = [], 0
+        try:
+            for chunk in response.iter_content(65536):
+                size += len(chunk)
+                if size > self.max_reply_bytes:
+                    raise ApiError(response.status_code, "RESOURCE_EXHAUSTED",
+                                   f"the reply is larger than {self.max_reply_bytes} bytes")
+                chunks.append(chunk)
+        except (requests.RequestException, OSError, AttributeError, ValueError):
+            if not expired.is_set():
+                raise
+        finally:
+            timer.cancel()
+            response.close()
+        if expired.is_set():
+            raise ApiError(response.status_code, "DEADLINE_EXCEEDED",
+                           f"the reply did not arrive whole within {self.timeout} s")
+        return b"".join(chunks)
+
+    @staticmethod
+    def _json(status: int, content: bytes) -> Any:
+        try:
+            return json.loads(content)
+        except RecursionError:
+            raise ApiError(status, "DATA_LOSS", "the reply nests too deeply") from None
+
     def _call(self, method: str, path: str, body: Optional[Dict[str, Any]] = None,
               params: Optional[Dict[str, Any]] = None, raw: bool = False):
         response = self._http.request(
-            method, self.base_url + path, params=params, timeout=self.timeout,
+            method, self.base_url + path, params=params, timeout=self.timeout, stream=True,
             data=None if body is None else json.dumps(body),
             headers={"Content-Type": "application/json"} if body is not None else None)
+        content = self._read(response)
         if response.status_code >= 400:
             try:
-                err = response.json()["error"]
-            except (ValueError, KeyError, TypeError):
-                raise ApiError(response.status_code, "UNKNOWN", response.text) from None
-            violations = [(v.get("field", ""), v.get("description", ""))
-                           for detail in err.get("details", [])
-                           for v in detail.get("fieldViolations", [])]
-            retry_after = response.headers.get("Retry-After")
-            raise ApiError(response.status_code, err.get("status", "UNKNOWN"),
-                           err.get("message", ""), violations[0][0] if violations else "",
-                           violations, float(retry_after) if retry_after else None)
+                err = self._json(response.status_code, content)["error"]
+            except (ValueError, KeyError, TypeError, ApiError):
+                err = None
+            if not isinstance(err, dict):
+                raise ApiError(response.status_code, "UNKNOWN",
+                               content[:4096].decode("utf-8", "replace"))
+            details = err.get("details")
+            violations = [tuple(_strings(v, "field", "description"))
+                          for detail in (details if isinstance(details, list) else [])
+                          if isinstance(detail, dict)
+                          and isinstance(detail.get("fieldViolations"), list)
+                          for v in detail["fieldViolations"] if isinstance(v, dict)]
+            status, message = _strings(err, "status", "message")
+            raise ApiError(response.status_code, status or "UNKNOWN", message,
+                           violations[0][0] if violations else "", violations,
+                           _retry_after(response.headers.get("Retry-After")))
         if raw:
-            return response
-        return response.json()
+            return content
+        try:
+            return self._json(response.status_code, content)
+        except ValueError:
+            raise ApiError(response.status_code, "DATA_LOSS", "the reply is not JSON") from None
 
     # -- API --
 
@@ -246,7 +341,7 @@ class NpfkctClient:
         return self._call("GET", "/healthz")
 
     def metrics(self) -> str:
-        return self._call("GET", "/metrics", raw=True).text
+        return self._call("GET", "/metrics", raw=True).decode("utf-8", "replace")
 
     def create_session(self, world: Dict[str, Any], planner: str = "npfkct",
                        particles: Optional[int] = None,
@@ -278,23 +373,30 @@ class NpfkctClient:
                 body["target"]["description"] = target_description
             if target_photos:
                 body["target"]["photos"] = [base64.b64encode(p).decode() for p in target_photos]
-        return Session.from_json(self._call("POST", "/v1/sessions", body))
+        return _typed(Session.from_json, self._call("POST", "/v1/sessions", body))
 
     def get_session(self, session_id: str) -> Session:
-        return Session.from_json(self._call("GET", f"/v1/sessions/{session_id}"))
+        return _typed(Session.from_json, self._call("GET", f"/v1/sessions/{session_id}"))
 
     def list_sessions(self, page_size: int = 50) -> List[Session]:
         sessions: List[Session] = []
         token = ""
-        while True:
+        seen = set()
+        # A server holds at most --max-sessions (or, in a fleet, --max-stored-sessions) sessions:
+        # pages beyond 10,000, or a token given twice, are a server going round in circles.
+        for _ in range(10000):
             params: Dict[str, Any] = {"pageSize": page_size}
             if token:
                 params["pageToken"] = token
             page = self._call("GET", "/v1/sessions", params=params)
-            sessions += [Session.from_json(s) for s in page["sessions"]]
-            token = page.get("nextPageToken", "")
+            sessions += _typed(lambda p: [Session.from_json(s) for s in p["sessions"]], page)
+            token = _typed(lambda p: p.get("nextPageToken", ""), page)
             if not token:
                 return sessions
+            if not isinstance(token, str) or token in seen:
+                raise ApiError(200, "DATA_LOSS", "the server's page tokens go round in circles")
+            seen.add(token)
+        raise ApiError(200, "DATA_LOSS", "the server's session list has more than 10,000 pages")
 
     def delete_session(self, session_id: str) -> None:
         self._call("DELETE", f"/v1/sessions/{session_id}")
@@ -311,7 +413,7 @@ class NpfkctClient:
         if simulations is not None:
             budget["simulations"] = simulations
         body = {"budget": budget} if budget else {}
-        return Plan.from_json(self._call("POST", f"/v1/sessions/{session_id}:plan", body))
+        return _typed(Plan.from_json, self._call("POST", f"/v1/sessions/{session_id}:plan", body))
 
     def observe(self, session_id: str, action_id: str,
                 robot_state: Optional[RobotConfig] = None,
@@ -341,13 +443,13 @@ class NpfkctClient:
                 body["semanticScores"] = dict(semantic_scores)
         body = dict(body, actionId=action_id)
         j = self._call("POST", f"/v1/sessions/{session_id}:observe", body)
-        return Observation(done=j["done"], reward=j["reward"],
-                           session=Session.from_json(j["session"]),
-                           perception=j.get("perception"))
+        return _typed(lambda j: Observation(done=j["done"], reward=j["reward"],
+                                            session=Session.from_json(j["session"]),
+                                            perception=j.get("perception")), j)
 
     def belief(self, session_id: str) -> Dict[str, Any]:
         return self._call("GET", f"/v1/sessions/{session_id}/belief")
 
     def belief_png(self, session_id: str) -> bytes:
         return self._call("GET", f"/v1/sessions/{session_id}/belief", params={"format": "png"},
-                          raw=True).content
+                          raw=True)

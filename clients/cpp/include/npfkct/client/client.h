@@ -2,6 +2,7 @@
 // the server's error (canonical code, message, and its field violations as Status payload).
 #pragma once
 
+#include <cstddef>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -12,12 +13,14 @@ namespace npfkct::client {
 
 using nlohmann::json;
 
-/// Client of one server. Not thread-safe; use one per thread.
+/// Client of one server. Not thread-safe; use one per thread. A reply larger than
+/// `max_reply_bytes`, nested deeper than 64 levels or not JSON, and a call that takes longer than
+/// `timeout_seconds` in all (a server that sends slowly included), end in an error Status.
 class Client {
  public:
   /// `url` like "http://127.0.0.1:8080"; `api_key` empty for no authentication.
   explicit Client(const std::string& url, const std::string& api_key = "",
-                  double timeout_seconds = 120.0);
+                  double timeout_seconds = 120.0, size_t max_reply_bytes = size_t{64} << 20);
   ~Client();
 
   StatusOr<json> Health();

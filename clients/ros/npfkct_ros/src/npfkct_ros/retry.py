@@ -6,6 +6,7 @@ Retry-After header, which is respected. Everything else (400, 404, 409 FAILED_PR
 429 without Retry-After: the request's own limit, such as a session's planning budget, which no
 retry clears) is an answer and is raised at once."""
 
+import math
 import time
 
 import requests
@@ -28,7 +29,7 @@ class RetryPolicy:
 
     def delay(self, retry, retry_after=None):
         """Seconds to wait before retry number `retry` (0 for the first retry)."""
-        if retry_after is not None:
+        if retry_after is not None and math.isfinite(retry_after):
             return min(max(retry_after, 0.0), self.max_s)
         return min(self.base_s * (2 ** retry), self.max_s)
 
