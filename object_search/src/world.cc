@@ -47,6 +47,12 @@ Status SearchParams::Validate() const {
     return InvalidArgumentError("declare_threshold must be > 0");
   }
   if (!finite(guess_odds)) return InvalidArgumentError("guess_odds must be finite");
+  // The guessed target's faces restart at guess_odds after every real step: past the threshold
+  // the plan would declare it before anything was seen, an action no observation can follow.
+  if (!(std::abs(guess_odds) < declare_threshold)) {
+    return InvalidArgumentError("guess_odds must lie strictly between -declare_threshold and "
+                                "declare_threshold");
+  }
   if (!(guess_size > 0.0) || !finite(guess_size))
     return InvalidArgumentError("guess_size must be > 0");
   if (!(guess_moveability >= 0.0 && guess_moveability <= 1.0)) {

@@ -600,6 +600,23 @@ TEST(WorldTest, BuildWorldNamesThePartOfThePriorMap) {
   EXPECT_EQ(BuildWorld(prior).status().field_violations()[0].field, "robot");
 }
 
+TEST(WorldTest, AGuessedTargetDeclarableBeforeItIsSeenIsRefused) {
+  // Its faces restart at guess_odds every step: at or past the threshold the planners offered
+  // to declare it, and no observation could follow that action.
+  SearchParams p;
+  EXPECT_TRUE(p.Validate().ok());
+  p.guess_odds = 1.0;
+  p.declare_threshold = 0.6;
+  EXPECT_FALSE(p.Validate().ok());
+  p.guess_odds = -0.6;
+  EXPECT_FALSE(p.Validate().ok());
+  p.guess_odds = 0.2;
+  p.declare_threshold = 0.1;
+  EXPECT_FALSE(p.Validate().ok());
+  p.declare_threshold = 0.3;
+  EXPECT_TRUE(p.Validate().ok());
+}
+
 TEST(WorldTest, BaseRegionsAreCutToTheRoomAndMustLeaveRoomForTheBase) {
   PriorMap prior;  // the room is [-3, 3] x [-3, 3]
   prior.furniture.push_back({"table", {Vec3(1.5, 0, 0.375), 0.0, Vec3(1, 1, 0.75)}, true});

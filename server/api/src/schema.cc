@@ -221,6 +221,9 @@ Status ValidateAgainstSchema(std::string_view message, const json& doc, size_t m
 
   std::vector<Violation> out;
   std::vector<Violation> alternatives;  // oneOf/anyOf that failed as a whole
+  // The deepest member that failed only as "a consequence": valijson reports a key that breaks
+  // `propertyNames` by nothing else, and such a failure would otherwise name only "body".
+  Violation consequence{"", "", -1};
   valijson::ValidationResults::Error e;
   while (results.popError(e)) {
     // The instance path: "<root>", then "[key]" or "[index]" per level.
@@ -256,7 +259,23 @@ Status ValidateAgainstSchema(std::string_view message, const json& doc, size_t m
         StartsWith(m, "Failed to validate against a conditional schema") ||
         StartsWith(m, "Failed to validate against additional properties schema") ||
         StartsWith(m, "Failed to validate against schema associated with pattern")) {
-      continue;  // a consequence of a more specific error
+      // A consequence of a more specific error, kept in case valijson reported none.
+      if (StartsWith(m, "Failed to validate against schema associated with property") &&
+          depth + 1 > consequence.depth) {
+        const std::string key = Quoted(m);
+        const Node member = Resolve(Child(schema, key, false));
+        std::string why = "does not match its schema";
+        if (member.schema && member.schema->is_object()) {
+          const auto names = member.schema->find("propertyNames");
+          if (names != member.schema->end() && names->is_object() && names->contains("maxLength") &&
+              names->at("maxLength").is_number_unsigned()) {
+            why = "keys must be at most " + std::to_string(names->at("maxLength").get<uint64_t>()) +
+                  " characters";
+          }
+        }
+        consequence = {Join(path, key), why, depth + 1};
+      }
+      continue;
     }
     if (StartsWith(m, "Failed to validate against any") ||
         StartsWith(m, "Failed to validate against exactly one")) {
@@ -351,6 +370,7 @@ Status ValidateAgainstSchema(std::string_view message, const json& doc, size_t m
     if (!seen) unique.push_back(v);
     if (unique.size() >= max_violations) break;
   }
+  if (unique.empty() && consequence.depth >= 0) unique.push_back(consequence);
   if (unique.empty()) unique.push_back({"body", "does not match the request schema", 0});
   Status s(StatusCode::kInvalidArgument, Shortened(unique[0].field) + ": " + unique[0].description);
   for (const Violation& v : unique) s.WithFieldViolation(Shortened(v.field), v.description);

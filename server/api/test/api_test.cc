@@ -216,6 +216,13 @@ TEST(ParseCreateSession, DescribesViolationsInWords) {
   ASSERT_FALSE(r.ok());
   EXPECT_EQ(r.status().field_violations()[0].field, "displayName");
   EXPECT_EQ(r.status().field_violations()[0].description, "expected at most 200 characters");
+  // valijson reports a key past `propertyNames` by nothing but its parents: it named "body".
+  body = CreateBody();
+  body["planner"]["options"][std::string(65, 'k')] = 1;
+  r = ParseCreateSession(body.dump(), kLimits);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().field_violations()[0].field, "planner.options");
+  EXPECT_EQ(r.status().field_violations()[0].description, "keys must be at most 64 characters");
 }
 
 // valijson measures a string up to its first NUL: "a\0" followed by 1,000 characters passed
@@ -321,6 +328,9 @@ TEST(ParseObserve, DetectionsOrRawDataWithinLimits) {
   json raw = {{"actionId", "a1"},
               {"pointCloud", {{"fields", "xyzrgb"}, {"data", Base64Encode(EncodeCloud(cloud))}}}};
   EXPECT_EQ(FieldOf(ParseObserve(raw.dump(), kLimits)), "pointCloud.data");
+  json long_key = raw;
+  long_key["semanticScores"] = {{std::string(129, 's'), 0.5}};
+  EXPECT_EQ(FieldOf(ParseObserve(long_key.dump(), kLimits)), "semanticScores");
 
   json big_camera = raw;
   big_camera["camera"] = {{"width", 4096}, {"height", 4096}};
