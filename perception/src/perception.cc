@@ -345,9 +345,9 @@ Status PerceptionOptions::Validate() const {
   }
   if (icp_iterations < 1 || min_cluster_points < 1 || max_cluster_points < min_cluster_points ||
       min_features < 1 || min_inliers < 4 || max_clusters < 1 || max_track_points < 1 ||
-      max_ransac_points < 1 || max_ransac_map_points < 1 || max_ransac_pairs < 1 ||
-      max_icp_points < 1 || max_features < 1 || max_sift_pixels < 16 || max_sift_frame_pixels < 0 ||
-      max_sift_pairs < 0) {
+      max_total_track_points < 1 || max_ransac_points < 1 || max_ransac_map_points < 1 ||
+      max_ransac_pairs < 1 || max_icp_points < 1 || max_features < 1 || max_sift_pixels < 16 ||
+      max_sift_frame_pixels < 0 || max_sift_pairs < 0) {
     return InvalidArgumentError("perception options: bad counts");
   }
   return OkStatus();
@@ -939,6 +939,19 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
     tr.Refresh(o.voxel, o.max_track_points);
     tr.box = FitBox(*tr.points, workspaces[tr.surface].height);
     track_of[c] = best;
+  }
+  // The session's tracks together: every track above its share is thinned to it (a session's
+  // snapshot holds them all, and 63 dense tracks made a 190 MB one).
+  int64_t total = 0;
+  for (const Track& tr : im.tracks) total += static_cast<int64_t>(tr.points->size());
+  if (total > o.max_total_track_points) {
+    const int64_t share =
+        std::max<int64_t>(1, o.max_total_track_points / static_cast<int64_t>(im.tracks.size()));
+    for (Track& tr : im.tracks) {
+      if (static_cast<int64_t>(tr.points->size()) <= share) continue;
+      tr.Refresh(o.voxel, share);
+      tr.box = FitBox(*tr.points, workspaces[tr.surface].height);
+    }
   }
   result.timings.association = Ms(t0);
 

@@ -491,6 +491,28 @@ TEST(PerceptionTest, TracksAreThinnedToTheirBound) {
   EXPECT_GT(largest(few), 20u);
 }
 
+TEST(PerceptionTest, AllTracksTogetherAreThinnedToTheirBound) {
+  Simulator sim(Load("loose1"), 1);
+  const SensorFrame frame = FrontView(&sim);
+  auto held = [&](const PerceptionOptions& options) {
+    Perception p(sim.InitialWorld().value(), TargetOf(sim), options);
+    EXPECT_TRUE(p.Process(frame).ok());
+    int next = 0;
+    size_t total = 0, tracks = 0;
+    for (const TrackState& t : p.SaveTracks(&next)) {
+      total += t.points.size() / 3;
+      ++tracks;
+    }
+    EXPECT_GE(tracks, 3u);
+    return total;
+  };
+  PerceptionOptions few;
+  few.max_total_track_points = 300;
+  EXPECT_GT(held({}), 300u);
+  EXPECT_LE(held(few), 300u);
+  EXPECT_GT(held(few), 60u);
+}
+
 TEST(PerceptionTest, SiftStopsAtItsBudgetAndColourStillScores) {
   Simulator sim(Load("loose1"), 1);
   const SensorFrame frame = FrontView(&sim);
