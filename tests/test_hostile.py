@@ -1657,3 +1657,58 @@ def test_a_frame_of_dense_volumes_costs_what_surfaces_cost(hostile_server):
                                    robotState=robot_state), timeout=300)
         assert frame == "first" or used < limit, f"the {frame} frame took {used:.1f} s of CPU"
     rec.check()
+
+
+def test_large_bodies_are_admitted_like_plans_before_they_are_parsed(hostile_server):
+    """Target photos and an observation's images are decoded as the body is parsed (a 400 kB
+    body of photos took 1.7 s of CPU; a stale observation's 50 kB image 0.2 s, every time).
+    Bodies over 64 KiB now take a planning slot first: with both slots planning and the queue
+    of 4 full, the rest are refused with Retry-After before they are parsed."""
+    url, rec = hostile_server.url, Recorder()
+    busy = [create(url, rec) for _ in range(2)]
+    photo = base64.b64encode(noise_png(160)).decode()
+    body = {"world": world_of("loose1"), "seed": 1, "planner": {"name": "kct", "particles": 50},
+            "target": {"description": "x", "photos": [photo]}}
+    assert len(json.dumps(body)) > 64 << 10
+    sid, _ = planned(url, rec)
+    stale = {"actionId": "stale", "succeeded": True,
+             "image": {"encoding": "png", "data": photo}}
+    codes = []
+
+    def plan(s):
+        r = http("POST", f"{url}/v1/sessions/{s}:plan", rec, json={"budget": {"timeMs": 3000}})
+        codes.append(("plan", r.status_code))
+
+    def large(kind):
+        if kind == "create":
+            r = http("POST", f"{url}/v1/sessions", rec, json=body)
+        else:
+            r = http("POST", f"{url}/v1/sessions/{sid}:observe", rec, json=stale)
+        codes.append((kind, r.status_code, r.headers.get("Retry-After")))
+
+    planners = [threading.Thread(target=plan, args=(s,)) for s in busy]
+    for t in planners:
+        t.start()
+    time.sleep(0.5)  # both slots planning
+    crowd = [threading.Thread(target=large, args=(k,)) for k in ["create", "observe"] * 5]
+    for t in crowd:
+        t.start()
+    for t in crowd + planners:
+        t.join()
+    refused = [c for c in codes if c[0] != "plan" and c[1] == 429]
+    assert len(refused) >= 6 and all(c[2] == "1" for c in refused), codes
+    assert codes.count(("plan", 200)) == 2, codes
+    rec.check()
+
+
+def test_a_guessed_target_declarable_before_it_is_seen_is_refused(hostile_server):
+    """With guessOdds past declareThreshold the planners chose to declare the guessed target,
+    an action no observation could follow: the session was stuck for good."""
+    url, rec = hostile_server.url, Recorder()
+    for params in [{"guessOdds": 1.0, "declareThreshold": 0.6}, {"declareThreshold": 0.1}]:
+        world = dict(world_of("loose1"), params=params)
+        r = http("POST", f"{url}/v1/sessions", rec,
+                 json={"world": world, "planner": {"name": "kct", "particles": 50}})
+        assert r.status_code == 400 and field_of(r).startswith("world.params"), r.text
+        assert "guess_odds" in r.text or "guessOdds" in r.text, r.text
+    rec.check()

@@ -25,6 +25,10 @@ namespace {
 using Request = httplib::Request;
 using Response = httplib::Response;
 
+// Bodies larger than this may hold images (target photos, an observation's frame), which are
+// decoded as the body is parsed: such requests take a planning slot before they are parsed.
+constexpr size_t kAdmittedBodyBytes = size_t{64} << 10;
+
 void Json(Response& res, int status, std::string body) {
   res.status = status;
   res.set_content(std::move(body), "application/json");
@@ -112,6 +116,14 @@ struct Server::Impl {
   }
 
   void Create(const Request&, Response& res, const std::string& body) {
+    // Target photos are decoded while the body is parsed: CPU work (a 400 kB body of photos took
+    // 1.7 s), admitted like a plan.
+    std::optional<Admission::Ticket> ticket;
+    if (body.size() > kAdmittedBodyBytes) {
+      auto t = admission.Enter([] { return HttpFront::ClientGone(); });
+      if (!t.ok()) return Fail(res, t.status(), 0, 1);
+      ticket = std::move(t).value();
+    }
     auto req = api::ParseCreateSession(body, options.limits);
     if (!req.ok()) return Fail(res, req.status());
     if (req->ttl_seconds && *req->ttl_seconds > options.session_ttl_seconds) {
@@ -223,11 +235,18 @@ struct Server::Impl {
     // does not exist.
     auto s = Find(req, res);
     if (!s) return;
+    // Raw sensor data run perception, and their images are decoded while the body is parsed
+    // (before the action id is checked): CPU work, admitted like a plan, a large body before it
+    // is parsed.
+    std::optional<Admission::Ticket> ticket;
+    if (body.size() > kAdmittedBodyBytes) {
+      auto t = admission.Enter([] { return HttpFront::ClientGone(); });
+      if (!t.ok()) return Fail(res, t.status(), 0, 1);
+      ticket = std::move(t).value();
+    }
     auto observe = api::ParseObserve(body, options.limits);
     if (!observe.ok()) return Fail(res, observe.status());
-    // Raw sensor data run perception: CPU work, admitted like a plan.
-    std::optional<Admission::Ticket> ticket;
-    if (observe->frame) {
+    if (observe->frame && !ticket) {
       auto t = admission.Enter([] { return HttpFront::ClientGone(); });
       if (!t.ok()) return Fail(res, t.status(), 0, 1);
       ticket = std::move(t).value();
