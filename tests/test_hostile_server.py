@@ -117,6 +117,32 @@ class HostileServer:
             while True:
                 conn.sendall(b" ")
                 time.sleep(0.5)
+        if mode == "head-drip":
+            conn.sendall(b"HTTP/1.1 200 OK\r\n")
+            while True:
+                conn.sendall(b"X")
+                time.sleep(0.5)
+        if mode == "endless-continue":
+            while True:
+                conn.sendall(b"HTTP/1.1 100 Continue\r\n\r\n")
+                time.sleep(0.2)
+        if mode == "long-status":
+            return conn.sendall(b"HTTP/1.1 200 " + b"a" * 60000 + b"\r\n\r\n")
+        if mode == "header-flood":
+            conn.sendall(b"HTTP/1.1 200 OK\r\n")
+            line = b"X-A: " + b"b" * 8000 + b"\r\n"
+            while True:
+                conn.sendall(line)
+        if mode == "endless-header-line":
+            conn.sendall(b"HTTP/1.1 200 OK\r\nX-A: ")
+            while True:
+                conn.sendall(b"c" * 65536)
+        if mode == "gzip-gzip":
+            import gzip
+            inner = gzip.compress(b" " * (64 << 20))
+            return self._json(conn, 200, gzip.compress(inner), "Content-Encoding: gzip, gzip\r\n")
+        if mode == "big-number":
+            return self._json(conn, 200, b'{"id": "s1", "robot": {"x": 1' + b"0" * 400 + b"}}")
         if mode == "page-loop":
             return self._json(conn, 200, {"sessions": [], "nextPageToken": "again"})
         if mode.startswith("retry-after:"):
@@ -145,7 +171,8 @@ def limited(gib):
 
 
 @pytest.mark.parametrize("mode", ["wrong-types", "array", "odd-error", "deep", "huge",
-                                  "endless-chunks", "drip"])
+                                  "endless-chunks", "drip", "head-drip", "endless-continue",
+                                  "long-status", "header-flood", "endless-header-line"])
 def test_the_driver_ends_with_an_error_of_its_own(hostile, mode):
     server = hostile(mode)
     t = time.monotonic()
@@ -162,7 +189,10 @@ def test_the_driver_ends_with_an_error_of_its_own(hostile, mode):
                                          ("odd-error", "UNKNOWN"), ("deep", "DATA_LOSS"),
                                          ("huge", "RESOURCE_EXHAUSTED"),
                                          ("endless-chunks", "RESOURCE_EXHAUSTED"),
-                                         ("drip", "DEADLINE_EXCEEDED")])
+                                         ("drip", "DEADLINE_EXCEEDED"),
+                                         ("head-drip", "DEADLINE_EXCEEDED"),
+                                         ("endless-continue", "DEADLINE_EXCEEDED"),
+                                         ("gzip-gzip", "DATA_LOSS"), ("big-number", "DATA_LOSS")])
 def test_the_python_client_raises_api_errors(hostile, mode, status):
     server = hostile(mode)
     client = NpfkctClient(server.url, timeout=3, max_reply_bytes=8 << 20)

@@ -49,7 +49,8 @@ Status SearchParams::Validate() const {
   if (!finite(guess_odds)) return InvalidArgumentError("guess_odds must be finite");
   // The guessed target's faces restart at guess_odds after every real step: past the threshold
   // the plan would declare it before anything was seen, an action no observation can follow.
-  if (!(std::abs(guess_odds) < declare_threshold)) {
+  // Compared as the planner holds them (float): 0.599999995 passed as a double below 0.6.
+  if (!(std::abs(static_cast<double>(static_cast<float>(guess_odds))) < declare_threshold)) {
     return InvalidArgumentError("guess_odds must lie strictly between -declare_threshold and "
                                 "declare_threshold");
   }
@@ -69,6 +70,11 @@ Status SearchParams::Validate() const {
   }
   if (!(face_odds_limit > 0.0) || !finite(face_odds_limit)) {
     return InvalidArgumentError("face_odds_limit must be > 0");
+  }
+  if (!(static_cast<double>(static_cast<float>(face_odds_limit)) > declare_threshold)) {
+    return InvalidArgumentError(
+        "face_odds_limit must be > declare_threshold (odds are clamped to it: nothing could "
+        "ever be declared)");
   }
   if (max_steps < 1) return InvalidArgumentError("max_steps must be >= 1");
   if (!(base_clearance >= 0.0 && base_clearance <= 1.0)) {

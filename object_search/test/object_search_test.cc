@@ -615,6 +615,17 @@ TEST(WorldTest, AGuessedTargetDeclarableBeforeItIsSeenIsRefused) {
   EXPECT_FALSE(p.Validate().ok());
   p.declare_threshold = 0.3;
   EXPECT_TRUE(p.Validate().ok());
+  // The faces are floats: 0.599999995 rounds to 0.6000000238, past a threshold of 0.6.
+  p.declare_threshold = 0.6;
+  p.guess_odds = 0.599999995;
+  EXPECT_FALSE(p.Validate().ok());
+  p.guess_odds = -0.599999995;
+  EXPECT_FALSE(p.Validate().ok());
+  p.guess_odds = 0.59999;
+  EXPECT_TRUE(p.Validate().ok());
+  // Odds clamped below the threshold could never be declared.
+  p.face_odds_limit = 0.5;
+  EXPECT_FALSE(p.Validate().ok());
 }
 
 TEST(WorldTest, BaseRegionsAreCutToTheRoomAndMustLeaveRoomForTheBase) {

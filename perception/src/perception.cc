@@ -435,6 +435,36 @@ struct Perception::Impl {
   }
 };
 
+// Thins `tracks` to at most options.max_total_track_points together: the largest cap c with
+// sum(min(size, c)) within the budget (water-filling), every track above c thinned to at most c,
+// so that small tracks keep every point and large ones share what is left.
+template <typename Workspaces>
+void ThinToTotal(std::vector<Track>* tracks, const PerceptionOptions& options,
+                 const Workspaces& workspaces) {
+  std::vector<int64_t> sizes;
+  int64_t total = 0;
+  for (const Track& t : *tracks) {
+    sizes.push_back(static_cast<int64_t>(t.points->size()));
+    total += sizes.back();
+  }
+  if (total <= options.max_total_track_points) return;
+  std::sort(sizes.begin(), sizes.end());
+  int64_t budget = options.max_total_track_points, cap = 1;
+  for (size_t i = 0; i < sizes.size(); ++i) {
+    const auto left = static_cast<int64_t>(sizes.size() - i);
+    if (sizes[i] * left > budget) {
+      cap = std::max<int64_t>(1, budget / left);
+      break;
+    }
+    budget -= sizes[i];
+  }
+  for (Track& t : *tracks) {
+    if (static_cast<int64_t>(t.points->size()) <= cap) continue;
+    t.Refresh(options.voxel, cap);
+    t.box = FitBox(*t.points, workspaces[t.surface].height);
+  }
+}
+
 Perception::Perception(const object_search::World& world, TargetModel target,
                        PerceptionOptions options)
     : impl_(std::make_unique<Impl>()) {
@@ -534,6 +564,7 @@ Status Perception::RestoreTracks(const std::vector<TrackState>& tracks, int next
     t.box = FitBox(*t.points, workspaces[t.surface].height);
     restored.push_back(std::move(t));
   }
+  ThinToTotal(&restored, impl_->options, workspaces);
   impl_->tracks = std::move(restored);
   impl_->next_id = next_id;
   return OkStatus();
@@ -940,19 +971,9 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
     tr.box = FitBox(*tr.points, workspaces[tr.surface].height);
     track_of[c] = best;
   }
-  // The session's tracks together: every track above its share is thinned to it (a session's
-  // snapshot holds them all, and 63 dense tracks made a 190 MB one).
-  int64_t total = 0;
-  for (const Track& tr : im.tracks) total += static_cast<int64_t>(tr.points->size());
-  if (total > o.max_total_track_points) {
-    const int64_t share =
-        std::max<int64_t>(1, o.max_total_track_points / static_cast<int64_t>(im.tracks.size()));
-    for (Track& tr : im.tracks) {
-      if (static_cast<int64_t>(tr.points->size()) <= share) continue;
-      tr.Refresh(o.voxel, share);
-      tr.box = FitBox(*tr.points, workspaces[tr.surface].height);
-    }
-  }
+  // The session's tracks together (a session's snapshot holds them all, and 63 dense tracks made
+  // a 190 MB one).
+  ThinToTotal(&im.tracks, o, workspaces);
   result.timings.association = Ms(t0);
 
   // ---- 4. detection, faces and moveability ----

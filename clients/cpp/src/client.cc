@@ -1,11 +1,8 @@
 #include "npfkct/client/client.h"
 
-#include <httplib.h>
+#include <curl/curl.h>
 
-#include <chrono>
-#include <condition_variable>
-#include <mutex>
-#include <thread>
+#include <algorithm>
 
 namespace npfkct::client {
 namespace {
@@ -51,23 +48,51 @@ bool NestsDeeper(const std::string& text, int limit) {
 
 }  // namespace
 
+// libcurl, not httplib, on the client side: httplib 0.11 keeps any number of header lines of
+// any length, matches the status line with a recursive std::regex (60,000 characters overflowed
+// the stack), and bounds only each read, not a call. libcurl bounds the head (100 kB a header),
+// the whole call (CURLOPT_TIMEOUT_MS, connecting and name resolution included) and, through the
+// write callback below, the body.
 struct Client::Impl {
   Impl(const std::string& url, const std::string& key, double timeout, size_t max_bytes)
-      : http(url), max_reply_bytes(max_bytes) {
-    const double t = timeout > 0 ? timeout : 0.001;
-    deadline = std::chrono::duration_cast<std::chrono::milliseconds>(
-        std::chrono::duration<double>(std::min(t, 1e6)));
-    const auto sec = static_cast<time_t>(std::min(t, 1e6));
-    http.set_read_timeout(sec, static_cast<time_t>((std::min(t, 1e6) - sec) * 1e6));
-    http.set_write_timeout(sec, static_cast<time_t>((std::min(t, 1e6) - sec) * 1e6));
-    http.set_tcp_nodelay(true);
-    if (!key.empty()) headers = {{"Authorization", "Bearer " + key}};
+      : base(url), max_reply_bytes(max_bytes) {
+    while (!base.empty() && base.back() == '/') base.pop_back();
+    timeout_ms = static_cast<long>(std::clamp(timeout, 0.001, 1e6) * 1000.0);
+    if (timeout_ms < 1) timeout_ms = 1;
+    if (!key.empty()) authorization = "Authorization: Bearer " + key;
   }
-  httplib::Client http;
-  httplib::Headers headers;
+  std::string base;
+  std::string authorization;
   size_t max_reply_bytes;
-  std::chrono::milliseconds deadline;
+  long timeout_ms;
 };
+
+namespace {
+
+// Once per process, before any thread could use libcurl.
+void InitCurl() {
+  static const bool once = [] { return curl_global_init(CURL_GLOBAL_DEFAULT) == CURLE_OK; }();
+  (void)once;
+}
+
+struct Reply {
+  std::string body;
+  size_t cap = 0;
+  bool too_large = false;
+};
+
+size_t Append(char* data, size_t size, size_t count, void* user) {
+  auto* reply = static_cast<Reply*>(user);
+  const size_t n = size * count;
+  if (n > reply->cap - reply->body.size()) {
+    reply->too_large = true;
+    return 0;  // libcurl stops with CURLE_WRITE_ERROR
+  }
+  reply->body.append(data, n);
+  return n;
+}
+
+}  // namespace
 
 Client::Client(const std::string& url, const std::string& api_key, double timeout_seconds,
                size_t max_reply_bytes)
@@ -76,67 +101,70 @@ Client::Client(const std::string& url, const std::string& api_key, double timeou
 Client::~Client() = default;
 
 StatusOr<json> Client::Call(const std::string& method, const std::string& path, const json* body) {
-  httplib::Request req;
-  req.method = method;
-  req.path = path;
-  req.headers = impl_->headers;
+  InitCurl();
+  std::unique_ptr<CURL, decltype(&curl_easy_cleanup)> curl(curl_easy_init(), curl_easy_cleanup);
+  if (!curl) return Status(StatusCode::kInternal, "libcurl could not start a call");
+  CURL* c = curl.get();
+  const std::string url = impl_->base + path;
+  const std::string payload = method == "POST" ? (body ? body->dump() : "{}") : "";
+  curl_slist* headers = nullptr;
+  headers = curl_slist_append(headers, "Accept: application/json");
+  if (method == "POST") headers = curl_slist_append(headers, "Content-Type: application/json");
+  if (!impl_->authorization.empty()) {
+    headers = curl_slist_append(headers, impl_->authorization.c_str());
+  }
+  std::unique_ptr<curl_slist, decltype(&curl_slist_free_all)> header_list(headers,
+                                                                          curl_slist_free_all);
+  Reply reply;
+  reply.cap = impl_->max_reply_bytes;
+  char error[CURL_ERROR_SIZE] = {0};
+  curl_easy_setopt(c, CURLOPT_URL, url.c_str());
+  curl_easy_setopt(c, CURLOPT_HTTPHEADER, header_list.get());
+  curl_easy_setopt(c, CURLOPT_NOSIGNAL, 1L);
+  curl_easy_setopt(c, CURLOPT_TIMEOUT_MS, impl_->timeout_ms);
+  curl_easy_setopt(c, CURLOPT_CONNECTTIMEOUT_MS, impl_->timeout_ms);
+  curl_easy_setopt(c, CURLOPT_TCP_NODELAY, 1L);
+  curl_easy_setopt(c, CURLOPT_PROTOCOLS_STR, "http,https");
+  curl_easy_setopt(c, CURLOPT_WRITEFUNCTION, Append);
+  curl_easy_setopt(c, CURLOPT_WRITEDATA, &reply);
+  curl_easy_setopt(c, CURLOPT_ERRORBUFFER, error);
+  // A Content-Length past the cap is refused before a byte of the body is read.
+  curl_easy_setopt(c, CURLOPT_MAXFILESIZE_LARGE, static_cast<curl_off_t>(reply.cap));
   if (method == "POST") {
-    req.body = body ? body->dump() : "{}";
-    req.set_header("Content-Type", "application/json");
+    curl_easy_setopt(c, CURLOPT_POST, 1L);
+    curl_easy_setopt(c, CURLOPT_POSTFIELDS, payload.data());
+    curl_easy_setopt(c, CURLOPT_POSTFIELDSIZE_LARGE, static_cast<curl_off_t>(payload.size()));
+  } else if (method != "GET") {
+    curl_easy_setopt(c, CURLOPT_CUSTOMREQUEST, method.c_str());
   }
-  // The reply is taken as it arrives, up to the cap (httplib would keep any length it is told).
-  std::string reply;
-  bool too_large = false;
-  req.content_receiver = [&](const char* data, size_t n, uint64_t, uint64_t) {
-    if (n > impl_->max_reply_bytes - reply.size()) {
-      too_large = true;
-      return false;
-    }
-    reply.append(data, n);
-    return true;
-  };
-  // httplib's timeouts bound each read: a server sending a byte at a time would hold the call
-  // forever, so the whole call has a deadline, past which its socket is shut.
-  std::mutex mutex;
-  std::condition_variable done_cv;
-  bool done = false, timed_out = false;
-  std::thread watchdog([&] {
-    std::unique_lock<std::mutex> lock(mutex);
-    if (!done_cv.wait_for(lock, impl_->deadline, [&] { return done; })) {
-      timed_out = true;
-      impl_->http.stop();
-    }
-  });
-  httplib::Result r = impl_->http.send(req);
-  {
-    std::lock_guard<std::mutex> lock(mutex);
-    done = true;
+  const CURLcode code = curl_easy_perform(c);
+  const std::string what = method + " " + path;
+  if (code == CURLE_OPERATION_TIMEDOUT) {
+    return Status(StatusCode::kDeadlineExceeded,
+                  "the server did not answer " + what + " within " +
+                      std::to_string(static_cast<double>(impl_->timeout_ms) / 1000.0) + " s");
   }
-  done_cv.notify_one();
-  watchdog.join();
-  const double seconds = std::chrono::duration<double>(impl_->deadline).count();
-  if (timed_out) {
-    return Status(StatusCode::kDeadlineExceeded, "the server did not answer " + method + " " +
-                                                     path + " within " + std::to_string(seconds) +
-                                                     " s");
-  }
-  if (too_large) {
+  if (reply.too_large || code == CURLE_FILESIZE_EXCEEDED) {
     return Status(StatusCode::kResourceExhausted,
-                  "the reply is larger than " + std::to_string(impl_->max_reply_bytes) + " bytes");
+                  "the reply is larger than " + std::to_string(reply.cap) + " bytes");
   }
-  if (!r) {
-    return Status(StatusCode::kUnavailable,
-                  "cannot reach the server: " + httplib::to_string(r.error()));
+  if (code != CURLE_OK) {
+    return Status(StatusCode::kUnavailable, "cannot reach the server (" + what + "): " +
+                                                (error[0] ? error : curl_easy_strerror(code)));
   }
-  if (NestsDeeper(reply, kMaxDepth)) {
+  long status = 0;
+  curl_easy_getinfo(c, CURLINFO_RESPONSE_CODE, &status);
+  const std::string& body_text = reply.body;
+  if (NestsDeeper(body_text, kMaxDepth)) {
     return Status(StatusCode::kDataLoss,
                   "the reply nests deeper than " + std::to_string(kMaxDepth) + " levels");
   }
-  json parsed = json::parse(reply, nullptr, false);
-  if (r->status >= 400) {
+  json parsed = json::parse(body_text, nullptr, false);
+  if (status >= 400) {
     if (parsed.is_object() && parsed.contains("error") && parsed["error"].is_object()) {
       const json& e = parsed["error"];
-      Status s(CodeOf(StringOf(e, "status", "UNKNOWN")), StringOf(e, "message", reply));
+      Status s(CodeOf(StringOf(e, "status", "UNKNOWN")),
+               StringOf(e, "message", body_text.substr(0, 4096)));
       const auto details = e.find("details");
       if (details != e.end() && details->is_array()) {
         for (const json& d : *details) {
@@ -151,7 +179,8 @@ StatusOr<json> Client::Call(const std::string& method, const std::string& path, 
       }
       return s;
     }
-    return Status(StatusCode::kUnknown, "HTTP " + std::to_string(r->status) + ": " + reply);
+    return Status(StatusCode::kUnknown,
+                  "HTTP " + std::to_string(status) + ": " + body_text.substr(0, 4096));
   }
   if (parsed.is_discarded()) return Status(StatusCode::kDataLoss, "the reply is not JSON");
   if (!parsed.is_object()) return Status(StatusCode::kDataLoss, "the reply is not a JSON object");

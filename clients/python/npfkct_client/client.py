@@ -14,6 +14,9 @@ import time
 from typing import Any, Callable, Dict, Iterable, List, Optional, Sequence, Tuple
 
 import requests
+import requests.adapters
+import urllib3
+import urllib3.connection
 
 
 class ApiError(Exception):
@@ -226,7 +229,8 @@ def _retry_after(value: Optional[str]) -> Optional[float]:
         if when is None or when.tzinfo is None:
             return None
         seconds = when.timestamp() - time.time()
-    return max(seconds, 0.0) if math.isfinite(seconds) else None
+    # Finite, and at most a day: time.sleep refuses 1e308.
+    return min(max(seconds, 0.0), 86400.0) if math.isfinite(seconds) else None
 
 
 def _strings(j: Any, *keys: str) -> List[str]:
@@ -238,16 +242,83 @@ def _typed(convert: Callable[[Any], Any], reply: Any) -> Any:
     """convert(reply), an ApiError (DATA_LOSS) where the reply is not what the API describes."""
     try:
         return convert(reply)
-    except (KeyError, TypeError, ValueError, AttributeError, IndexError) as e:
+    except (KeyError, TypeError, ValueError, AttributeError, IndexError, OverflowError) as e:
         raise ApiError(200, "DATA_LOSS",
                        f"the server's reply is not what the API describes: {e!r}") from None
+
+
+class _Call:
+    """One call's deadline: when it expires, the socket the call waits on is shut (a read
+    blocked in another thread wakes only then; close() alone leaves it waiting)."""
+
+    def __init__(self):
+        self.lock = threading.Lock()
+        self.sock = None
+        self.expired = False
+
+    def watch(self, sock):
+        with self.lock:
+            self.sock = sock
+            expired = self.expired
+        if expired:
+            _shut(sock)
+
+    def expire(self):
+        with self.lock:
+            self.expired = True
+            sock = self.sock
+        _shut(sock)
+
+
+def _shut(sock):
+    try:
+        if sock is not None:
+            sock.shutdown(socket.SHUT_RDWR)
+    except OSError:
+        pass
+
+
+_WATCHED = threading.local()  # the calling thread's _Call
+
+
+class _WatchedConnection:
+    """Hands its socket to the calling thread's _Call before it waits for the reply's head (a
+    server could send that a byte at a time, or 1xx replies without end)."""
+
+    def getresponse(self, *args, **kwargs):
+        call = getattr(_WATCHED, "call", None)
+        if call is not None:
+            call.watch(self.sock)
+        return super().getresponse(*args, **kwargs)
+
+
+class _HTTPConnection(_WatchedConnection, urllib3.connection.HTTPConnection):
+    pass
+
+
+class _HTTPSConnection(_WatchedConnection, urllib3.connection.HTTPSConnection):
+    pass
+
+
+class _HTTPPool(urllib3.HTTPConnectionPool):
+    ConnectionCls = _HTTPConnection
+
+
+class _HTTPSPool(urllib3.HTTPSConnectionPool):
+    ConnectionCls = _HTTPSConnection
+
+
+class _WatchedAdapter(requests.adapters.HTTPAdapter):
+    def init_poolmanager(self, *args, **kwargs):
+        super().init_poolmanager(*args, **kwargs)
+        self.poolmanager.pool_classes_by_scheme = {"http": _HTTPPool, "https": _HTTPSPool}
 
 
 class NpfkctClient:
     """Client of one npfkct server. Every call raises ApiError on an error response, and on a
     reply larger than `max_reply_bytes`, not JSON or nested deeper than Python's parser goes;
-    `timeout` bounds each wait for the server, and, once the reply's head has come, the whole
-    reply (a server sending a byte at a time is cut off)."""
+    `timeout` bounds the whole call from the request on (a server sending a byte at a time is
+    cut off)."""
 
     def __init__(self, base_url: str, api_key: Optional[str] = None, timeout: float = 120.0,
                  max_reply_bytes: int = 64 << 20):
@@ -255,30 +326,24 @@ class NpfkctClient:
         self.timeout = timeout
         self.max_reply_bytes = max_reply_bytes
         self._http = requests.Session()
+        for scheme in ("http://", "https://"):
+            self._http.mount(scheme, _WatchedAdapter())
+        self._http.headers["Accept-Encoding"] = "identity"
         if api_key:
             self._http.headers["Authorization"] = f"Bearer {api_key}"
 
     # -- transport --
 
-    def _read(self, response: requests.Response) -> bytes:
-        """The reply's body, up to max_reply_bytes, within `timeout` seconds in all."""
-        expired = threading.Event()
-
-        def cut_off():
-            expired.set()
-            # Shut the socket: a read blocked in another thread wakes only then (close() alone
-            # leaves it waiting for the next byte).
-            try:
-                response.raw._fp.fp.raw._sock.shutdown(socket.SHUT_RDWR)
-            except (AttributeError, OSError):
-                pass
-            response.close()
-
-        timer = threading.Timer(self.timeout, cut_off)
-        timer.daemon = True
-        timer.start()
+    def _read(self, response: requests.Response, call: "_Call") -> bytes:
+        """The reply's body, up to max_reply_bytes (the call's deadline cuts it off)."""
         chunks, size = [], 0
         try:
+            # The server never compresses (identity is asked for): a compressed reply would be
+            # inflated whole, read by read, before its size could be counted.
+            coding = response.headers.get("Content-Encoding", "identity").strip().lower()
+            if coding not in ("", "identity"):
+                raise ApiError(response.status_code, "DATA_LOSS",
+                               f"the reply is compressed ({coding[:40]}), which was not asked for")
             for chunk in response.iter_content(65536):
                 size += len(chunk)
                 if size > self.max_reply_bytes:
@@ -286,12 +351,11 @@ class NpfkctClient:
                                    f"the reply is larger than {self.max_reply_bytes} bytes")
                 chunks.append(chunk)
         except (requests.RequestException, OSError, AttributeError, ValueError):
-            if not expired.is_set():
+            if not call.expired:
                 raise
         finally:
-            timer.cancel()
             response.close()
-        if expired.is_set():
+        if call.expired:
             raise ApiError(response.status_code, "DEADLINE_EXCEEDED",
                            f"the reply did not arrive whole within {self.timeout} s")
         return b"".join(chunks)
@@ -305,11 +369,26 @@ class NpfkctClient:
 
     def _call(self, method: str, path: str, body: Optional[Dict[str, Any]] = None,
               params: Optional[Dict[str, Any]] = None, raw: bool = False):
-        response = self._http.request(
-            method, self.base_url + path, params=params, timeout=self.timeout, stream=True,
-            data=None if body is None else json.dumps(body),
-            headers={"Content-Type": "application/json"} if body is not None else None)
-        content = self._read(response)
+        call = _Call()
+        _WATCHED.call = call
+        timer = threading.Timer(self.timeout, call.expire)
+        timer.daemon = True
+        timer.start()
+        try:
+            try:
+                response = self._http.request(
+                    method, self.base_url + path, params=params, timeout=self.timeout,
+                    stream=True, data=None if body is None else json.dumps(body),
+                    headers={"Content-Type": "application/json"} if body is not None else None)
+            except (requests.RequestException, OSError):
+                if not call.expired:
+                    raise
+                raise ApiError(0, "DEADLINE_EXCEEDED",
+                               f"the server did not answer within {self.timeout} s") from None
+            content = self._read(response, call)
+        finally:
+            timer.cancel()
+            _WATCHED.call = None
         if response.status_code >= 400:
             try:
                 err = self._json(response.status_code, content)["error"]
