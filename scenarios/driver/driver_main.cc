@@ -86,7 +86,10 @@ int Drive(const Options& o, const npfkct::sim::Scenario& scenario, npfkct::sim::
     if (!o.quiet) {
       std::printf("step %2d: %-62s %-38s sims %8lld  value %9.1f\n", t + 1,
                   Describe(action).c_str(), outcome.detail.c_str(),
-                  static_cast<long long>(plan.at("stats").at("simulations").get<int64_t>()),
+                  // An integer, else 0 (get<int64_t> of a float past its range is undefined).
+                  static_cast<long long>(plan.at("stats").at("simulations").is_number_integer()
+                                             ? plan.at("stats").at("simulations").get<int64_t>()
+                                             : 0),
                   plan.at("expectedValue").get<double>());
       std::fflush(stdout);
     }
