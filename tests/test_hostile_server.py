@@ -28,6 +28,19 @@ LOOK = {"actionId": "a1", "action": {"type": "LOOK"}, "expectedValue": 0.0,
         "stats": {"simulations": 1}, "session": dict(SESSION, state="ACTION_PENDING")}
 
 
+# Replies that never end: the head sent first, then the piece again and again (pause in s).
+ENDLESS = {
+    "huge": (b"HTTP/1.1 200 OK\r\nContent-Length: 68719476736\r\n\r\n", b"0" * (1 << 20), 0),
+    "endless-chunks": (b"HTTP/1.1 200 OK\r\nTransfer-Encoding: chunked\r\n\r\n",
+                       b"100000\r\n" + b" " * 0x100000 + b"\r\n", 0),
+    "drip": (b"HTTP/1.1 200 OK\r\nContent-Length: 1000\r\n\r\n", b" ", 0.5),
+    "head-drip": (b"HTTP/1.1 200 OK\r\n", b"X", 0.5),
+    "endless-continue": (b"", b"HTTP/1.1 100 Continue\r\n\r\n", 0.2),
+    "header-flood": (b"HTTP/1.1 200 OK\r\n", b"X-A: " + b"b" * 8000 + b"\r\n", 0),
+    "endless-header-line": (b"HTTP/1.1 200 OK\r\nX-A: ", b"c" * 65536, 0),
+}
+
+
 class HostileServer:
     """Answers every request by `mode`; `received` keeps (method, path, body) of each."""
 
@@ -102,41 +115,14 @@ class HostileServer:
                                                     "details": [{"fieldViolations": "x"}, 3]}})
         if mode == "deep":
             return self._json(conn, 200, b"[" * 200000 + b"]" * 200000)
-        if mode == "huge":
-            conn.sendall(b"HTTP/1.1 200 OK\r\nContent-Length: 68719476736\r\n\r\n")
-            zeros = b"0" * (1 << 20)
+        if mode in ENDLESS:
+            head, piece, pause = ENDLESS[mode]
+            conn.sendall(head)
             while True:
-                conn.sendall(zeros)
-        if mode == "endless-chunks":
-            conn.sendall(b"HTTP/1.1 200 OK\r\nTransfer-Encoding: chunked\r\n\r\n")
-            chunk = b"100000\r\n" + b" " * 0x100000 + b"\r\n"
-            while True:
-                conn.sendall(chunk)
-        if mode == "drip":
-            conn.sendall(b"HTTP/1.1 200 OK\r\nContent-Length: 1000\r\n\r\n")
-            while True:
-                conn.sendall(b" ")
-                time.sleep(0.5)
-        if mode == "head-drip":
-            conn.sendall(b"HTTP/1.1 200 OK\r\n")
-            while True:
-                conn.sendall(b"X")
-                time.sleep(0.5)
-        if mode == "endless-continue":
-            while True:
-                conn.sendall(b"HTTP/1.1 100 Continue\r\n\r\n")
-                time.sleep(0.2)
+                conn.sendall(piece)
+                time.sleep(pause)
         if mode == "long-status":
             return conn.sendall(b"HTTP/1.1 200 " + b"a" * 60000 + b"\r\n\r\n")
-        if mode == "header-flood":
-            conn.sendall(b"HTTP/1.1 200 OK\r\n")
-            line = b"X-A: " + b"b" * 8000 + b"\r\n"
-            while True:
-                conn.sendall(line)
-        if mode == "endless-header-line":
-            conn.sendall(b"HTTP/1.1 200 OK\r\nX-A: ")
-            while True:
-                conn.sendall(b"c" * 65536)
         if mode == "gzip-gzip":
             import gzip
             inner = gzip.compress(b" " * (64 << 20))
