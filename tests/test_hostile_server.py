@@ -38,6 +38,9 @@ ENDLESS = {
     "endless-continue": (b"", b"HTTP/1.1 100 Continue\r\n\r\n", 0.2),
     "header-flood": (b"HTTP/1.1 200 OK\r\n", b"X-A: " + b"b" * 8000 + b"\r\n", 0),
     "endless-header-line": (b"HTTP/1.1 200 OK\r\nX-A: ", b"c" * 65536, 0),
+    # requests read a redirect's body whole before anything could count it.
+    "redirect": (b"HTTP/1.1 302 Found\r\nLocation: /v1/sessions/s2\r\n"
+                 b"Content-Length: 68719476736\r\n\r\n", b"0" * (1 << 20), 0),
 }
 
 
@@ -158,7 +161,8 @@ def limited(gib):
 
 @pytest.mark.parametrize("mode", ["wrong-types", "array", "odd-error", "deep", "huge",
                                   "endless-chunks", "drip", "head-drip", "endless-continue",
-                                  "long-status", "header-flood", "endless-header-line"])
+                                  "long-status", "header-flood", "endless-header-line",
+                                  "redirect"])
 def test_the_driver_ends_with_an_error_of_its_own(hostile, mode):
     server = hostile(mode)
     t = time.monotonic()
@@ -178,7 +182,8 @@ def test_the_driver_ends_with_an_error_of_its_own(hostile, mode):
                                          ("drip", "DEADLINE_EXCEEDED"),
                                          ("head-drip", "DEADLINE_EXCEEDED"),
                                          ("endless-continue", "DEADLINE_EXCEEDED"),
-                                         ("gzip-gzip", "DATA_LOSS"), ("big-number", "DATA_LOSS")])
+                                         ("gzip-gzip", "DATA_LOSS"), ("big-number", "DATA_LOSS"),
+                                         ("redirect", "UNKNOWN")])
 def test_the_python_client_raises_api_errors(hostile, mode, status):
     server = hostile(mode)
     client = NpfkctClient(server.url, timeout=3, max_reply_bytes=8 << 20)
@@ -187,6 +192,12 @@ def test_the_python_client_raises_api_errors(hostile, mode, status):
         client.get_session("s1")
     assert e.value.status == status, e.value
     assert time.monotonic() - t < 30
+
+
+def test_the_python_client_refuses_timeouts_it_cannot_keep():
+    for timeout in [0, -1, float("nan"), float("inf"), 1e10, None]:
+        with pytest.raises(ValueError):
+            NpfkctClient("http://127.0.0.1:1", timeout=timeout)
 
 
 def test_the_python_client_stops_at_page_tokens_in_a_circle(hostile):

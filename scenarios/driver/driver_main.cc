@@ -1,7 +1,9 @@
 // npfkct-drive: a simulated robot that plays a scenario against a running npfkct-server over HTTP.
 // The simulator executes the server's actions and posts back what the robot saw.
 #include <CLI/CLI.hpp>
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <iostream>
 #include <map>
@@ -118,7 +120,13 @@ int main(int argc, char** argv) {
                  "server's default model)");
   app.add_option("--api-key", o.api_key, "bearer token");
   app.add_option("--timeout", o.timeout_s, "seconds a call to the server may take in all")
-      ->check(CLI::Range(0.001, 1e6));
+      ->check(CLI::Range(0.001, 1e6))
+      ->check(CLI::Validator(
+          [](std::string& v) {
+            return std::isfinite(std::strtod(v.c_str(), nullptr)) ? std::string()
+                                                                  : std::string("not a number");
+          },
+          "FINITE"));
   app.add_option("--budget-ms", o.budget_ms, "planning time per step");
   app.add_option("--simulations", o.simulations, "simulations per step (0: time only)");
   app.add_option("--seed", o.seed, "seed of the simulated world and of the session");

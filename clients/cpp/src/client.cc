@@ -3,6 +3,7 @@
 #include <curl/curl.h>
 
 #include <algorithm>
+#include <cmath>
 
 namespace npfkct::client {
 namespace {
@@ -57,7 +58,9 @@ struct Client::Impl {
   Impl(const std::string& url, const std::string& key, double timeout, size_t max_bytes)
       : base(url), max_reply_bytes(max_bytes) {
     while (!base.empty() && base.back() == '/') base.pop_back();
-    timeout_ms = static_cast<long>(std::clamp(timeout, 0.001, 1e6) * 1000.0);
+    // Not a number: the default (a cast of NaN is undefined).
+    timeout_ms =
+        static_cast<long>(std::clamp(std::isnan(timeout) ? 120.0 : timeout, 0.001, 1e6) * 1000.0);
     if (timeout_ms < 1) timeout_ms = 1;
     if (!key.empty()) authorization = "Authorization: Bearer " + key;
   }

@@ -17,6 +17,7 @@ import requests
 import requests.adapters
 import urllib3
 import urllib3.connection
+import urllib3.poolmanager
 
 
 class ApiError(Exception):
@@ -308,10 +309,22 @@ class _HTTPSPool(urllib3.HTTPSConnectionPool):
     ConnectionCls = _HTTPSConnection
 
 
+def _watched(manager):
+    """`manager` with the watched pools (a SOCKS proxy's own pools are left as they are)."""
+    if manager.pool_classes_by_scheme is urllib3.poolmanager.pool_classes_by_scheme:
+        manager.pool_classes_by_scheme = {"http": _HTTPPool, "https": _HTTPSPool}
+    return manager
+
+
 class _WatchedAdapter(requests.adapters.HTTPAdapter):
+    """Direct connections and those through an HTTP proxy, both watched."""
+
     def init_poolmanager(self, *args, **kwargs):
         super().init_poolmanager(*args, **kwargs)
-        self.poolmanager.pool_classes_by_scheme = {"http": _HTTPPool, "https": _HTTPSPool}
+        _watched(self.poolmanager)
+
+    def proxy_manager_for(self, *args, **kwargs):
+        return _watched(super().proxy_manager_for(*args, **kwargs))
 
 
 class NpfkctClient:
@@ -322,6 +335,8 @@ class NpfkctClient:
 
     def __init__(self, base_url: str, api_key: Optional[str] = None, timeout: float = 120.0,
                  max_reply_bytes: int = 64 << 20):
+        if not (isinstance(timeout, (int, float)) and 0 < timeout <= 1e6):
+            raise ValueError("timeout: seconds, > 0 and <= 1e6")
         self.base_url = base_url.rstrip("/")
         self.timeout = timeout
         self.max_reply_bytes = max_reply_bytes
@@ -350,7 +365,10 @@ class NpfkctClient:
                     raise ApiError(response.status_code, "RESOURCE_EXHAUSTED",
                                    f"the reply is larger than {self.max_reply_bytes} bytes")
                 chunks.append(chunk)
-        except (requests.RequestException, OSError, AttributeError, ValueError):
+        except (requests.RequestException, OSError, AttributeError, ValueError) as e:
+            if isinstance(e, requests.Timeout):  # a wait past `timeout`, before the deadline
+                raise ApiError(response.status_code, "DEADLINE_EXCEEDED",
+                               f"the reply did not arrive whole within {self.timeout} s") from None
             if not call.expired:
                 raise
         finally:
@@ -376,15 +394,22 @@ class NpfkctClient:
         timer.start()
         try:
             try:
+                # No redirects: the server never sends one, and requests would read a
+                # redirect's body whole, past the reply cap.
                 response = self._http.request(
                     method, self.base_url + path, params=params, timeout=self.timeout,
                     stream=True, data=None if body is None else json.dumps(body),
-                    headers={"Content-Type": "application/json"} if body is not None else None)
-            except (requests.RequestException, OSError):
-                if not call.expired:
+                    headers={"Content-Type": "application/json"} if body is not None else None,
+                    allow_redirects=False)
+            except (requests.RequestException, OSError) as e:
+                if not call.expired and not isinstance(e, requests.Timeout):
                     raise
                 raise ApiError(0, "DEADLINE_EXCEEDED",
                                f"the server did not answer within {self.timeout} s") from None
+            if 300 <= response.status_code < 400:
+                response.close()
+                raise ApiError(response.status_code, "UNKNOWN",
+                               "the server redirected the call, which it never does")
             content = self._read(response, call)
         finally:
             timer.cancel()
