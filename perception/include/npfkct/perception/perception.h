@@ -92,8 +92,8 @@ struct PerceptionOptions {
   int max_clusters = object_search::kMaxKnownObjects;
   /// A track holding more points is thinned with coarser voxels (it stays in a snapshot's bound).
   int64_t max_track_points = 200'000;
-  /// All tracks together hold at most this many points: past it every track above its share
-  /// is thinned so (each save of the session writes its tracks).
+  /// All tracks together hold at most this many points (each save of the session writes them):
+  /// past it the largest are thinned to a common cap that small tracks stay under.
   int64_t max_total_track_points = 400'000;
   /// ICP's source points, after downsampling, are thinned (every k-th) to this many.
   int64_t max_icp_points = 20'000;
