@@ -105,9 +105,7 @@ Client::~Client() = default;
 
 StatusOr<json> Client::Call(const std::string& method, const std::string& path, const json* body) {
   InitCurl();
-  std::unique_ptr<CURL, decltype(&curl_easy_cleanup)> curl(curl_easy_init(), curl_easy_cleanup);
-  if (!curl) return Status(StatusCode::kInternal, "libcurl could not start a call");
-  CURL* c = curl.get();
+  // What the handle points to is declared first, so that it outlives the handle.
   const std::string url = impl_->base + path;
   const std::string payload = method == "POST" ? (body ? body->dump() : "{}") : "";
   curl_slist* headers = nullptr;
@@ -121,6 +119,9 @@ StatusOr<json> Client::Call(const std::string& method, const std::string& path, 
   Reply reply;
   reply.cap = impl_->max_reply_bytes;
   char error[CURL_ERROR_SIZE] = {0};
+  std::unique_ptr<CURL, decltype(&curl_easy_cleanup)> curl(curl_easy_init(), curl_easy_cleanup);
+  if (!curl) return Status(StatusCode::kInternal, "libcurl could not start a call");
+  CURL* c = curl.get();
   curl_easy_setopt(c, CURLOPT_URL, url.c_str());
   curl_easy_setopt(c, CURLOPT_HTTPHEADER, header_list.get());
   curl_easy_setopt(c, CURLOPT_NOSIGNAL, 1L);
