@@ -438,9 +438,8 @@ struct Perception::Impl {
 // Thins `tracks` to at most options.max_total_track_points together: the largest cap c with
 // sum(min(size, c)) within the budget (water-filling), every track above c thinned to at most c,
 // so that small tracks keep every point and large ones share what is left.
-template <typename Workspaces>
 void ThinToTotal(std::vector<Track>* tracks, const PerceptionOptions& options,
-                 const Workspaces& workspaces) {
+                 const std::vector<object_search::Workspace>& workspaces) {
   std::vector<int64_t> sizes;
   int64_t total = 0;
   for (const Track& t : *tracks) {

@@ -100,6 +100,17 @@ std::string Trim(const std::string& s) {
   return s.substr(a, s.find_last_not_of(" \t") - a + 1);
 }
 
+// Calls f with each item of a comma-separated header list (RFC 9110 5.6.1), trimmed and
+// lower-cased.
+template <typename F>
+void ForEachListItem(const std::string& value, F f) {
+  for (size_t a = 0; a <= value.size();) {
+    const size_t b = std::min(value.find(',', a), value.size());
+    f(Lower(Trim(value.substr(a, b - a))));
+    a = b + 1;
+  }
+}
+
 // Writes all of `data` to a non-blocking socket within `timeout`; false on failure.
 bool WriteAll(int fd, const char* data, size_t size, Clock::duration timeout) {
   const auto deadline = Clock::now() + timeout;
@@ -667,7 +678,8 @@ void HttpFront::Reactor() {
                "they are");
         return -1;
       }
-      std::string content_length, transfer_encoding, content_encoding, authorization;
+      std::string content_length, transfer_encoding, authorization;
+      bool encoded = false;  // a Content-Encoding other than identity
       bool authorization_seen = false;
       int content_length_count = 0;
       bool expect_continue = false, keep_alive_asked = false;
@@ -712,24 +724,16 @@ void HttpFront::Reactor() {
         } else if (name == "content-encoding") {
           // Every value and every coding in it: httplib inflates by the first header alone, so
           // "gzip" then "identity" would pass a check of the last one. Hidden from httplib too.
-          for (size_t a = 0; a <= value.size();) {
-            const size_t b = std::min(value.find(',', a), value.size());
-            const std::string coding = Lower(Trim(value.substr(a, b - a)));
-            if (!coding.empty() && coding != "identity" && content_encoding.empty()) {
-              content_encoding = coding;
-            }
-            a = b + 1;
-          }
+          ForEachListItem(value, [&](const std::string& coding) {
+            encoded = encoded || (!coding.empty() && coding != "identity");
+          });
           hidden.emplace_back(pos, next + 2 - pos);
         } else if (name == "connection") {
           // A list of case-insensitive tokens (RFC 9110 7.6.1); httplib matches "close" alone.
-          for (size_t a = 0; a <= value.size();) {
-            const size_t b = std::min(value.find(',', a), value.size());
-            const std::string option = Lower(Trim(value.substr(a, b - a)));
+          ForEachListItem(value, [&](const std::string& option) {
             c->close_asked = c->close_asked || option == "close";
             keep_alive_asked = keep_alive_asked || option == "keep-alive";
-            a = b + 1;
-          }
+          });
         } else if (name == "expect" && Lower(value) == "100-continue") {
           expect_continue = true;
           hidden.emplace_back(pos, next + 2 - pos);
@@ -745,7 +749,7 @@ void HttpFront::Reactor() {
         }
         pos = next + 2;
       }
-      if (!content_encoding.empty()) {
+      if (encoded) {
         refuse(std::move(c), 415,
                "Content-Encoding: only 'identity' is accepted; send the body as is");
         return -1;

@@ -115,15 +115,24 @@ struct Server::Impl {
     return *s;
   }
 
+  // A planning slot for a request's CPU work, held in `*ticket` (kept if it holds one already)
+  // until the handler returns; false, with the 429 answered, when none comes.
+  bool Admit(Response& res, std::optional<Admission::Ticket>* ticket) {
+    if (*ticket) return true;
+    auto t = admission.Enter([] { return HttpFront::ClientGone(); });
+    if (!t.ok()) {
+      Fail(res, t.status(), 0, 1);
+      return false;
+    }
+    *ticket = std::move(t).value();
+    return true;
+  }
+
   void Create(const Request&, Response& res, const std::string& body) {
     // Target photos are decoded while the body is parsed: CPU work (a 400 kB body of photos took
     // 1.7 s), admitted like a plan.
     std::optional<Admission::Ticket> ticket;
-    if (body.size() > kAdmittedBodyBytes) {
-      auto t = admission.Enter([] { return HttpFront::ClientGone(); });
-      if (!t.ok()) return Fail(res, t.status(), 0, 1);
-      ticket = std::move(t).value();
-    }
+    if (body.size() > kAdmittedBodyBytes && !Admit(res, &ticket)) return;
     auto req = api::ParseCreateSession(body, options.limits);
     if (!req.ok()) return Fail(res, req.status());
     if (req->ttl_seconds && *req->ttl_seconds > options.session_ttl_seconds) {
@@ -239,18 +248,10 @@ struct Server::Impl {
     // (before the action id is checked): CPU work, admitted like a plan, a large body before it
     // is parsed.
     std::optional<Admission::Ticket> ticket;
-    if (body.size() > kAdmittedBodyBytes) {
-      auto t = admission.Enter([] { return HttpFront::ClientGone(); });
-      if (!t.ok()) return Fail(res, t.status(), 0, 1);
-      ticket = std::move(t).value();
-    }
+    if (body.size() > kAdmittedBodyBytes && !Admit(res, &ticket)) return;
     auto observe = api::ParseObserve(body, options.limits);
     if (!observe.ok()) return Fail(res, observe.status());
-    if (observe->frame && !ticket) {
-      auto t = admission.Enter([] { return HttpFront::ClientGone(); });
-      if (!t.ok()) return Fail(res, t.status(), 0, 1);
-      ticket = std::move(t).value();
-    }
+    if (observe->frame && !Admit(res, &ticket)) return;
     auto reply = s->Observe(std::move(observe).value(), registry.store());
     if (!reply.ok()) return Fail(res, reply.status());
     Json(res, 200, api::RenderObserve(*reply));
@@ -269,8 +270,8 @@ struct Server::Impl {
     if (*f == api::BeliefFormat::kJson) return Json(res, 200, api::RenderBelief(*world, &view));
     // Rendering a picture is CPU work (up to half a second for a large world): admitted like a
     // plan, so that pictures cannot occupy every request thread.
-    auto ticket = admission.Enter([] { return HttpFront::ClientGone(); });
-    if (!ticket.ok()) return Fail(res, ticket.status(), 0, 1);
+    std::optional<Admission::Ticket> ticket;
+    if (!Admit(res, &ticket)) return;
     auto png = api::RenderBeliefPng(*world, &view);
     if (!png.ok()) return Fail(res, png.status());
     res.status = 200;

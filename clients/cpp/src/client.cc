@@ -61,7 +61,6 @@ struct Client::Impl {
     // Not a number: the default (a cast of NaN is undefined).
     timeout_ms =
         static_cast<long>(std::clamp(std::isnan(timeout) ? 120.0 : timeout, 0.001, 1e6) * 1000.0);
-    if (timeout_ms < 1) timeout_ms = 1;
     if (!key.empty()) authorization = "Authorization: Bearer " + key;
   }
   std::string base;
