@@ -175,6 +175,15 @@ def test_the_driver_ends_with_an_error_of_its_own(hostile, mode):
     assert time.monotonic() - t < 30
 
 
+def test_the_driver_refuses_a_timeout_it_cannot_keep():
+    for timeout in ["nan", "0", "-1", "inf", "1e300"]:
+        r = subprocess.run([DRIVE, "--server", "http://127.0.0.1:1", "--scenario",
+                            scenario_path("loose1"), "--timeout", timeout],
+                           capture_output=True, text=True, timeout=30)
+        assert r.returncode != 0 and "--timeout" in r.stderr, (timeout, r.stderr)
+        assert "Couldn't connect" not in r.stderr  # refused before any call
+
+
 @pytest.mark.parametrize("mode,status", [("wrong-types", "DATA_LOSS"), ("array", "DATA_LOSS"),
                                          ("odd-error", "UNKNOWN"), ("deep", "DATA_LOSS"),
                                          ("huge", "RESOURCE_EXHAUSTED"),
