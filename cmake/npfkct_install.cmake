@@ -5,9 +5,9 @@
 #
 #   bin/      npfkct-server npfkct-drive npfkct-bench npfkct-train npfkct-sim-robot
 #             npfkct-scenegen, npfkct-client (the Python client's CLI)
-#   lib/      libnpfkct_solver.a libnpfkct_object_search.a libnpfkct_client.a
+#   lib/      libnpfkct_common.a libnpfkct_solver.a libnpfkct_object_search.a libnpfkct_client.a
 #   lib/cmake/npfkct/   npfkctConfig.cmake, npfkctConfigVersion.cmake, npfkctTargets.cmake
-#   include/npfkct/{solver,object_search,client}/
+#   include/npfkct/{common,solver,object_search,client}/
 #   share/npfkct/models/      the shipped filter model (npfkct-server's default --model-dir)
 #   share/npfkct/scenarios/   the scenario files (npfkct-drive --scenario)
 #   share/npfkct/schemas/     JSON Schemas and openapi.yaml
@@ -23,15 +23,17 @@ install(PROGRAMS
   DESTINATION ${CMAKE_INSTALL_BINDIR})
 
 # The libraries for embedding, with their public headers.
+set_target_properties(npfkct_common PROPERTIES EXPORT_NAME common)
 set_target_properties(npfkct_solver PROPERTIES EXPORT_NAME solver)
 set_target_properties(npfkct_object_search PROPERTIES EXPORT_NAME object_search)
 set_target_properties(npfkct_client PROPERTIES EXPORT_NAME client)
-install(TARGETS npfkct_solver npfkct_object_search npfkct_client
+install(TARGETS npfkct_common npfkct_solver npfkct_object_search npfkct_client
   EXPORT npfkctTargets
   ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
   LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
   INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
-install(DIRECTORY solver/include/npfkct object_search/include/npfkct clients/cpp/include/npfkct
+install(DIRECTORY common/include/npfkct solver/include/npfkct object_search/include/npfkct
+                  clients/cpp/include/npfkct
   DESTINATION ${CMAKE_INSTALL_INCLUDEDIR} FILES_MATCHING PATTERN "*.h")
 install(EXPORT npfkctTargets NAMESPACE npfkct:: DESTINATION ${NPFKCT_INSTALL_CMAKEDIR})
 configure_package_config_file(cmake/npfkctConfig.cmake.in
@@ -45,8 +47,8 @@ install(FILES ${CMAKE_CURRENT_BINARY_DIR}/npfkctConfig.cmake
   DESTINATION ${NPFKCT_INSTALL_CMAKEDIR})
 
 # Data: models, scenarios, schemas.
-install(FILES solver/filter/model/filter.pt DESTINATION ${NPFKCT_INSTALL_DATADIR}/models)
-install(DIRECTORY scenarios/data/ DESTINATION ${NPFKCT_INSTALL_DATADIR}/scenarios
+install(FILES filter/model/filter.pt DESTINATION ${NPFKCT_INSTALL_DATADIR}/models)
+install(DIRECTORY scenarios/ DESTINATION ${NPFKCT_INSTALL_DATADIR}/scenarios
   FILES_MATCHING PATTERN "*.json")
 install(DIRECTORY schemas/ DESTINATION ${NPFKCT_INSTALL_DATADIR}/schemas)
 

@@ -120,7 +120,7 @@ npfkct_generate_scenes() {
   mkdir -p "$dir"
   SCENE_FILES=()
   for seed in "$@"; do
-    "$BUILD_DIR/scenarios/npfkct-scenegen" --seed "$seed" >"$dir/gen-$seed.json"
+    "$BUILD_DIR/bin/npfkct-scenegen" --seed "$seed" >"$dir/gen-$seed.json"
     SCENE_FILES+=("$dir/gen-$seed.json")
   done
 }
@@ -178,7 +178,7 @@ sys.exit(0 if d.get('trials') == int(sys.argv[2]) and not d.get('failed_trials')
   fi
   mkdir -p "$(dirname "$file")"
   echo "running: ${file#"$NPFKCT_ROOT"/}" >&2
-  "$BUILD_DIR/scenarios/npfkct-bench" "$@" >"$file.tmp"
+  "$BUILD_DIR/bin/npfkct-bench" "$@" >"$file.tmp"
   # Record the commit the numbers were measured at (dirty: with uncommitted changes).
   local commit
   commit="$(git -C "$NPFKCT_ROOT" rev-parse --short HEAD 2>/dev/null || echo unknown)"

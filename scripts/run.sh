@@ -6,7 +6,7 @@
 #
 # Usage: scripts/run.sh [SCENARIO.json] [PLANNER]
 #        scripts/run.sh --help
-#   SCENARIO  a scenario file (default scenarios/data/loose1.json; see scenarios/data/)
+#   SCENARIO  a scenario file (default scenarios/loose1.json; see scenarios/)
 #   PLANNER   npfkct (default), kct, pomcp, gpomcp, pomcp-joint, pomcpow, vomcpow, advt, oracle
 #   env: MODEL, BUDGET_MS (planning time per step, default 1000), BUILD_DIR (default build/)
 set -euo pipefail
@@ -15,7 +15,7 @@ case "${1:-}" in
   -h|--help) sed -n '2,11p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
   -*) echo "run.sh: unknown option $1 (see --help)" >&2; exit 2 ;;
 esac
-SCENARIO="${1:-$NPFKCT_ROOT/scenarios/data/loose1.json}"
+SCENARIO="${1:-$NPFKCT_ROOT/scenarios/loose1.json}"
 PLANNER="${2:-npfkct}"
 [ -f "$SCENARIO" ] || { echo "run.sh: no scenario file $SCENARIO (see --help)" >&2; exit 2; }
 source "$NPFKCT_ROOT/scripts/deps.sh"
@@ -28,7 +28,7 @@ case "${MODEL:-}" in
 esac
 
 LOG="$(mktemp)"
-"$BUILD_DIR/server/npfkct-server" --port 0 >"$LOG" 2>&1 &
+"$BUILD_DIR/bin/npfkct-server" --port 0 >"$LOG" 2>&1 &
 SERVER=$!
 trap 'kill "$SERVER" 2>/dev/null || true; rm -f "$LOG"' EXIT
 for _ in $(seq 100); do
@@ -38,5 +38,5 @@ done
 PORT="$(sed -n 's/^listening on .*:\([0-9]*\)$/\1/p' "$LOG")"
 [ -n "$PORT" ] || { cat "$LOG"; echo "the server did not start" >&2; exit 1; }
 echo "npfkct-server on port $PORT; driving $(basename "$SCENARIO") with $PLANNER"
-"$BUILD_DIR/scenarios/npfkct-drive" --server "http://127.0.0.1:$PORT" --scenario "$SCENARIO" \
+"$BUILD_DIR/bin/npfkct-drive" --server "http://127.0.0.1:$PORT" --scenario "$SCENARIO" \
   --planner "$PLANNER" "${MODEL_ARGS[@]}" --budget-ms "${BUDGET_MS:-1000}"

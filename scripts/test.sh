@@ -22,7 +22,7 @@ cmake -S "$NPFKCT_ROOT" -B "$ASAN_DIR" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DNPFKC
   -DNPFKCT_BUILD_TESTS=OFF >/dev/null
 cmake --build "$ASAN_DIR" -j "$(nproc)" --target npfkct-server
 ASAN_OPTIONS=abort_on_error=1:detect_leaks=1 UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 \
-  NPFKCT_BUILD_DIR="$BUILD_DIR" NPFKCT_SERVER_BIN="$ASAN_DIR/server/npfkct-server" \
-  NPFKCT_RELEASE_SERVER_BIN="$BUILD_DIR/server/npfkct-server" \
+  NPFKCT_BUILD_DIR="$BUILD_DIR" NPFKCT_SERVER_BIN="$ASAN_DIR/bin/npfkct-server" \
+  NPFKCT_RELEASE_SERVER_BIN="$BUILD_DIR/bin/npfkct-server" \
   /usr/bin/python3 -m pytest -q -p no:cacheprovider "$NPFKCT_ROOT/tests/test_robustness.py" \
   "$NPFKCT_ROOT/tests/test_hostile.py"

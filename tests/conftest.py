@@ -14,9 +14,9 @@ import pytest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 BUILD = os.environ.get("NPFKCT_BUILD_DIR", os.path.join(ROOT, "build"))
-SERVER_BIN = os.environ.get("NPFKCT_SERVER_BIN", os.path.join(BUILD, "server", "npfkct-server"))
-ROBOT_BIN = os.path.join(BUILD, "scenarios", "npfkct-sim-robot")
-SCENARIOS = os.path.join(ROOT, "scenarios", "data")
+SERVER_BIN = os.environ.get("NPFKCT_SERVER_BIN", os.path.join(BUILD, "bin", "npfkct-server"))
+ROBOT_BIN = os.path.join(BUILD, "bin", "npfkct-sim-robot")
+SCENARIOS = os.path.join(ROOT, "scenarios")
 sys.path.insert(0, os.path.join(ROOT, "clients", "python"))
 
 

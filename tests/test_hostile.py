@@ -4,7 +4,7 @@ Every test holds the server to the same contract: no crash, no 5xx, no hang, cle
 the field, and every session that existed before an attack intact after it. scripts/test.sh runs
 this file against the AddressSanitizer/UBSan build (NPFKCT_SERVER_BIN); the memory-bomb test runs
 the Release build under an address-space cap (ASan reserves terabytes of address space, so it
-cannot run capped): NPFKCT_RELEASE_SERVER_BIN, default build/server/npfkct-server."""
+cannot run capped): NPFKCT_RELEASE_SERVER_BIN, default build/bin/npfkct-server."""
 
 import base64
 import concurrent.futures
@@ -28,7 +28,7 @@ import requests
 from conftest import BUILD, ROOT, SERVER_BIN, ServerProcess, SimRobot, world_of
 
 RELEASE_BIN = os.environ.get("NPFKCT_RELEASE_SERVER_BIN",
-                             os.path.join(BUILD, "server", "npfkct-server"))
+                             os.path.join(BUILD, "bin", "npfkct-server"))
 SANITIZED = SERVER_BIN != RELEASE_BIN
 # Health must never wait behind plans (2.5 s each here), slow clients or a full accept queue (a
 # dropped SYN costs 1 s): the bound sits well below both and well above a loaded 2-core CI
@@ -343,7 +343,7 @@ def test_feature_of_points_a_denormal_apart_does_not_abort(hostile_server):
 
 
 def test_the_attack_script_runs():
-    """scripts/perception_attacks.py, which measured the README's figures, on small inputs."""
+    """bench/perception_attacks.py, which measured the README's figures, on small inputs."""
     script = os.path.join(ROOT, "scripts", "perception_attacks.py")
     for attack in (["far-blob", "1000"], ["sift-plates", "3"]):
         out = subprocess.run([sys.executable, script, *attack], capture_output=True, text=True,
@@ -1608,7 +1608,7 @@ def test_a_frame_in_a_large_room_costs_what_the_view_covers(hostile_server):
     # The example session's world in a 20 m room (a 1.3 kB create) and frames of three 0.6 m
     # squares that ICP cannot fit from the reported pose: RANSAC computed features over the
     # whole prior map and ICP built a k-d tree over it for every frame (in a 39 m room 60 s for
-    # the first frame and 20 s for each later one; scripts/perception_attacks.py big-room).
+    # the first frame and 20 s for each later one; bench/perception_attacks.py big-room).
     # Registration now uses the map within reach of the view. The first frame builds the
     # session's prior map, which still grows with the room (up to its 4,000,000-point bound).
     url, rec = hostile_server.url, Recorder()
@@ -1637,7 +1637,7 @@ def test_a_frame_of_dense_volumes_costs_what_surfaces_cost(hostile_server):
     # RANSAC's FPFH features weigh every neighbour within 15 cm: a depth camera sees surfaces,
     # about 80 neighbours a point at the 3 cm voxels, but a map-frame lattice of 22^3 points 3 cm
     # apart beside 28 furniture shells 3 cm apart (a 2.6 kB create) gives each about 520, and a
-    # frame cost 8.5 s of CPU (scripts/perception_attacks.py nested-shells). Both clouds are
+    # frame cost 8.5 s of CPU (bench/perception_attacks.py nested-shells). Both clouds are
     # thinned until a bound on their neighbour pairs holds (max_ransac_pairs): 2.7 s.
     url, rec = hostile_server.url, Recorder()
     world = example("create_session_request.json")["world"]

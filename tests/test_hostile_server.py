@@ -18,7 +18,7 @@ from conftest import BUILD, ROBOT_BIN, ROOT, scenario_path
 
 from npfkct_client import ApiError, NpfkctClient
 
-DRIVE = os.path.join(BUILD, "scenarios", "npfkct-drive")
+DRIVE = os.path.join(BUILD, "bin", "npfkct-drive")
 CURL = os.path.join(ROOT, "clients", "curl")
 sys.path.insert(0, os.path.join(ROOT, "clients", "ros", "npfkct_ros", "src"))
 

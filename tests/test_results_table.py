@@ -1,4 +1,4 @@
-"""scripts/results_table.py, which makes the README's benchmark tables: Student's t quantiles, the
+"""bench/results_table.py, which makes the README's benchmark tables: Student's t quantiles, the
 share of the oracle's reward and the ablation's paired change, on cells with known answers."""
 
 import json
@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-SCRIPTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scripts")
+SCRIPTS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "bench")
 sys.path.insert(0, SCRIPTS)
 import results_table  # noqa: E402
 

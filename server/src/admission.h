@@ -9,7 +9,7 @@
 #include <functional>
 #include <mutex>
 
-#include "npfkct/solver/status.h"
+#include "npfkct/common/status.h"
 
 namespace npfkct::server {
 

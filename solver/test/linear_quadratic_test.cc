@@ -8,7 +8,7 @@
 
 #include "npfkct/solver/kct.h"
 #include "npfkct/solver/pomcpow.h"
-#include "npfkct/solver/stats.h"
+#include "npfkct/common/stats.h"
 
 namespace npfkct {
 namespace {

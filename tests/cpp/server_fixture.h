@@ -16,7 +16,7 @@ namespace npfkct::server {
 
 using nlohmann::json;
 
-/// The prior-map part of a scenario file in scenarios/data.
+/// The prior-map part of a scenario file in scenarios.
 inline json WorldOf(const std::string& scenario) {
   std::ifstream in(std::string(NPFKCT_SCENARIO_DIR) + "/" + scenario + ".json");
   std::stringstream buffer;

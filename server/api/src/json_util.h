@@ -10,7 +10,7 @@
 
 #include "npfkct/api/limits.h"
 #include "npfkct/object_search/geometry.h"
-#include "npfkct/solver/status.h"
+#include "npfkct/common/status.h"
 
 namespace npfkct::api::internal {
 

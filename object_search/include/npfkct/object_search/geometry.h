@@ -7,7 +7,7 @@
 #include <array>
 #include <string>
 
-#include "npfkct/solver/status.h"
+#include "npfkct/common/status.h"
 
 namespace npfkct::object_search {
 

@@ -7,8 +7,8 @@
 #include <vector>
 
 #include "npfkct/object_search/geometry.h"
-#include "npfkct/solver/rng.h"
-#include "npfkct/solver/status.h"
+#include "npfkct/common/rng.h"
+#include "npfkct/common/status.h"
 
 namespace npfkct::object_search {
 

@@ -11,7 +11,7 @@
 
 #include "npfkct/object_search/geometry.h"
 #include "npfkct/object_search/grid_world.h"
-#include "npfkct/solver/status.h"
+#include "npfkct/common/status.h"
 
 namespace npfkct::object_search {
 

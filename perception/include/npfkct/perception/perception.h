@@ -22,7 +22,7 @@
 #include <vector>
 
 #include "npfkct/object_search/world.h"
-#include "npfkct/solver/status.h"
+#include "npfkct/common/status.h"
 
 namespace npfkct::perception {
 

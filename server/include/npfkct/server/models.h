@@ -12,7 +12,7 @@
 #include "npfkct/api/types.h"
 #include "npfkct/object_search/model.h"
 #include "npfkct/solver/candidates.h"
-#include "npfkct/solver/status.h"
+#include "npfkct/common/status.h"
 
 namespace npfkct::filter {
 class NeuralFilter;

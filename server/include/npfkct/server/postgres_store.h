@@ -29,7 +29,7 @@
 
 #include "npfkct/api/limits.h"
 #include "npfkct/server/session_store.h"
-#include "npfkct/solver/status.h"
+#include "npfkct/common/status.h"
 
 namespace npfkct::server {
 

@@ -7,7 +7,7 @@
 
 #include "npfkct/api/limits.h"
 #include "npfkct/server/models.h"
-#include "npfkct/solver/status.h"
+#include "npfkct/common/status.h"
 
 namespace npfkct::server {
 

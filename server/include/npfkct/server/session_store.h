@@ -20,7 +20,7 @@
 
 #include "npfkct/api/limits.h"
 #include "npfkct/api/types.h"
-#include "npfkct/solver/status.h"
+#include "npfkct/common/status.h"
 
 namespace npfkct::server {
 

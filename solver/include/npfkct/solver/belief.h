@@ -9,8 +9,8 @@
 #include <vector>
 
 #include "npfkct/solver/model.h"
-#include "npfkct/solver/rng.h"
-#include "npfkct/solver/status.h"
+#include "npfkct/common/rng.h"
+#include "npfkct/common/status.h"
 
 namespace npfkct {
 

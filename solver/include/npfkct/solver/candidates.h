@@ -5,9 +5,9 @@
 
 #include "npfkct/solver/belief.h"
 #include "npfkct/solver/planner.h"
-#include "npfkct/solver/rng.h"
+#include "npfkct/common/rng.h"
 #include "npfkct/solver/spaces.h"
-#include "npfkct/solver/status.h"
+#include "npfkct/common/status.h"
 
 namespace npfkct {
 

@@ -4,7 +4,7 @@
 #include <functional>
 #include <vector>
 
-#include "npfkct/solver/rng.h"
+#include "npfkct/common/rng.h"
 #include "npfkct/solver/spaces.h"
 
 namespace npfkct {

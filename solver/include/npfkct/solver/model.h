@@ -43,7 +43,7 @@
 #include <type_traits>
 #include <vector>
 
-#include "npfkct/solver/rng.h"
+#include "npfkct/common/rng.h"
 #include "npfkct/solver/spaces.h"
 
 namespace npfkct {

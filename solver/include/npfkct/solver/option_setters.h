@@ -9,7 +9,7 @@
 #include "npfkct/solver/kct.h"
 #include "npfkct/solver/pomcp.h"
 #include "npfkct/solver/pomcpow.h"
-#include "npfkct/solver/status.h"
+#include "npfkct/common/status.h"
 
 namespace npfkct {
 

@@ -9,7 +9,7 @@
 #include <string_view>
 #include <vector>
 
-#include "npfkct/solver/status.h"
+#include "npfkct/common/status.h"
 
 namespace npfkct::option_table {
 

@@ -18,8 +18,8 @@
 
 #include "npfkct/solver/belief.h"
 #include "npfkct/solver/model.h"
-#include "npfkct/solver/rng.h"
-#include "npfkct/solver/status.h"
+#include "npfkct/common/rng.h"
+#include "npfkct/common/status.h"
 
 namespace npfkct {
 

@@ -11,7 +11,7 @@
 #include <cstdint>
 #include <string>
 
-#include "npfkct/solver/status.h"
+#include "npfkct/common/status.h"
 
 namespace npfkct::api {
 

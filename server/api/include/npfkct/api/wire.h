@@ -9,7 +9,7 @@
 #include <string_view>
 
 #include "npfkct/perception/perception.h"
-#include "npfkct/solver/status.h"
+#include "npfkct/common/status.h"
 
 namespace npfkct::api {
 

@@ -1,0 +1,70 @@
+#!/usr/bin/env bash
+# Reproduces every figure of the README's "Published benchmarks" section. Results are appended as
+# JSON lines to bench/results/classic.jsonl (one object per run, see npfkct-bench --help).
+# Usage: bench/bench_classic.sh [section ...]
+#   sections: tiger rocksample throughput lightdark vdptag kct (kct: kCT beside POMCPOW and VOMCPOW
+#   on VDP Tag and SimpleLightDark at the published 1 s budgets, as CPU time of the planning thread;
+#   kct-vdptag and kct-lightdark: either half of it)
+# Takes about three hours on a 2-core machine with every section.
+# env: THREADS (episodes at once; default: the number of cores), SEED (the kct sections' seed,
+# default 1; a second seed gives new episodes to pool with the first).
+set -euo pipefail
+NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+source "$NPFKCT_ROOT/scripts/deps.sh"
+npfkct_prepare npfkct-bench
+BENCH="$BUILD_DIR/bin/npfkct-bench"
+OUT="${OUT:-$NPFKCT_ROOT/bench/results/classic.jsonl}"
+mkdir -p "$(dirname "$OUT")"
+THREADS="${THREADS:-$(nproc)}"
+SEED="${SEED:-1}"
+run() { "$BENCH" "$@" | tee -a "$OUT"; }
+sections=("$@")
+[ ${#sections[@]} -eq 0 ] && sections=(tiger rocksample throughput lightdark vdptag kct)
+
+for section in "${sections[@]}"; do
+  case "$section" in
+    tiger)
+      # POMCP, 5000 simulations per step, 100 steps; optimal value 19.37 (19.25 over 100 steps).
+      run --problem tiger --planner pomcp --episodes 1000 --time-ms 0 --sims 5000 --threads "$THREADS"
+      run --problem tiger --planner pomcp --episodes 200 --time-ms 0 --sims 5000 --threads "$THREADS" --rollout random
+      ;;
+    rocksample)
+      # POMCP with preferred actions, 1 s per step (Silver & Veness: 20.71 +- 0.21).
+      run --problem rocksample --planner pomcp --episodes 100 --time-ms 1000 --threads "$THREADS"
+      ;;
+    throughput)
+      # Simulations per second of POMCP on RockSample(7,8), one thread, 1 s per step.
+      run --problem rocksample --planner pomcp --episodes 8 --time-ms 1000 --threads 1
+      ;;
+    lightdark)
+      # POMCPOW paper: POMCPOW 56.1 +- 0.6, POMCP (continuous observations) -7.1 +- 1.0 at 1 s.
+      run --problem lightdark --planner pomcpow --episodes 200 --time-ms 1000 --threads "$THREADS"
+      run --problem lightdark --planner pomcpow --episodes 300 --time-ms 0 --sims 10000 --threads "$THREADS"
+      run --problem lightdark --planner pomcp --episodes 200 --time-ms 100 --threads "$THREADS"
+      ;;
+    vdptag)
+      # POMCPOW paper: POMCPOW 29.3 +- 0.8 at 1 s (random rollouts). VPW paper at 1 s with
+      # ToNextML rollouts: VOMCPOW 33.2 +- 0.9, POMCPOW 28.3 +- 1.0.
+      for planner in pomcpow vomcpow advt kct; do
+        run --problem vdptag --planner "$planner" --episodes 300 --time-ms 100 --threads "$THREADS"
+      done
+      for planner in pomcpow vomcpow; do
+        run --problem vdptag --planner "$planner" --episodes 100 --time-ms 1000 --threads "$THREADS" --rollout tonextml
+      done
+      ;;
+    kct|kct-vdptag|kct-lightdark)
+      # kCT with the project's defaults beside POMCPOW and VOMCPOW (the VPW paper's settings) at
+      # 1 s, ToNextML rollouts for all; SimpleLightDark's actions are discrete, so there kCT's
+      # list holds them as points and VOMCPOW is POMCPOW.
+      [ "$section" = kct-lightdark ] || for planner in kct vomcpow pomcpow; do
+        run --problem vdptag --planner "$planner" --episodes 100 --cpu-ms 1000 --threads "$THREADS" \
+          --rollout tonextml --seed "$SEED"
+      done
+      [ "$section" = kct-vdptag ] || for planner in kct pomcpow; do
+        run --problem lightdark --planner "$planner" --episodes 200 --cpu-ms 1000 --threads "$THREADS" \
+          --seed "$SEED"
+      done
+      ;;
+    *) echo "unknown section $section" >&2; exit 2 ;;
+  esac
+done

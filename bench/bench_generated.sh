@@ -1,0 +1,36 @@
+#!/usr/bin/env bash
+# The held-out generated scenes of the README: the 30 scenes npfkct-scenegen makes from seeds
+# 900001-900030 (no filter training data comes from seeds above 900000), 5 trials per scene and
+# planner, 0.25 s of the planning thread's CPU time per step, success within 50 steps. The summary
+# gives each planner's mean share of the oracle's reward over the scenes (with a Student's t
+# interval over the 30 scene means) and its success rate over all trials, then the same shares
+# per placement of the target (in the open, hidden behind tall boxes, covered by a larger box).
+# oracle-cover-unknown is a second ceiling: the oracle not told which box covers the target.
+#
+# Resumable like bench/bench_table1.sh: one file per scene and planner,
+# bench/results/generated/RUN/SEED/PLANNER.jsonl; finished cells are skipped; --commit commits
+# each cell. About 1.5 CPU-hours (45 minutes on 2 cores at d6ae15f).
+# Usage: bench/bench_generated.sh [--run NAME] [--cpu-ms MS] [--trials N] [--commit]
+#        env: SEEDS (default: 900001 ... 900030), PLANNERS, BUILD_DIR, ROLLOUT (the model's
+#        rollout policy for every planner: aimed, the default, or greedy, that of run1 and run2)
+set -euo pipefail
+NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+source "$NPFKCT_ROOT/scripts/deps.sh"
+npfkct_bench_args 250 5 13 "$@"
+npfkct_prepare npfkct-bench npfkct-scenegen
+SEEDS="${SEEDS:-$(seq 900001 900030)}"
+PLANNERS="${PLANNERS:-oracle oracle-cover-unknown npfkct kct pomcp-joint gpomcp vomcpow}"
+OUT="$NPFKCT_ROOT/bench/results/generated/$RUN"
+# shellcheck disable=SC2086  # one seed per word
+npfkct_generate_scenes "$BUILD_DIR/generated-scenes" $SEEDS
+for scene in "${SCENE_FILES[@]}"; do
+  seed="$(basename "$scene" .json)"
+  seed="${seed#gen-}"
+  for planner in $PLANNERS; do
+    npfkct_bench_cell "$OUT/$seed/$planner.jsonl" "$TRIALS" --scenario "$scene" \
+      --planner "$planner" --trials "$TRIALS" --cpu-ms "$CPU_MS" --threads "$(nproc)" --seed 1 \
+      --rollout "${ROLLOUT:-aimed}"
+  done
+done
+python3 "$NPFKCT_ROOT/bench/results_table.py" generated "$OUT" "$BUILD_DIR/generated-scenes" |
+  tee "$OUT/summary.md"

@@ -1,0 +1,30 @@
+#!/usr/bin/env bash
+# Table 1 of the README: every planner on the paper's six scenes, 20 trials per cell, 1 s of the
+# planning thread's CPU time per step, success within 50 steps, trials seeded 1000003 + i in every
+# cell (the same worlds and noise for every planner).
+#
+# Resumable: each (scene, planner) cell is one file, bench/results/table1/RUN/SCENE/PLANNER.jsonl,
+# and a cell whose file holds a finished run is skipped, so an interrupted run continues where it
+# stopped (on this machine or another: CPU-time budgets make cells measured on different machines
+# and days comparable). With --commit each finished cell is committed to git at once. The table
+# (table1.md, with each planner's reward as a share of the oracle's) is rebuilt at the end.
+#
+# The full table is several CPU-hours (about 6 on the 2-core machine, i.e. 3 hours of wall time).
+# Usage: bench/bench_table1.sh [--run NAME] [--cpu-ms MS] [--trials N] [--commit]
+#        env: SCENES (default: the six), PLANNERS (default: every planner), BUILD_DIR
+set -euo pipefail
+NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+source "$NPFKCT_ROOT/scripts/deps.sh"
+npfkct_bench_args 1000 20 17 "$@"
+npfkct_prepare npfkct-bench
+SCENES="${SCENES:-loose1 loose2 hidden1 covered1 complex1 fig16}"
+PLANNERS="${PLANNERS:-oracle npfkct kct pomcp gpomcp pomcp-joint pomcpow vomcpow advt}"
+OUT="$NPFKCT_ROOT/bench/results/table1/$RUN"
+for scene in $SCENES; do
+  for planner in $PLANNERS; do
+    npfkct_bench_cell "$OUT/$scene/$planner.jsonl" "$TRIALS" \
+      --scenario "$NPFKCT_ROOT/scenarios/$scene.json" --planner "$planner" \
+      --trials "$TRIALS" --cpu-ms "$CPU_MS" --threads "$(nproc)" --seed 1
+  done
+done
+python3 "$NPFKCT_ROOT/bench/results_table.py" table1 "$OUT" | tee "$OUT/table1.md"
