@@ -344,7 +344,7 @@ def test_feature_of_points_a_denormal_apart_does_not_abort(hostile_server):
 
 def test_the_attack_script_runs():
     """bench/perception_attacks.py, which measured the README's figures, on small inputs."""
-    script = os.path.join(ROOT, "scripts", "perception_attacks.py")
+    script = os.path.join(ROOT, "bench", "perception_attacks.py")
     for attack in (["far-blob", "1000"], ["sift-plates", "3"]):
         out = subprocess.run([sys.executable, script, *attack], capture_output=True, text=True,
                              timeout=300).stdout
