@@ -149,3 +149,34 @@ def test_real_responses_validate(server):
         assert r.status_code >= 400
         v("error", r.json())
     v("empty", requests.delete(url + f"/v1/sessions/{session['id']}").json())
+
+
+def test_planners_list_the_registry_and_plans_report_the_options_they_used(server):
+    """GET /v1/planners lists the planners the schema's PlannerSpec.name allows, with every
+    option's default; a plan's summary gives the options given and every option as used: the
+    defaults with the given ones applied."""
+    url = server.url
+    planners = requests.get(url + "/v1/planners").json()
+    validator("list_planners_response").validate(planners)
+    names = [p["name"] for p in planners["planners"]]
+    assert names == load("common.schema.json")["$defs"]["PlannerSpec"]["properties"]["name"][
+        "enum"]
+    by_name = {p["name"]: p for p in planners["planners"]}
+    assert by_name["npfkct"]["takesModel"] and not by_name["kct"]["takesModel"]
+    assert by_name["npfkct"]["defaults"]["search.maxDepth"] == 12
+    assert "filter.candidates" in by_name["npfkct"]["defaults"]
+    assert "filter.candidates" not in by_name["kct"]["defaults"]
+    given = {"search.maxDepth": 8, "k": 4}
+    session = requests.post(url + "/v1/sessions", json={
+        "world": world_of("loose1"), "seed": 5,
+        "planner": {"name": "kct", "particles": 50, "options": given}}).json()
+    plan = requests.post(url + f"/v1/sessions/{session['id']}:plan",
+                         json={"budget": {"simulations": 50}}).json()
+    validator("plan_response").validate(plan)
+    summary = plan["summary"]
+    assert summary["optionsGiven"] == given
+    assert summary["optionsUsed"] == {**by_name["kct"]["defaults"], **given}
+    assert summary["budgetGiven"] == {"timeMs": 0, "cpuMs": 0, "simulations": 50}
+    assert plan["budget"]["simulations"] == 50 and plan["budget"]["timeMs"] > 0
+    assert {"w2", "cR", "threads"} <= set(summary["resolved"])
+    requests.delete(url + f"/v1/sessions/{session['id']}")

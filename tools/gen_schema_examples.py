@@ -48,6 +48,7 @@ def main():
     url = server.url
     try:
         write("health", requests.get(url + "/healthz").json())
+        write("list_planners_response", requests.get(url + "/v1/planners").json())
         create = {"displayName": "kitchen search", "world": world_of("loose1"), "seed": 42,
                   "planner": {"name": "npfkct", "particles": 300, "model": "filter.pt",
                               "options": {"k": 3, "dLim": 0.2}},

@@ -15,10 +15,10 @@
 #include <thread>
 #include <vector>
 
-#include "npfkct/solver/planner.h"
 #include "npfkct/common/rng.h"
 #include "npfkct/common/stats.h"
 #include "npfkct/common/status.h"
+#include "npfkct/solver/planner.h"
 
 namespace npfkct::bench {
 

@@ -12,7 +12,7 @@
 
 #include "episode_runner.h"
 #include "npfkct/filter/filter.h"
-#include "npfkct/object_search/search_planner.h"
+#include "npfkct/object_search/planner_registry.h"
 #include "npfkct/perception/perception.h"
 #include "npfkct/sim/frame_io.h"
 #include "npfkct/sim/oracle.h"
@@ -27,6 +27,7 @@ using object_search::World;
 
 struct TrialContext {
   const sim::Scenario* scenario;
+  const object_search::PlannerRegistry* planners;
   std::string planner;
   std::vector<std::pair<std::string, double>> options;  // planner options
   filter::FilterOptions filter_options;
@@ -40,19 +41,22 @@ struct TrialContext {
   object_search::SearchRollout rollout = object_search::SearchRollout::kAimed;
 };
 
-// A registry planner; npfkct gets Net_sam over the loaded filter as its candidate sampler.
+// A registry planner; one that takes the filter's candidates gets Net_sam over the loaded filter;
+// one that needs the truth is told `truth`.
 StatusOr<std::unique_ptr<object_search::SearchPlanner>> MakePlanner(
-    const std::string& name, const ObjectSearchModel& model,
-    const std::vector<std::pair<std::string, double>>& options,
+    const object_search::PlannerRegistry& planners, const std::string& name,
+    const ObjectSearchModel& model, const std::vector<std::pair<std::string, double>>& options,
     const filter::FilterOptions& filter_options,
-    const std::shared_ptr<const filter::NeuralFilter>& net) {
-  std::shared_ptr<CandidateSampler<object_search::State>> sampler;
-  if (name == "npfkct" && net != nullptr) {
+    const std::shared_ptr<const filter::NeuralFilter>& net,
+    const object_search::Truth* truth = nullptr) {
+  object_search::PlannerArgs args{&model, options, nullptr, truth};
+  const object_search::PlannerEntry* entry = planners.Find(name);
+  if (entry != nullptr && entry->takes_sampler && net != nullptr) {
     auto made = filter::MakeNetSam(net, model, filter_options);
     if (!made.ok()) return made.status();
-    sampler = *made;
+    args.sampler = *made;
   }
-  return object_search::MakeSearchPlanner(name, model, options, sampler);
+  return planners.Make(name, args);
 }
 
 // The robot's eyes in perception mode: renders the view, reports a noisy pose, and turns the
@@ -161,25 +165,17 @@ EpisodeResult RunTrial(const TrialContext& ctx) {
     return result;
   }
   ObjectSearchModel model(std::make_shared<World>(world), ctx.rollout);
-  // The oracle is told the true scene; every other planner plans on the robot's belief.
-  std::unique_ptr<sim::Oracle> oracle;
-  std::unique_ptr<object_search::SearchPlanner> planner;
-  if (object_search::FindSearchPlanner(ctx.planner)->needs_truth) {
-    sim::OracleOptions oracle_options;
-    oracle_options.cover_unknown = ctx.planner == "oracle-cover-unknown";
-    oracle = std::make_unique<sim::Oracle>(simulator, oracle_options);
-  } else {
-    auto made = MakePlanner(ctx.planner, model, ctx.options, ctx.filter_options, ctx.filter);
-    if (!made.ok()) {
-      result.error = made.status().ToString();
-      return result;
-    }
-    planner = std::move(made).value();
+  // The oracles are told the true scene; every other planner plans on the robot's belief.
+  const sim::SceneTruth truth(simulator);
+  auto made = MakePlanner(*ctx.planners, ctx.planner, model, ctx.options, ctx.filter_options,
+                          ctx.filter, &truth);
+  if (!made.ok()) {
+    result.error = made.status().ToString();
+    return result;
   }
+  std::unique_ptr<object_search::SearchPlanner> planner = std::move(made).value();
   const int particles = 300;
-  if (planner) {
-    planner->SetBelief(ParticleBelief<object_search::State>::FromInitial(model, particles, rng));
-  }
+  planner->SetBelief(ParticleBelief<object_search::State>::FromInitial(model, particles, rng));
   // One line per step on stderr: the action, its outcome, the search statistics, the root entries
   // the search weighed most and, per known object, the face grids confirmed as the target's (+)
   // and as an obstacle's (-) after the step, marked * while the object can be declared.
@@ -205,17 +201,8 @@ EpisodeResult RunTrial(const TrialContext& ctx) {
   };
   double discount = 1.0;
   for (int t = 0; t < ctx.max_steps; ++t) {
-    Decision<HybridAction> d;
-    if (oracle) {
-      TerminationCondition clock(ctx.budget);
-      d.action = oracle->Next(world);
-      d.stats.simulations = 0;
-      d.stats.elapsed_ms = clock.ElapsedMs();
-      d.stats.cpu_ms = clock.CpuMs();
-    } else {
-      TerminationCondition stop(ctx.budget);
-      d = planner->Plan(stop, rng);
-    }
+    TerminationCondition stop(ctx.budget);
+    Decision<HybridAction> d = planner->Plan(stop, rng);
     if (!d.status.ok()) {
       result.error = d.status.ToString();
       break;
@@ -258,14 +245,12 @@ EpisodeResult RunTrial(const TrialContext& ctx) {
       break;
     }
     model.SetWorld(std::make_shared<World>(world));
-    if (planner) {
-      planner->OnWorldChanged();
-      auto belief = ParticleBelief<object_search::State>::FromInitial(model, particles, rng);
-      if (new_objects) {
-        planner->SetBelief(std::move(belief));
-      } else {
-        planner->AdvanceTo(d.action, key, std::move(belief));
-      }
+    planner->OnWorldChanged();
+    auto belief = ParticleBelief<object_search::State>::FromInitial(model, particles, rng);
+    if (new_objects) {
+      planner->SetBelief(std::move(belief));
+    } else {
+      planner->AdvanceTo(d.action, key, std::move(belief));
     }
     if (ctx.trace) trace_step(t, d, outcome.detail);
     if (!ctx.render_prefix.empty()) {
@@ -321,20 +306,25 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
     std::cerr << "npfkct-bench: " << s.message() << " (--time-ms, --cpu-ms, --sims)\n";
     return 2;
   }
-  std::vector<std::string> planners = config.planners;
-  if (planners.size() == 1 && planners[0] == "all") {
-    planners = object_search::SearchPlannerNames();
+  object_search::PlannerRegistry registry =
+      config.registry ? *config.registry : object_search::PlannerRegistry::BuiltIn();
+  if (Status s = sim::AddOracleFactories(&registry); !s.ok()) {
+    std::cerr << "npfkct-bench: " << s.message() << "\n";
+    return 2;
   }
+  std::vector<std::string> planners = config.planners;
+  if (planners.size() == 1 && planners[0] == "all") planners = registry.Names();
   for (const std::string& p : planners) {
-    if (object_search::FindSearchPlanner(p) == nullptr) {
+    if (registry.Find(p) == nullptr) {
       std::string known;
-      for (const auto& n : object_search::SearchPlannerNames()) known += " " + n;
+      for (const auto& n : registry.Names()) known += " " + n;
       std::cerr << "npfkct-bench: unknown planner '" << p << "' (known:" << known << ")\n";
       return 2;
     }
   }
   std::shared_ptr<const filter::NeuralFilter> net;
-  if (std::find(planners.begin(), planners.end(), "npfkct") != planners.end() &&
+  if (std::any_of(planners.begin(), planners.end(),
+                  [&](const std::string& p) { return registry.Find(p)->takes_sampler; }) &&
       config.filter_model != "none") {
     const std::string path =
         config.filter_model.empty() ? std::string(NPFKCT_FILTER_MODEL) : config.filter_model;
@@ -352,9 +342,8 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
       return 2;
     }
     if (mode == "perception" &&
-        std::any_of(planners.begin(), planners.end(), [](const std::string& p) {
-          return object_search::FindSearchPlanner(p)->needs_truth;
-        })) {
+        std::any_of(planners.begin(), planners.end(),
+                    [&](const std::string& p) { return registry.Find(p)->needs_truth; })) {
       std::cerr << "npfkct-bench: the oracle observes geometrically only\n";
       return 2;
     }
@@ -387,8 +376,8 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
     }
     ObjectSearchModel probe(std::make_shared<World>(*world));
     for (const std::string& planner : planners) {
-      if (object_search::FindSearchPlanner(planner)->needs_truth) continue;
-      auto made = MakePlanner(planner, probe, options, filter_options, net);
+      if (registry.Find(planner)->needs_truth) continue;
+      auto made = MakePlanner(registry, planner, probe, options, filter_options, net);
       if (!made.ok()) {
         std::cerr << "npfkct-bench: " << made.status().message() << "\n";
         return 2;
@@ -432,6 +421,7 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
                           (modes.size() > 1 ? "-" + mode : "");
         }
         TrialContext ctx{&scenario,
+                         &registry,
                          planner,
                          options,
                          filter_options,
@@ -488,7 +478,7 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
         steps.append(std::to_string(mine[k].steps));
         successes.append(mine[k].success ? "1" : "0");
       }
-      const std::string model_name = planner == "npfkct" && net
+      const std::string model_name = registry.Find(planner)->takes_sampler && net
                                          ? std::filesystem::path(net->path()).filename().string()
                                          : std::string();
       std::printf(

@@ -5,13 +5,18 @@
 #include <string>
 #include <vector>
 
+#include "npfkct/object_search/planner_registry.h"
+
 namespace npfkct::bench {
 
 /// Settings of an object-search benchmark run.
 struct SearchBenchConfig {
   std::vector<std::string> scenarios;  ///< Scenario files.
-  /// Planner registry names (object_search::SearchPlanners(), the oracles included) or "all".
+  /// Names of `registry`'s planners (the oracles included) or "all".
   std::vector<std::string> planners;
+  /// The planners it knows (null: object_search::PlannerRegistry::BuiltIn()); the simulator's
+  /// oracles are given their factory (sim::AddOracleFactories).
+  const object_search::PlannerRegistry* registry = nullptr;
   int trials = 20;
   double time_ms = 0.0;  ///< Wall-clock budget per step (0: none).
   double cpu_ms = 0.0;   ///< CPU-time budget of the planning thread per step (0: none).

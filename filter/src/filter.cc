@@ -66,6 +66,10 @@ class NetSam final : public CandidateSampler<State> {
          FilterOptions options)
       : filter_(std::move(filter)), model_(model), options_(options) {}
 
+  std::vector<std::pair<std::string, double>> Settings() const override {
+    return OptionValues(options_);
+  }
+
   Status Sample(const ParticleBelief<State>& belief, int kind, const BoxSpace& box, int count,
                 const TerminationCondition& stop, Rng& rng, std::vector<ActionVec>* out,
                 CandidateStats* stats) override {
@@ -210,7 +214,9 @@ Status FilterOptions::Validate() const {
   return OkStatus();
 }
 
-Status SetOption(FilterOptions* o, std::string_view key, double value) {
+namespace {
+
+const option_table::Table<FilterOptions>& FilterTable() {
   using option_table::Int;
   using option_table::Real;
   static const auto* table = new option_table::Table<FilterOptions>{
@@ -223,7 +229,17 @@ Status SetOption(FilterOptions* o, std::string_view key, double value) {
       {"target_share", Real(&FilterOptions::target_share)},
       {"object_share", Real(&FilterOptions::object_share)},
   };
-  return option_table::Apply(*table, o, key, value);
+  return *table;
+}
+
+}  // namespace
+
+Status SetOption(FilterOptions* o, std::string_view key, double value) {
+  return option_table::Apply(FilterTable(), o, key, value);
+}
+
+std::vector<std::pair<std::string, double>> OptionValues(const FilterOptions& o) {
+  return option_table::Values(FilterTable(), o);
 }
 
 double FilterOptions::Beta() const { return std::sqrt(2.0 * std::log(1.0 / (1.0 - confidence))); }

@@ -9,8 +9,8 @@
 #include <utility>
 #include <vector>
 
-#include "npfkct/filter/dataset.h"
 #include "npfkct/common/status.h"
+#include "npfkct/filter/dataset.h"
 
 namespace npfkct::filter {
 

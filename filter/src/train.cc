@@ -6,8 +6,8 @@
 #include <random>
 
 #include "network.h"
-#include "npfkct/solver/planner.h"
 #include "npfkct/common/stats.h"
+#include "npfkct/solver/planner.h"
 
 namespace npfkct::filter {
 namespace {

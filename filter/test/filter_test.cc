@@ -11,13 +11,13 @@
 #include <string>
 
 #include "../src/network.h"
-#include "npfkct/train/generate.h"
 #include "npfkct/filter/dataset.h"
 #include "npfkct/filter/features.h"
 #include "npfkct/filter/train.h"
 #include "npfkct/sim/scenario.h"
 #include "npfkct/sim/scenegen.h"
 #include "npfkct/sim/simulator.h"
+#include "npfkct/train/generate.h"
 
 namespace npfkct::filter {
 namespace {

@@ -1,7 +1,10 @@
-#include "npfkct/object_search/search_planner.h"
+#include "npfkct/object_search/planner_registry.h"
 
+#include <algorithm>
 #include <cmath>
+#include <utility>
 
+#include "npfkct/object_search/discrete.h"
 #include "npfkct/object_search/proposals.h"
 #include "npfkct/solver/advt.h"
 #include "npfkct/solver/kct.h"
@@ -20,58 +23,83 @@ constexpr int kParticles = 300;
 // (the base in a base region and free of the map); kCT's Action_sam uses the same number.
 constexpr int kFeasibilityTries = 100;
 
-template <class Options>
-Status ApplyAll(Options* o, const std::vector<std::pair<std::string, double>>& options) {
-  for (const auto& [key, value] : options) {
-    if (Status s = SetOption(o, key, value); !s.ok()) return s;
-  }
-  return o->Validate();
+using Made = StatusOr<std::unique_ptr<SearchPlanner>>;
+
+// Sorted by key, as OptionValues lists them.
+OptionList Sorted(OptionList list) {
+  std::sort(list.begin(), list.end());
+  return list;
 }
 
-// Planners over the hybrid model.
-template <class P, class Options>
-class HybridPlanner final : public SearchPlanner {
- public:
-  HybridPlanner(std::string name, const ObjectSearchModel& model, Options options)
-      : name_(std::move(name)),
-        planner_(model, options),
-        reuse_(options.search.reuse_tree),
-        threads_(options.search.threads) {}
-  HybridPlanner(std::string name, const ObjectSearchModel& model, Options options,
-                std::shared_ptr<CandidateSampler<State>> sampler)
-      : name_(std::move(name)),
-        planner_(model, options, std::move(sampler)),
-        reuse_(options.search.reuse_tree),
-        threads_(options.search.threads) {}
+// ---- kCT (npfkct, kct) ----
 
-  const std::string& name() const override { return name_; }
-  void SetBelief(ParticleBelief<State> belief) override { planner_.SetBelief(std::move(belief)); }
-  using SearchPlanner::Plan;
-  Decision<HybridAction> Plan(const TerminationCondition& stop, Rng& rng) override {
-    return planner_.Plan(stop, rng);
-  }
-  void AdvanceTo(const HybridAction& a, const Observation& o,
-                 ParticleBelief<State> belief) override {
-    planner_.AdvanceTo(a, o, std::move(belief));
-  }
-  void DropTree() override { planner_.DropTree(); }
-  int64_t TreeSize() const override { return planner_.TreeSize(); }
-  bool ReusesTree() const override { return reuse_; }
-  int SearchThreads() const override { return threads_; }
-  CandidateStats candidate_stats() const override {
-    if constexpr (requires { planner_.candidate_stats(); }) {
-      return planner_.candidate_stats();
+KctOptions KctDefaults() {
+  KctOptions o;  // paper defaults: k = 3, w1 = sqrt 2, D_lim = 0.2, w1_bar 0.6, w2_bar 0.3
+  o.search.max_depth = kMaxDepth;
+  o.search.num_particles = kParticles;
+  o.observations.enabled = false;
+  o.max_feasibility_tries = kFeasibilityTries;
+  return o;
+}
+
+// The aimed proposals' options as kct (and npfkct without a filter) lists them.
+OptionList ProposalValues(bool aimed, const ProposalOptions& p) {
+  return {{"proposals.aimed", aimed ? 1.0 : 0.0},
+          {"proposals.object_share", p.object_share},
+          {"proposals.target_share", p.target_share}};
+}
+
+OptionList KctDefaultList(const SearchParams&) {
+  OptionList list = OptionValues(KctDefaults());
+  for (auto& kv : ProposalValues(true, ProposalOptions{})) list.push_back(kv);
+  return Sorted(std::move(list));
+}
+
+// proposals.* choose the candidates of kct (and of npfkct without a filter): aimed at what is
+// left to see (default) or uniform (proposals.aimed = 0, the paper's candidates). A planner that
+// takes the filter's sampler draws its own (filter.target_share, filter.object_share): there they
+// would be options given and not used, so they are refused.
+Made MakeKct(const std::string& name, bool takes_sampler, const PlannerArgs& args) {
+  KctOptions o = KctDefaults();
+  const bool filtered = takes_sampler && args.sampler != nullptr;
+  ProposalOptions proposals;
+  bool aimed = true;
+  OptionList rest;
+  for (const auto& [key, value] : args.options) {
+    if (filtered && key.rfind("proposals.", 0) == 0) {
+      return InvalidArgumentError("option " + key + ": " + name +
+                                  "'s candidates come from its filter (filter.* options); "
+                                  "proposals.* apply to kct and to " +
+                                  name + " without a model");
+    }
+    if (key == "proposals.aimed") {
+      if (value != 0.0 && value != 1.0) {
+        return InvalidArgumentError("option proposals.aimed: 0 (uniform) or 1 (aimed)");
+      }
+      aimed = value != 0.0;
+    } else if (key == "proposals.target_share") {
+      proposals.target_share = value;
+    } else if (key == "proposals.object_share") {
+      proposals.object_share = value;
     } else {
-      return {};
+      rest.emplace_back(key, value);
     }
   }
+  if (Status s = proposals.Validate(); !s.ok()) return Prefixed("option proposals", s);
+  if (Status s = ApplyOptions(&o, rest); !s.ok()) return s;
+  std::shared_ptr<CandidateSampler<State>> sampler = args.sampler;
+  OptionList used = OptionValues(o);
+  if (filtered) {
+    for (const auto& [key, value] : sampler->Settings()) used.emplace_back("filter." + key, value);
+  } else {
+    for (auto& kv : ProposalValues(aimed, proposals)) used.push_back(kv);
+    sampler = aimed ? std::make_shared<AimedCandidateSampler>(*args.model, proposals) : nullptr;
+  }
+  return std::unique_ptr<SearchPlanner>(new HybridSearchPlanner<KCenterTree<ObjectSearchModel>>(
+      name, *args.model, o, Sorted(std::move(used)), sampler));
+}
 
- private:
-  std::string name_;
-  P planner_;
-  bool reuse_;
-  int threads_;
-};
+// ---- POMCP on the manual discrete sets (pomcp, gpomcp, pomcp-joint) ----
 
 // POMCP-family planners over a manual discrete action set.
 class DiscretePlanner final : public SearchPlanner {
@@ -83,7 +111,8 @@ class DiscretePlanner final : public SearchPlanner {
         discrete_(model, set),
         planner_(discrete_, options),
         guessed_target_(guessed_target),
-        reuse_(options.search.reuse_tree) {}
+        reuse_(options.search.reuse_tree),
+        used_(OptionValues(options)) {}
 
   const std::string& name() const override { return name_; }
   void SetBelief(ParticleBelief<State> belief) override {
@@ -126,6 +155,7 @@ class DiscretePlanner final : public SearchPlanner {
   void DropTree() override { planner_.DropTree(); }
   int64_t TreeSize() const override { return planner_.TreeSize(); }
   bool ReusesTree() const override { return reuse_; }
+  OptionList OptionsUsed() const override { return used_; }
 
  private:
   // Without the guessed target (the paper's POMCP), object 0 takes no part in the search: it is
@@ -145,175 +175,210 @@ class DiscretePlanner final : public SearchPlanner {
   Pomcp<DiscreteObjectSearch> planner_;
   bool guessed_target_;
   bool reuse_;
+  OptionList used_;
   int last_action_ = -1;
   HybridAction last_hybrid_;
 };
 
-StatusOr<std::unique_ptr<SearchPlanner>> MakeDiscrete(
-    const std::string& name, const ObjectSearchModel& model, DiscreteActionSet set,
-    bool guessed_target, bool reuse, const std::vector<std::pair<std::string, double>>& options) {
+PomcpOptions DiscreteDefaults(bool reuse) {
   PomcpOptions o;  // c = reward range, as in the paper's POMCP
   o.search.max_depth = kMaxDepth;
   o.search.num_particles = kParticles;
   o.search.reuse_tree = reuse;
-  if (Status s = ApplyAll(&o, options); !s.ok()) return s;
-  return std::unique_ptr<SearchPlanner>(new DiscretePlanner(name, model, set, guessed_target, o));
+  return o;
 }
 
-}  // namespace
-
-const std::vector<PlannerInfo>& SearchPlanners() {
-  static const auto* planners = new std::vector<PlannerInfo>{
-      {"npfkct",
-       "NPF-kCT: the k-center clustering tree over candidates from Net_sam (the neural filter); "
-       "uniform candidates when no filter is loaded",
-       true, false},
-      {"kct",
-       "NPF-kCT's clustering tree without the neural filter: candidates aimed at what is left to "
-       "see (proposals.aimed = 0: uniform, as in the paper)",
-       false, false},
-      {"pomcp",
-       "POMCP (Silver & Veness 2010) on the paper's manual set: separate base (4 poses), lift (3) "
-       "and head (9) actions; no guessed target, no tree reuse",
-       false, false},
-      {"gpomcp",
-       "GPOMCP (Chen & Kurniawati 2023): the paper's manual set with the guessed target and "
-       "belief-tree reuse",
-       false, false},
-      {"pomcp-joint",
-       "POMCP with the guessed target on the 108 joint pose x lift x head configurations "
-       "(stronger than the paper's baseline)",
-       false, false},
-      {"pomcpow",
-       "POMCPOW (Sunberg & Kochenderfer 2018): action and observation progressive widening, new "
-       "actions drawn from feasible configurations",
-       false, false},
-      {"vomcpow",
-       "VOMCPOW (Lim, Tomlin & Sunberg 2021): POMCPOW with Voronoi optimistic sampling of "
-       "feasible new actions",
-       false, false},
-      {"advt",
-       "ADVT-style Voronoi-tree planner (Hoerger et al. 2022), cells represented by feasible "
-       "configurations",
-       false, false},
-      {"oracle",
-       "Told the true world: plans the shortest legal action sequence (the ceiling; benchmark "
-       "only)",
-       false, true},
-      {"oracle-cover-unknown",
-       "The oracle not told which object covers the target: when nothing more of the target can "
-       "be seen it clears the movable object of the largest footprint (a ceiling told the "
-       "layout, not the target's box; benchmark only)",
-       false, true},
+PlannerEntry DiscreteEntry(std::string name, std::string summary, DiscreteActionSet set,
+                           bool guessed_target, bool reuse) {
+  PlannerEntry e;
+  e.name = name;
+  e.summary = std::move(summary);
+  e.defaults = [reuse](const SearchParams&) { return OptionValues(DiscreteDefaults(reuse)); };
+  e.make = [name, set, guessed_target, reuse](const PlannerArgs& args) -> Made {
+    PomcpOptions o = DiscreteDefaults(reuse);
+    if (Status s = ApplyOptions(&o, args.options); !s.ok()) return s;
+    return std::unique_ptr<SearchPlanner>(
+        new DiscretePlanner(name, *args.model, set, guessed_target, o));
   };
-  return *planners;
+  return e;
 }
 
-std::vector<std::string> SearchPlannerNames() {
-  std::vector<std::string> names;
-  for (const PlannerInfo& p : SearchPlanners()) names.push_back(p.name);
-  return names;
+// ---- POMCPOW, VOMCPOW, ADVT-style ----
+
+PomcpowOptions PomcpowDefaults(bool voo) {
+  PomcpowOptions o;  // POMCPOW.jl defaults for the widening constants
+  o.search.max_depth = kMaxDepth;
+  o.search.num_particles = kParticles;
+  o.search.reuse_tree = false;
+  o.use_voo = voo;
+  o.voo.proposal_stddev = 0.3;
+  o.feasibility_tries = kFeasibilityTries;
+  return o;
 }
 
-const PlannerInfo* FindSearchPlanner(const std::string& name) {
-  for (const PlannerInfo& p : SearchPlanners()) {
-    if (p.name == name) return &p;
-  }
-  return nullptr;
-}
-
-StatusOr<std::unique_ptr<SearchPlanner>> MakeSearchPlanner(
-    const std::string& name, const ObjectSearchModel& model,
-    const std::vector<std::pair<std::string, double>>& options,
-    std::shared_ptr<CandidateSampler<State>> sampler) {
-  const PlannerInfo* info = FindSearchPlanner(name);
-  if (info == nullptr) {
-    std::string known;
-    for (const auto& n : SearchPlannerNames()) known += (known.empty() ? "" : ", ") + n;
-    return InvalidArgumentError("unknown planner '" + name + "' (expected one of " + known + ")");
-  }
-  if (info->needs_truth) {
-    return InvalidArgumentError("planner '" + name +
-                                "' must be told the true world; only npfkct-bench can run it");
-  }
-  const double range = model.MaxReward() - model.MinReward();
-  if (name == "npfkct" || name == "kct") {
-    KctOptions o;  // paper defaults: k = 3, w1 = sqrt 2, D_lim = 0.2, w1_bar 0.6, w2_bar 0.3
-    o.search.max_depth = kMaxDepth;
-    o.search.num_particles = kParticles;
-    o.observations.enabled = false;
-    o.max_feasibility_tries = kFeasibilityTries;
-    // proposals.* choose the candidates of kct (and of npfkct without a filter): aimed at what is
-    // left to see (default) or uniform (proposals.aimed = 0, the paper's candidates). npfkct's
-    // filter draws its own (filter.target_share, filter.object_share): there they would be
-    // options given and not used, so they are refused.
-    const bool filtered = name == "npfkct" && sampler != nullptr;
-    ProposalOptions proposals;
-    bool aimed = true;
-    std::vector<std::pair<std::string, double>> rest;
-    for (const auto& [key, value] : options) {
-      if (filtered && key.rfind("proposals.", 0) == 0) {
-        return InvalidArgumentError("option " + key +
-                                    ": npfkct's candidates come from its filter (filter.* "
-                                    "options); proposals.* apply to kct and to npfkct without a "
-                                    "model");
-      }
-      if (key == "proposals.aimed") {
-        if (value != 0.0 && value != 1.0) {
-          return InvalidArgumentError("option proposals.aimed: 0 (uniform) or 1 (aimed)");
-        }
-        aimed = value != 0.0;
-      } else if (key == "proposals.target_share") {
-        proposals.target_share = value;
-      } else if (key == "proposals.object_share") {
-        proposals.object_share = value;
-      } else {
-        rest.emplace_back(key, value);
-      }
-    }
-    if (Status s = proposals.Validate(); !s.ok()) return Prefixed("option proposals", s);
-    if (Status s = ApplyAll(&o, rest); !s.ok()) return s;
-    if (!filtered) {
-      sampler = aimed ? std::make_shared<AimedCandidateSampler>(model, proposals) : nullptr;
-    }
+PlannerEntry PomcpowEntry(std::string name, std::string summary, bool voo) {
+  PlannerEntry e;
+  e.name = name;
+  e.summary = std::move(summary);
+  e.defaults = [voo](const SearchParams&) { return OptionValues(PomcpowDefaults(voo)); };
+  e.make = [name, voo](const PlannerArgs& args) -> Made {
+    PomcpowOptions o = PomcpowDefaults(voo);
+    if (Status s = ApplyOptions(&o, args.options); !s.ok()) return s;
     return std::unique_ptr<SearchPlanner>(
-        new HybridPlanner<KCenterTree<ObjectSearchModel>, KctOptions>(name, model, o, sampler));
-  }
-  if (name == "pomcp") {
-    return MakeDiscrete(name, model, DiscreteActionSet::kPrimitive, /*guessed_target=*/false,
-                        /*reuse=*/false, options);
-  }
-  if (name == "gpomcp") {
-    return MakeDiscrete(name, model, DiscreteActionSet::kPrimitive, /*guessed_target=*/true,
-                        /*reuse=*/true, options);
-  }
-  if (name == "pomcp-joint") {
-    return MakeDiscrete(name, model, DiscreteActionSet::kJoint, /*guessed_target=*/true,
-                        /*reuse=*/false, options);
-  }
-  if (name == "pomcpow" || name == "vomcpow") {
-    PomcpowOptions o;  // POMCPOW.jl defaults for the widening constants
-    o.search.max_depth = kMaxDepth;
-    o.search.num_particles = kParticles;
-    o.search.reuse_tree = false;
-    o.use_voo = name == "vomcpow";
-    o.voo.proposal_stddev = 0.3;
-    o.feasibility_tries = kFeasibilityTries;
-    if (Status s = ApplyAll(&o, options); !s.ok()) return s;
-    return std::unique_ptr<SearchPlanner>(
-        new HybridPlanner<Pomcpow<ObjectSearchModel>, PomcpowOptions>(name, model, o));
-  }
-  // advt
+        new HybridSearchPlanner<Pomcpow<ObjectSearchModel>>(name, *args.model, o, OptionValues(o)));
+  };
+  return e;
+}
+
+AdvtOptions AdvtDefaults(const SearchParams& params) {
   AdvtOptions o;
   o.search.max_depth = kMaxDepth;
   o.search.num_particles = kParticles;
   o.search.reuse_tree = false;
   o.observations.enabled = false;
-  o.diameter_coefficient = 0.1 * range;
+  o.diameter_coefficient = 0.1 * (params.r_max - params.r_ill);  // a tenth of the reward range
   o.feasibility_tries = kFeasibilityTries;
-  if (Status s = ApplyAll(&o, options); !s.ok()) return s;
-  return std::unique_ptr<SearchPlanner>(
-      new HybridPlanner<Advt<ObjectSearchModel>, AdvtOptions>(name, model, o));
+  return o;
+}
+
+Made NeedsTruth(const PlannerArgs&, const std::string& name) {
+  return InvalidArgumentError("planner '" + name +
+                              "' must be told the true world; only npfkct-bench can run it");
+}
+
+PlannerEntry OracleEntry(std::string name, std::string summary) {
+  PlannerEntry e;
+  e.name = name;
+  e.summary = std::move(summary);
+  e.needs_truth = true;
+  e.defaults = [](const SearchParams&) { return OptionList{}; };
+  e.make = [name](const PlannerArgs& args) { return NeedsTruth(args, name); };
+  return e;
+}
+
+PlannerRegistry MakeBuiltIn() {
+  PlannerRegistry r;
+  auto add = [&r](PlannerEntry e) {
+    Status s = r.Add(std::move(e));
+    (void)s;  // the built-in names are distinct and well-formed (a unit test checks)
+  };
+  add({"npfkct",
+       "NPF-kCT: the k-center clustering tree over candidates from Net_sam (the neural filter); "
+       "uniform candidates when no filter is loaded",
+       /*takes_sampler=*/true, /*needs_truth=*/false, KctDefaultList,
+       [](const PlannerArgs& args) { return MakeKct("npfkct", true, args); }});
+  add({"kct",
+       "NPF-kCT's clustering tree without the neural filter: candidates aimed at what is left to "
+       "see (proposals.aimed = 0: uniform, as in the paper)",
+       false, false, KctDefaultList,
+       [](const PlannerArgs& args) { return MakeKct("kct", false, args); }});
+  add(DiscreteEntry("pomcp",
+                    "POMCP (Silver & Veness 2010) on the paper's manual set: separate base (4 "
+                    "poses), lift (3) and head (9) actions; no guessed target, no tree reuse",
+                    DiscreteActionSet::kPrimitive, /*guessed_target=*/false, /*reuse=*/false));
+  add(DiscreteEntry("gpomcp",
+                    "GPOMCP (Chen & Kurniawati 2023): the paper's manual set with the guessed "
+                    "target and belief-tree reuse",
+                    DiscreteActionSet::kPrimitive, /*guessed_target=*/true, /*reuse=*/true));
+  add(DiscreteEntry("pomcp-joint",
+                    "POMCP with the guessed target on the 108 joint pose x lift x head "
+                    "configurations (stronger than the paper's baseline)",
+                    DiscreteActionSet::kJoint, /*guessed_target=*/true, /*reuse=*/false));
+  add(PomcpowEntry("pomcpow",
+                   "POMCPOW (Sunberg & Kochenderfer 2018): action and observation progressive "
+                   "widening, new actions drawn from feasible configurations",
+                   /*voo=*/false));
+  add(PomcpowEntry("vomcpow",
+                   "VOMCPOW (Lim, Tomlin & Sunberg 2021): POMCPOW with Voronoi optimistic "
+                   "sampling of feasible new actions",
+                   /*voo=*/true));
+  add({"advt",
+       "ADVT-style Voronoi-tree planner (Hoerger et al. 2022), cells represented by feasible "
+       "configurations",
+       false, false, [](const SearchParams& p) { return OptionValues(AdvtDefaults(p)); },
+       [](const PlannerArgs& args) -> Made {
+         AdvtOptions o = AdvtDefaults(args.model->world().params);
+         if (Status s = ApplyOptions(&o, args.options); !s.ok()) return s;
+         return std::unique_ptr<SearchPlanner>(new HybridSearchPlanner<Advt<ObjectSearchModel>>(
+             "advt", *args.model, o, OptionValues(o)));
+       }});
+  add(OracleEntry("oracle",
+                  "Told the true world: plans the shortest legal action sequence (the ceiling; "
+                  "benchmark only)"));
+  add(OracleEntry("oracle-cover-unknown",
+                  "The oracle not told which object covers the target: when nothing more of the "
+                  "target can be seen it clears the movable object of the largest footprint (a "
+                  "ceiling told the layout, not the target's box; benchmark only)"));
+  return r;
+}
+
+bool IsPlannerName(std::string_view name) {
+  if (name.empty() || name.size() > 64) return false;
+  return std::all_of(name.begin(), name.end(), [](char c) {
+    return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '-';
+  });
+}
+
+}  // namespace
+
+const PlannerRegistry& PlannerRegistry::BuiltIn() {
+  static const auto* registry = new PlannerRegistry(MakeBuiltIn());
+  return *registry;
+}
+
+Status PlannerRegistry::Add(PlannerEntry entry) {
+  if (!IsPlannerName(entry.name)) {
+    return InvalidArgumentError("planner name '" + entry.name +
+                                "': 1-64 lower-case letters, digits and '-'");
+  }
+  if (Find(entry.name) != nullptr) {
+    return InvalidArgumentError("planner '" + entry.name + "' is registered already");
+  }
+  if (!entry.make || !entry.defaults) {
+    return InvalidArgumentError("planner '" + entry.name + "': an entry needs make and defaults");
+  }
+  entries_.push_back(std::move(entry));
+  return OkStatus();
+}
+
+Status PlannerRegistry::SetFactory(
+    std::string_view name,
+    std::function<StatusOr<std::unique_ptr<SearchPlanner>>(const PlannerArgs&)> make) {
+  for (PlannerEntry& e : entries_) {
+    if (e.name == name) {
+      e.make = std::move(make);
+      return OkStatus();
+    }
+  }
+  return NotFoundError("no planner '" + std::string(name) + "'");
+}
+
+const PlannerEntry* PlannerRegistry::Find(std::string_view name) const {
+  for (const PlannerEntry& e : entries_) {
+    if (e.name == name) return &e;
+  }
+  return nullptr;
+}
+
+std::vector<std::string> PlannerRegistry::Names(bool servable_only) const {
+  std::vector<std::string> names;
+  for (const PlannerEntry& e : entries_) {
+    if (!servable_only || !e.needs_truth) names.push_back(e.name);
+  }
+  return names;
+}
+
+Made PlannerRegistry::Make(std::string_view name, const PlannerArgs& args) const {
+  const PlannerEntry* entry = Find(name);
+  if (entry == nullptr) {
+    std::string known;
+    for (const auto& n : Names()) known += (known.empty() ? "" : ", ") + n;
+    return InvalidArgumentError("unknown planner '" + std::string(name) + "' (expected one of " +
+                                known + ")");
+  }
+  if (entry->needs_truth && args.truth == nullptr) return NeedsTruth(args, entry->name);
+  if (args.model == nullptr) return InvalidArgumentError("planner '" + entry->name + "': no model");
+  return entry->make(args);
 }
 
 }  // namespace npfkct::object_search

@@ -2,6 +2,7 @@
 // rewards, illegal actions and the grid-world update.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <memory>
@@ -9,13 +10,20 @@
 
 #include "npfkct/object_search/discrete.h"
 #include "npfkct/object_search/model.h"
+#include "npfkct/object_search/planner_registry.h"
 #include "npfkct/object_search/proposals.h"
-#include "npfkct/object_search/search_planner.h"
 #include "npfkct/solver/kct.h"
 #include "npfkct/solver/pomcp.h"
 
 namespace npfkct::object_search {
 namespace {
+
+// A built-in planner (the registry's Make as the server and the bench call it).
+StatusOr<std::unique_ptr<SearchPlanner>> MakeSearchPlanner(
+    const std::string& name, const ObjectSearchModel& model, OptionList options,
+    std::shared_ptr<CandidateSampler<State>> sampler = nullptr) {
+  return PlannerRegistry::BuiltIn().Make(name, {&model, std::move(options), std::move(sampler)});
+}
 
 // A 1 m x 1 m table top at height 0.75 centered at (1.2, 0); the robot stands left of it.
 World TestWorld() {
@@ -512,8 +520,7 @@ TEST(DiscreteActionSetTest, PomcpPlansWithoutTheGuessedTargetAndGpomcpWithIt) {
   EXPECT_FALSE(MakeSearchPlanner("oracle", model, {}).ok());
   EXPECT_FALSE(MakeSearchPlanner("oracle-cover-unknown", model, {}).ok());
   EXPECT_FALSE(MakeSearchPlanner("nope", model, {}).ok());
-  for (const std::string& name : SearchPlannerNames()) {
-    if (FindSearchPlanner(name)->needs_truth) continue;
+  for (const std::string& name : PlannerRegistry::BuiltIn().Names(/*servable_only=*/true)) {
     auto p = MakeSearchPlanner(name, model, {});
     ASSERT_TRUE(p.ok()) << name;
     (*p)->SetBelief(belief);
@@ -646,6 +653,79 @@ TEST(WorldTest, BaseRegionsAreCutToTheRoomAndMustLeaveRoomForTheBase) {
   EXPECT_EQ(blocked.status().field_violations()[0].field, "baseRegions");
   prior.base_regions.push_back({Vec2(-2.5, 1.0), Vec2(-2.4, 1.1)});  // a small free corner
   EXPECT_TRUE(BuildWorld(prior).ok());
+}
+
+TEST(PlannerRegistryTest, BuiltInPlannersAreListedInTableOrderWithValidNames) {
+  const PlannerRegistry& r = PlannerRegistry::BuiltIn();
+  EXPECT_EQ(r.Names(),
+            (std::vector<std::string>{"npfkct", "kct", "pomcp", "gpomcp", "pomcp-joint", "pomcpow",
+                                      "vomcpow", "advt", "oracle", "oracle-cover-unknown"}));
+  EXPECT_EQ(r.Names(/*servable_only=*/true).size(), 8u);
+  PlannerRegistry copy = r;
+  for (const PlannerEntry& e : r.entries()) {
+    EXPECT_FALSE(copy.Add(e).ok()) << e.name;  // taken
+  }
+  PlannerEntry bad = r.entries()[0];
+  for (const char* name : {"", "Upper", "with space", "x/y"}) {
+    bad.name = name;
+    EXPECT_FALSE(copy.Add(bad).ok()) << name;
+  }
+  bad.name = "fine-name2";
+  bad.make = nullptr;
+  EXPECT_FALSE(copy.Add(bad).ok());
+  EXPECT_TRUE(r.Find("npfkct")->takes_sampler);
+  EXPECT_FALSE(r.Find("kct")->takes_sampler);
+  EXPECT_TRUE(r.Find("oracle")->needs_truth);
+}
+
+// Equal keys and values, NaN (an automatic value) equal to NaN.
+bool SameOptions(const OptionList& a, const OptionList& b) {
+  if (a.size() != b.size()) return false;
+  for (size_t i = 0; i < a.size(); ++i) {
+    if (a[i].first != b[i].first) return false;
+    const bool both_nan = std::isnan(a[i].second) && std::isnan(b[i].second);
+    if (!both_nan && a[i].second != b[i].second) return false;
+  }
+  return true;
+}
+
+TEST(PlannerRegistryTest, OptionsUsedAreTheDefaultsWithTheOverridesApplied) {
+  const World w = FourSidedWorld();
+  ObjectSearchModel model(std::make_shared<World>(w));
+  for (const std::string& name : PlannerRegistry::BuiltIn().Names(/*servable_only=*/true)) {
+    const PlannerEntry* e = PlannerRegistry::BuiltIn().Find(name);
+    const OptionList defaults = e->defaults(w.params);
+    auto plain = MakeSearchPlanner(name, model, {});
+    ASSERT_TRUE(plain.ok()) << name;
+    EXPECT_TRUE(SameOptions((*plain)->OptionsUsed(), defaults)) << name;
+    auto deeper = MakeSearchPlanner(name, model, {{"search.max_depth", 20}});
+    ASSERT_TRUE(deeper.ok()) << name;
+    OptionList expected = defaults;
+    for (auto& [key, value] : expected) {
+      if (key == "search.max_depth") value = 20;
+    }
+    EXPECT_TRUE(SameOptions((*deeper)->OptionsUsed(), expected)) << name;
+  }
+  // The object-search defaults every planner shares: depth 12, 300 particles.
+  const OptionList kct = PlannerRegistry::BuiltIn().Find("kct")->defaults(w.params);
+  EXPECT_NE(
+      std::find(kct.begin(), kct.end(), std::pair<std::string, double>("search.max_depth", 12)),
+      kct.end());
+  // A bad override names the option.
+  auto bad = MakeSearchPlanner("kct", model, {{"k", 1}});
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.status().message().find("k must be >= 2"), std::string::npos);
+}
+
+TEST(PlannerRegistryTest, PlannersThatNeedTheTruthAreRefusedWithoutIt) {
+  const World w = FourSidedWorld();
+  ObjectSearchModel model(std::make_shared<World>(w));
+  auto oracle = MakeSearchPlanner("oracle", model, {});
+  ASSERT_FALSE(oracle.ok());
+  EXPECT_NE(oracle.status().message().find("true world"), std::string::npos);
+  auto unknown = MakeSearchPlanner("nope", model, {});
+  ASSERT_FALSE(unknown.ok());
+  EXPECT_NE(unknown.status().message().find("expected one of npfkct, kct"), std::string::npos);
 }
 
 }  // namespace

@@ -101,20 +101,17 @@ SamplerFactory FilterSamplerFactory(std::shared_ptr<ModelRegistry> models) {
       }
       return std::shared_ptr<CandidateSampler<object_search::State>>();
     }
-    if (spec.name != "npfkct") {
-      return InvalidFieldError("planner.model", "only the npfkct planner uses a filter model");
-    }
     auto net = models->Get(spec.model);
     if (!net.ok()) return net.status();
     filter::FilterOptions options;
     for (const auto& [key, value] : spec.options) {
       if (!IsFilterOption(key)) continue;
       const std::string field = "planner.options." + key;
-      if (Status s = filter::SetOption(&options, api::SnakeCase(key.substr(7)), value); !s.ok()) {
+      if (Status s = filter::SetOption(&options, key.substr(7), value); !s.ok()) {
         return InvalidFieldError(field, s.message());
       }
       filter::FilterOptions alone;
-      (void)filter::SetOption(&alone, api::SnakeCase(key.substr(7)), value);
+      (void)filter::SetOption(&alone, key.substr(7), value);
       if (Status s = alone.Validate(); !s.ok()) return InvalidFieldError(field, s.message());
     }
     if (Status s = options.Validate(); !s.ok()) {

@@ -187,8 +187,8 @@ StatusOr<int> Registry::Open(const SamplerFactory& samplers) {
       spdlog::warn("skipping snapshot {}: {}", id, loaded.status().ToString());
       continue;
     }
-    auto session =
-        Session::Restore(std::move(loaded->record), loaded->version, samplers, session_limits_);
+    auto session = Session::Restore(std::move(loaded->record), loaded->version, samplers,
+                                    options_.planners, session_limits_);
     if (!session.ok()) {
       spdlog::warn("skipping snapshot {}: {}", id, session.status().ToString());
       continue;
@@ -273,8 +273,8 @@ StatusOr<std::shared_ptr<Session>> Registry::Install(SessionStore::Loaded loaded
   }
   // A session holds its particles and tree: none is loaded past the heap bound.
   if (Status heap = CheckHeap(session_limits_, "load a session"); !heap.ok()) return heap;
-  auto restored =
-      Session::Restore(std::move(loaded.record), loaded.version, samplers_, session_limits_);
+  auto restored = Session::Restore(std::move(loaded.record), loaded.version, samplers_,
+                                   options_.planners, session_limits_);
   if (!restored.ok()) {
     spdlog::warn("session {} cannot be loaded from the store: {}", id,
                  restored.status().ToString());

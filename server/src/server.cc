@@ -16,6 +16,7 @@
 #include "console.h"
 #include "http_front.h"
 #include "npfkct/api/api.h"
+#include "npfkct/filter/filter.h"
 #include "options.h"
 #include "registry.h"
 
@@ -133,7 +134,7 @@ struct Server::Impl {
     // 1.7 s), admitted like a plan.
     std::optional<Admission::Ticket> ticket;
     if (body.size() > kAdmittedBodyBytes && !Admit(res, &ticket)) return;
-    auto req = api::ParseCreateSession(body, options.limits);
+    auto req = api::ParseCreateSession(body, options.limits, options.planners);
     if (!req.ok()) return Fail(res, req.status());
     if (req->ttl_seconds && *req->ttl_seconds > options.session_ttl_seconds) {
       return Fail(res, InvalidFieldError("ttlSeconds", "must be <= " +
@@ -144,8 +145,9 @@ struct Server::Impl {
     if (Status full = registry.CheckCapacity(); !full.ok()) return Fail(res, full, 0, 5);
     auto world = api::BuildWorld(req->world, options.limits);
     if (!world.ok()) return Fail(res, world.status());
-    // npfkct plans with the server's default model unless the request names one ("": none).
-    if (req->planner.name == "npfkct" && !req->planner.model_given) {
+    // A planner that takes a filter model plans with the server's default model unless the
+    // request names one ("": none).
+    if (req->planner.takes_model && !req->planner.model_given) {
       req->planner.model = default_model;
     }
     SessionConfig config{
@@ -157,8 +159,8 @@ struct Server::Impl {
         req->ttl_seconds.value_or(options.session_ttl_seconds)};
     if (req->seed) config.seed = *req->seed;
     auto session = Session::Create(std::move(config), std::move(world).value(), samplers,
-                                   registry.session_limits());
-    if (!session.ok()) return Fail(res, session.status());
+                                   options.planners, registry.session_limits());
+    if (!session.ok()) return Fail(res, api::ToWire(session.status()));
     auto added = registry.Add(std::move(session).value());
     if (!added.ok()) return Fail(res, added.status(), 0, 5);
     spdlog::info("session {} created (planner {})", (*added)->id(), req->planner.name);
@@ -230,8 +232,10 @@ struct Server::Impl {
       // Another replica saved the session first (or the save failed): this plan's time still
       // counts against the session's lifetime budget, racing replicas included.
       if (s->stale()) registry.KeepUsageOf(s);
-      return Fail(res, reply.status(), 0, queue_full ? 1 : 0);
+      return Fail(res, api::ToWire(reply.status()), 0, queue_full ? 1 : 0);
     }
+    reply->summary.budget_given = Budget{plan->time_ms.value_or(0.0), plan->simulations.value_or(0),
+                                         plan->cpu_ms.value_or(0.0)};
     const double total =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     const double planning = reply->stats.elapsed_ms / 1000.0;
@@ -253,7 +257,7 @@ struct Server::Impl {
     if (!observe.ok()) return Fail(res, observe.status());
     if (observe->frame && !Admit(res, &ticket)) return;
     auto reply = s->Observe(std::move(observe).value(), registry.store());
-    if (!reply.ok()) return Fail(res, reply.status());
+    if (!reply.ok()) return Fail(res, api::ToWire(reply.status()));
     Json(res, 200, api::RenderObserve(*reply));
     ReleaseFreedMemory();  // the planner kept only the subtree of what was observed
   }
@@ -282,6 +286,25 @@ struct Server::Impl {
     if (auto s = Find(req, res)) Json(res, 200, api::RenderSteps(s->Steps()));
   }
 
+  // The planners sessions may use, with every option's default (a planner that takes a filter
+  // model lists Net_sam's filter.* options too).
+  void Planners(const Request&, Response& res, const std::string&) {
+    std::vector<api::PlannerView> views;
+    const object_search::SearchParams params;
+    for (const object_search::PlannerEntry& e : options.planners.entries()) {
+      if (e.needs_truth) continue;
+      api::PlannerView v{e.name, e.summary, e.takes_sampler, e.defaults(params)};
+      if (e.takes_sampler) {
+        for (const auto& [key, value] : filter::OptionValues(filter::FilterOptions{})) {
+          v.defaults.emplace_back("filter." + key, value);
+        }
+        std::sort(v.defaults.begin(), v.defaults.end());
+      }
+      views.push_back(std::move(v));
+    }
+    Json(res, 200, api::RenderPlanners(views));
+  }
+
   void Console(const Request& req, Response& res, const std::string&) { ServeConsole(req, res); }
 
   // ---- routing ----
@@ -307,6 +330,7 @@ struct Server::Impl {
     AddRoute("GET", "/metrics", "/metrics", false, &Impl::MetricsText);
     AddRoute("POST", "/v1/sessions", "/v1/sessions", true, &Impl::Create);
     AddRoute("GET", "/v1/sessions", "/v1/sessions", true, &Impl::List);
+    AddRoute("GET", "/v1/planners", "/v1/planners", true, &Impl::Planners);
     AddRoute("GET", "/v1/sessions/{id}", R"(/v1/sessions/([^/:]+))", true, &Impl::Get);
     AddRoute("DELETE", "/v1/sessions/{id}", R"(/v1/sessions/([^/:]+))", true, &Impl::Delete);
     AddRoute("POST", "/v1/sessions/{id}:plan", R"(/v1/sessions/([^/:]+):plan)", true, &Impl::Plan);

@@ -10,7 +10,6 @@
 #include <random>
 #include <set>
 
-#include "npfkct/api/api.h"
 #include "npfkct/api/wire.h"
 #include "npfkct/perception/perception.h"
 
@@ -89,6 +88,7 @@ Session::~Session() = default;
 
 StatusOr<std::unique_ptr<Session>> Session::Create(SessionConfig config, World world,
                                                    const SamplerFactory& samplers,
+                                                   const object_search::PlannerRegistry& planners,
                                                    SessionLimits limits) {
   std::unique_ptr<Session> s(new Session());
   s->id_ = std::move(config.id);
@@ -101,13 +101,41 @@ StatusOr<std::unique_ptr<Session>> Session::Create(SessionConfig config, World w
   s->world_ = std::make_shared<const World>(std::move(world));
   s->create_time_ = s->update_time_ = std::chrono::system_clock::now();
   s->last_used_ = std::chrono::steady_clock::now();
-  if (Status st = s->Init(samplers); !st.ok()) return st;
+  if (Status st = s->Init(samplers, planners); !st.ok()) return st;
   return s;
 }
 
-Status Session::Init(const SamplerFactory& samplers) {
+namespace {
+
+// "only the npfkct planner uses a filter model", naming the planners of `planners` that take one.
+std::string OnlyTheseTakeAModel(const object_search::PlannerRegistry& planners) {
+  std::vector<std::string> names;
+  for (const auto& e : planners.entries()) {
+    if (e.takes_sampler) names.push_back(e.name);
+  }
+  if (names.empty()) return "no planner of this server uses a filter model";
+  std::string list;
+  for (size_t i = 0; i < names.size(); ++i) {
+    list += (i == 0 ? "" : i + 1 == names.size() ? " and " : ", ") + names[i];
+  }
+  return "only the " + list + (names.size() == 1 ? " planner uses" : " planners use") +
+         " a filter model";
+}
+
+}  // namespace
+
+Status Session::Init(const SamplerFactory& samplers,
+                     const object_search::PlannerRegistry& planners) {
   Reseed();
   model_ = std::make_unique<object_search::ObjectSearchModel>(world_);
+  const object_search::PlannerEntry* entry = planners.Find(spec_.name);
+  if (entry == nullptr || entry->needs_truth) {
+    return InvalidFieldError("planner.name", "no planner '" + spec_.name + "' on this server");
+  }
+  spec_.takes_model = entry->takes_sampler;
+  if (!spec_.model.empty() && !entry->takes_sampler) {
+    return InvalidFieldError("planner.model", OnlyTheseTakeAModel(planners));
+  }
   std::shared_ptr<CandidateSampler<object_search::State>> sampler;
   if (samplers) {
     auto made = samplers(spec_, *model_);
@@ -116,20 +144,15 @@ Status Session::Init(const SamplerFactory& samplers) {
   }
   // Net_sam's "filter.*" options went to the sampler factory; the planner gets the rest, each
   // tried alone first so that a bad one is named.
-  std::vector<std::pair<std::string, double>> options;
+  object_search::OptionList options;
   for (const auto& [key, value] : spec_.options) {
     if (IsFilterOption(key)) continue;
-    const std::pair<std::string, double> option(api::SnakeCase(key), value);
-    auto alone = object_search::MakeSearchPlanner(spec_.name, *model_, {option});
+    auto alone = planners.Make(spec_.name, {model_.get(), {{key, value}}, nullptr, nullptr});
     if (!alone.ok()) return InvalidFieldError("planner.options." + key, alone.status().message());
-    options.push_back(option);
+    options.emplace_back(key, value);
   }
-  auto planner = object_search::MakeSearchPlanner(spec_.name, *model_, options, sampler);
-  if (!planner.ok()) {
-    return InvalidFieldError(
-        object_search::FindSearchPlanner(spec_.name) ? "planner.options" : "planner.name",
-        planner.status().message());
-  }
+  auto planner = planners.Make(spec_.name, {model_.get(), options, sampler, nullptr});
+  if (!planner.ok()) return InvalidFieldError("planner.options", planner.status().message());
   planner_ = std::move(planner).value();
   planner_->SetBelief(FreshBelief());
   return OkStatus();
@@ -269,6 +292,9 @@ StatusOr<api::PlanReply> Session::Plan(const Budget& asked,
   reply.stats = d.stats;
   reply.candidates = planner_->candidate_stats();
   reply.budget = budget;
+  reply.summary.options_given = spec_.options;
+  reply.summary.options_used = planner_->OptionsUsed();
+  reply.summary.resolved = planner_->ResolvedByLastPlan();
   history_.push_back({static_cast<int>(actions_), reply.action_id, reply.action, d.value, d.stats,
                       reply.candidates, api::UnixMillis(std::chrono::system_clock::now()),
                       std::nullopt});
@@ -292,14 +318,14 @@ StatusOr<api::ObserveReply> Session::Observe(api::ObserveRequest req, SessionSto
     std::lock_guard<std::mutex> lock(state_mutex_);
     if (state_ != api::SessionState::kActionPending) {
       if (req.action_id == last_action_id_ && !req.action_id.empty()) {
-        return FieldError(StatusCode::kFailedPrecondition, "actionId",
+        return FieldError(StatusCode::kFailedPrecondition, "action_id",
                           req.action_id + " was already observed");
       }
-      return FieldError(StatusCode::kFailedPrecondition, "actionId",
+      return FieldError(StatusCode::kFailedPrecondition, "action_id",
                         "no action is pending (POST :plan first)");
     }
     if (req.action_id != pending_action_id_) {
-      return FieldError(StatusCode::kFailedPrecondition, "actionId",
+      return FieldError(StatusCode::kFailedPrecondition, "action_id",
                         "'" + req.action_id + "' is stale or unknown; the pending action is " +
                             pending_action_id_);
     }
@@ -308,7 +334,7 @@ StatusOr<api::ObserveReply> Session::Observe(api::ObserveRequest req, SessionSto
   }
   const bool is_move = action.kind == object_search::kMoveKind;
   if (is_move && req.succeeded && !req.robot_state) {
-    return InvalidFieldError("robotState", "missing (required after a MOVE)");
+    return InvalidFieldError("robot_state", "missing (required after a MOVE)");
   }
   for (size_t i = 0; i < req.detections.size(); ++i) {
     if (req.detections[i].key == world->objects[0].key) {
@@ -343,7 +369,7 @@ StatusOr<api::ObserveReply> Session::Observe(api::ObserveRequest req, SessionSto
     if (!perception_) {
       const int64_t points = perception::PriorMapPoints(*world, {});
       if (points > limits_.max_perception_map_points) {
-        return FieldError(StatusCode::kFailedPrecondition, "pointCloud",
+        return FieldError(StatusCode::kFailedPrecondition, "point_cloud",
                           "perception would map this world with " + std::to_string(points) +
                               " points, more than " +
                               std::to_string(limits_.max_perception_map_points) +
@@ -394,14 +420,14 @@ StatusOr<api::ObserveReply> Session::Observe(api::ObserveRequest req, SessionSto
     detected.push_back(index);
   }
   if (next.objects.size() + fresh.size() > object_search::kMaxObjects) {
-    return fail(InvalidFieldError(req.frame ? "pointCloud" : "detections",
+    return fail(InvalidFieldError(req.frame ? "point_cloud" : "detections",
                                   "the session would know more than " +
                                       std::to_string(object_search::kMaxKnownObjects) +
                                       " objects"));
   }
   const object_search::Observation key = model_->RealObservationKey(detected);
   if (Status s = object_search::ApplyRealObservation(&next, obs); !s.ok()) {
-    return fail(InvalidFieldError(req.frame ? "pointCloud" : "detections", s.message()));
+    return fail(InvalidFieldError(req.frame ? "point_cloud" : "detections", s.message()));
   }
   auto updated = std::make_shared<const World>(std::move(next));
   model_->SetWorld(updated);

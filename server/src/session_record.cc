@@ -17,6 +17,7 @@ using object_search::World;
 
 StatusOr<std::unique_ptr<Session>> Session::Restore(api::SessionRecord r, int64_t version,
                                                     const SamplerFactory& samplers,
+                                                    const object_search::PlannerRegistry& planners,
                                                     SessionLimits limits) {
   std::unique_ptr<Session> s(new Session());
   s->id_ = std::move(r.id);
@@ -39,7 +40,7 @@ StatusOr<std::unique_ptr<Session>> Session::Restore(api::SessionRecord r, int64_
   s->pending_action_ = std::move(r.pending_action);
   s->history_ = std::move(r.history);
   s->version_ = version;
-  if (Status st = s->Init(samplers); !st.ok()) return st;
+  if (Status st = s->Init(samplers, planners); !st.ok()) return st;
   if (r.perception) {
     if (perception::PriorMapPoints(*s->world_, {}) > limits.max_perception_map_points) {
       return Status(StatusCode::kDataLoss, "snapshot: perception tracks for a world too large");

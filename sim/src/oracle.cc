@@ -301,4 +301,69 @@ HybridAction Oracle::Next(const object_search::World& knowledge) const {
   return Move(knowledge.robot_config);
 }
 
+namespace {
+
+// The oracle behind the SearchPlanner interface: no belief, no tree; each Plan() asks it for the
+// next action given the model's World (the robot's knowledge).
+class OraclePlanner final : public object_search::SearchPlanner {
+ public:
+  OraclePlanner(std::string name, const object_search::ObjectSearchModel& model,
+                const Simulator& simulator, OracleOptions options)
+      : name_(std::move(name)), model_(model), oracle_(simulator, options), options_(options) {}
+
+  const std::string& name() const override { return name_; }
+  void SetBelief(ParticleBelief<object_search::State>) override {}
+  using SearchPlanner::Plan;
+  Decision<HybridAction> Plan(const TerminationCondition& stop, Rng&) override {
+    Decision<HybridAction> d;
+    d.action = oracle_.Next(model_.world());
+    d.stats.simulations = 0;
+    d.stats.elapsed_ms = stop.ElapsedMs();
+    d.stats.cpu_ms = stop.CpuMs();
+    return d;
+  }
+  void AdvanceTo(const HybridAction&, const object_search::Observation&,
+                 ParticleBelief<object_search::State>) override {}
+  void DropTree() override {}
+  int64_t TreeSize() const override { return 0; }
+  bool ReusesTree() const override { return false; }
+  object_search::OptionList OptionsUsed() const override {
+    return {{"base_spacing", options_.base_spacing},
+            {"cover_unknown", options_.cover_unknown ? 1.0 : 0.0},
+            {"lifts", static_cast<double>(options_.lifts)},
+            {"pans", static_cast<double>(options_.pans)}};
+  }
+
+ private:
+  std::string name_;
+  const object_search::ObjectSearchModel& model_;
+  Oracle oracle_;
+  OracleOptions options_;
+};
+
+}  // namespace
+
+Status AddOracleFactories(object_search::PlannerRegistry* registry) {
+  for (const char* name : {"oracle", "oracle-cover-unknown"}) {
+    const std::string n = name;
+    Status s = registry->SetFactory(
+        n,
+        [n](const object_search::PlannerArgs& args)
+            -> StatusOr<std::unique_ptr<object_search::SearchPlanner>> {
+          const auto* truth = dynamic_cast<const SceneTruth*>(args.truth);
+          if (truth == nullptr) {
+            return InvalidArgumentError("planner '" + n + "' must be told the scene's truth");
+          }
+          // Planner options are the searches' (a run of several planners gives them to each);
+          // the oracle searches nothing and reads none.
+          OracleOptions options;
+          options.cover_unknown = n == "oracle-cover-unknown";
+          return std::unique_ptr<object_search::SearchPlanner>(
+              new OraclePlanner(n, *args.model, truth->simulator(), options));
+        });
+    if (!s.ok()) return s;
+  }
+  return OkStatus();
+}
+
 }  // namespace npfkct::sim

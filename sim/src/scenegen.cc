@@ -9,10 +9,10 @@
 #include <string>
 #include <vector>
 
+#include "npfkct/common/rng.h"
 #include "npfkct/sim/oracle.h"
 #include "npfkct/sim/scenario.h"
 #include "npfkct/sim/simulator.h"
-#include "npfkct/common/rng.h"
 
 namespace npfkct::sim {
 namespace {

@@ -9,34 +9,27 @@
 namespace npfkct {
 namespace {
 
+using option_table::AddNested;
 using option_table::Apply;
 using option_table::Bool;
+using option_table::Enum;
 using option_table::Int;
 using option_table::Keys;
 using option_table::Nested;
 using option_table::Real;
-using option_table::Setter;
+using option_table::Table;
+using option_table::Values;
 
-Setter<SearchOptions> LeafValue() {
-  return [](SearchOptions* o, double v) {
-    if (v == 0.0) {
-      o->leaf_value = SearchOptions::LeafValue::kRollout;
-    } else if (v == 1.0) {
-      o->leaf_value = SearchOptions::LeafValue::kHeuristic;
-    } else {
-      return InvalidArgumentError("0 (rollout) or 1 (heuristic)");
-    }
-    return OkStatus();
-  };
-}
-
-const std::map<std::string, Setter<SearchOptions>, std::less<>>& SearchTable() {
-  static const auto* table = new std::map<std::string, Setter<SearchOptions>, std::less<>>{
+const Table<SearchOptions>& SearchTable() {
+  static const auto* table = new Table<SearchOptions>{
       {"max_depth", Int(&SearchOptions::max_depth)},
       {"discount_horizon", Real(&SearchOptions::discount_horizon)},
       {"reuse_tree", Bool(&SearchOptions::reuse_tree)},
       {"num_particles", Int(&SearchOptions::num_particles)},
-      {"leaf_value", LeafValue()},
+      {"leaf_value",
+       Enum(&SearchOptions::leaf_value,
+            {SearchOptions::LeafValue::kRollout, SearchOptions::LeafValue::kHeuristic},
+            "0 (rollout) or 1 (heuristic)")},
       {"threads", Int(&SearchOptions::threads)},
       {"rollout_first", Bool(&SearchOptions::rollout_first)},
       {"belief.resample_threshold",
@@ -50,14 +43,12 @@ const std::map<std::string, Setter<SearchOptions>, std::less<>>& SearchTable() {
 }
 
 template <class O>
-void AddSearch(std::map<std::string, Setter<O>, std::less<>>* table) {
-  for (const auto& [k, setter] : SearchTable()) {
-    (*table)["search." + k] = Nested(&O::search, setter);
-  }
+void AddSearch(Table<O>* table) {
+  AddNested(table, "search", &O::search, SearchTable());
 }
 
-const std::map<std::string, Setter<ObservationWidening>, std::less<>>& WideningTable() {
-  static const auto* table = new std::map<std::string, Setter<ObservationWidening>, std::less<>>{
+const Table<ObservationWidening>& WideningTable() {
+  static const auto* table = new Table<ObservationWidening>{
       {"enabled", Bool(&ObservationWidening::enabled)},
       {"k", Real(&ObservationWidening::k)},
       {"alpha", Real(&ObservationWidening::alpha)},
@@ -67,15 +58,13 @@ const std::map<std::string, Setter<ObservationWidening>, std::less<>>& WideningT
 }
 
 template <class O>
-void AddWidening(std::map<std::string, Setter<O>, std::less<>>* table) {
-  for (const auto& [k, setter] : WideningTable()) {
-    (*table)["observations." + k] = Nested(&O::observations, setter);
-  }
+void AddWidening(Table<O>* table) {
+  AddNested(table, "observations", &O::observations, WideningTable());
 }
 
-const std::map<std::string, Setter<PomcpOptions>, std::less<>>& PomcpTable() {
+const Table<PomcpOptions>& PomcpTable() {
   static const auto* table = [] {
-    auto* t = new std::map<std::string, Setter<PomcpOptions>, std::less<>>{
+    auto* t = new Table<PomcpOptions>{
         {"exploration_c", Real(&PomcpOptions::exploration_c)},
         {"use_preferred_actions", Bool(&PomcpOptions::use_preferred_actions)},
         {"prior_count", Int(&PomcpOptions::prior_count)},
@@ -87,9 +76,9 @@ const std::map<std::string, Setter<PomcpOptions>, std::less<>>& PomcpTable() {
   return *table;
 }
 
-const std::map<std::string, Setter<PomcpowOptions>, std::less<>>& PomcpowTable() {
+const Table<PomcpowOptions>& PomcpowTable() {
   static const auto* table = [] {
-    auto* t = new std::map<std::string, Setter<PomcpowOptions>, std::less<>>{
+    auto* t = new Table<PomcpowOptions>{
         {"exploration_c", Real(&PomcpowOptions::exploration_c)},
         {"enable_action_pw", Bool(&PomcpowOptions::enable_action_pw)},
         {"k_action", Real(&PomcpowOptions::k_action)},
@@ -109,9 +98,9 @@ const std::map<std::string, Setter<PomcpowOptions>, std::less<>>& PomcpowTable()
   return *table;
 }
 
-const std::map<std::string, Setter<AdvtOptions>, std::less<>>& AdvtTable() {
+const Table<AdvtOptions>& AdvtTable() {
   static const auto* table = [] {
-    auto* t = new std::map<std::string, Setter<AdvtOptions>, std::less<>>{
+    auto* t = new Table<AdvtOptions>{
         {"exploration_c", Real(&AdvtOptions::exploration_c)},
         {"diameter_coefficient", Real(&AdvtOptions::diameter_coefficient)},
         {"split_coefficient", Real(&AdvtOptions::split_coefficient)},
@@ -119,11 +108,8 @@ const std::map<std::string, Setter<AdvtOptions>, std::less<>>& AdvtTable() {
         {"walk_steps", Int(&AdvtOptions::walk_steps)},
         {"feasibility_tries", Int(&AdvtOptions::feasibility_tries)},
         {"backup",
-         [](AdvtOptions* o, double v) {
-           if (v != 0.0 && v != 1.0) return InvalidArgumentError("0 (Monte Carlo) or 1 (max)");
-           o->backup = v == 0.0 ? AdvtOptions::Backup::kMonteCarlo : AdvtOptions::Backup::kMax;
-           return OkStatus();
-         }},
+         Enum(&AdvtOptions::backup, {AdvtOptions::Backup::kMonteCarlo, AdvtOptions::Backup::kMax},
+              "0 (Monte Carlo) or 1 (max)")},
     };
     AddSearch(t);
     AddWidening(t);
@@ -132,9 +118,9 @@ const std::map<std::string, Setter<AdvtOptions>, std::less<>>& AdvtTable() {
   return *table;
 }
 
-const std::map<std::string, Setter<KctOptions>, std::less<>>& KctTable() {
+const Table<KctOptions>& KctTable() {
   static const auto* table = [] {
-    auto* t = new std::map<std::string, Setter<KctOptions>, std::less<>>{
+    auto* t = new Table<KctOptions>{
         {"k", Int(&KctOptions::k)},
         {"w1", Real(&KctOptions::w1)},
         {"w2", Real(&KctOptions::w2)},
@@ -149,40 +135,22 @@ const std::map<std::string, Setter<KctOptions>, std::less<>>& KctTable() {
         {"max_feasibility_tries", Int(&KctOptions::max_feasibility_tries)},
         {"tree_feasibility_tries", Int(&KctOptions::tree_feasibility_tries)},
         {"backup",
-         [](KctOptions* o, double v) {
-           if (v != 0.0 && v != 1.0) return InvalidArgumentError("0 (Monte Carlo) or 1 (Bellman)");
-           o->backup = v == 0.0 ? KctOptions::Backup::kMonteCarlo : KctOptions::Backup::kBellman;
-           return OkStatus();
-         }},
+         Enum(&KctOptions::backup, {KctOptions::Backup::kMonteCarlo, KctOptions::Backup::kBellman},
+              "0 (Monte Carlo) or 1 (Bellman)")},
         {"final_action",
-         [](KctOptions* o, double v) {
-           if (v != 0.0 && v != 1.0) return InvalidArgumentError("0 (uniform) or 1 (center)");
-           o->final_action = v == 0.0 ? KctOptions::FinalAction::kUniformInSphere
-                                      : KctOptions::FinalAction::kCenter;
-           return OkStatus();
-         }},
+         Enum(&KctOptions::final_action,
+              {KctOptions::FinalAction::kUniformInSphere, KctOptions::FinalAction::kCenter},
+              "0 (uniform) or 1 (center)")},
         {"final_choice",
-         [](KctOptions* o, double v) {
-           if (v != 0.0 && v != 1.0 && v != 2.0) {
-             return InvalidArgumentError(
-                 "0 (highest value), 1 (most visited) or 2 (lower confidence bound)");
-           }
-           o->final_choice = v == 0.0   ? KctOptions::FinalChoice::kMaxValue
-                             : v == 1.0 ? KctOptions::FinalChoice::kMostVisited
-                                        : KctOptions::FinalChoice::kLowerBound;
-           return OkStatus();
-         }},
+         Enum(&KctOptions::final_choice,
+              {KctOptions::FinalChoice::kMaxValue, KctOptions::FinalChoice::kMostVisited,
+               KctOptions::FinalChoice::kLowerBound},
+              "0 (highest value), 1 (most visited) or 2 (lower confidence bound)")},
         {"normalization",
-         [](KctOptions* o, double v) {
-           if (v != 0.0 && v != 1.0 && v != 2.0) {
-             return InvalidArgumentError(
-                 "0 (observed range), 1 (value scale) or 2 (sibling range)");
-           }
-           o->normalization = v == 0.0   ? KctOptions::Normalization::kObservedRange
-                              : v == 1.0 ? KctOptions::Normalization::kValueScale
-                                         : KctOptions::Normalization::kSiblingRange;
-           return OkStatus();
-         }},
+         Enum(&KctOptions::normalization,
+              {KctOptions::Normalization::kObservedRange, KctOptions::Normalization::kValueScale,
+               KctOptions::Normalization::kSiblingRange},
+              "0 (observed range), 1 (value scale) or 2 (sibling range)")},
         {"w2_ratio", Real(&KctOptions::w2_ratio)},
         {"sample_candidates", Bool(&KctOptions::sample_candidates)},
         {"refine_share", Real(&KctOptions::refine_share)},
@@ -217,5 +185,11 @@ std::vector<std::string> OptionNames(const PomcpOptions*) { return Keys(PomcpTab
 std::vector<std::string> OptionNames(const PomcpowOptions*) { return Keys(PomcpowTable()); }
 std::vector<std::string> OptionNames(const AdvtOptions*) { return Keys(AdvtTable()); }
 std::vector<std::string> OptionNames(const KctOptions*) { return Keys(KctTable()); }
+
+OptionValueList OptionValues(const SearchOptions& o) { return Values(SearchTable(), o); }
+OptionValueList OptionValues(const PomcpOptions& o) { return Values(PomcpTable(), o); }
+OptionValueList OptionValues(const PomcpowOptions& o) { return Values(PomcpowTable(), o); }
+OptionValueList OptionValues(const AdvtOptions& o) { return Values(AdvtTable(), o); }
+OptionValueList OptionValues(const KctOptions& o) { return Values(KctTable(), o); }
 
 }  // namespace npfkct

@@ -6,9 +6,9 @@
 #include <algorithm>
 #include <vector>
 
+#include "npfkct/common/stats.h"
 #include "npfkct/solver/kct.h"
 #include "npfkct/solver/pomcpow.h"
-#include "npfkct/common/stats.h"
 
 namespace npfkct {
 namespace {

@@ -16,7 +16,7 @@
 #include <string>
 #include <vector>
 
-#include "npfkct/train/generate.h"
+#include "npfkct/common/stats.h"
 #include "npfkct/filter/dataset.h"
 #include "npfkct/filter/filter.h"
 #include "npfkct/filter/train.h"
@@ -25,7 +25,7 @@
 #include "npfkct/sim/simulator.h"
 #include "npfkct/solver/belief.h"
 #include "npfkct/solver/planner.h"
-#include "npfkct/common/stats.h"
+#include "npfkct/train/generate.h"
 
 namespace {
 

@@ -9,8 +9,8 @@
 #include <string_view>
 
 #include "npfkct/api/limits.h"
-#include "npfkct/object_search/geometry.h"
 #include "npfkct/common/status.h"
+#include "npfkct/object_search/geometry.h"
 
 namespace npfkct::api::internal {
 

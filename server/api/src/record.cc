@@ -39,11 +39,15 @@ Status Lost(const std::string& what) { return Status(StatusCode::kDataLoss, "sna
 json PlannerJson(const PlannerSpec& p) {
   json options = json::array();
   for (size_t i = 0; i < p.options.size(); ++i) {
-    options.push_back({{"key", p.options[i].first},
+    options.push_back({{"key", CamelCase(p.options[i].first)},
                        {"value", p.options[i].second},
                        {"bool", i < p.option_is_bool.size() && p.option_is_bool[i]}});
   }
-  return {{"name", p.name}, {"particles", p.particles}, {"model", p.model}, {"options", options}};
+  return {{"name", p.name},
+          {"particles", p.particles},
+          {"model", p.model},
+          {"takesModel", p.takes_model},
+          {"options", options}};
 }
 
 Status ReadPlanner(const json& j, const Limits& limits, PlannerSpec* out) {
@@ -53,6 +57,9 @@ Status ReadPlanner(const json& j, const Limits& limits, PlannerSpec* out) {
   if (out->particles < 1 || out->particles > limits.max_particles) return Lost("planner particles");
   out->model = internal::String(p, "model");
   if (!out->model.empty() && !IsModelName(out->model)) return Lost("planner model");
+  // Records written before "takesModel" was kept: npfkct was the one planner that took a model.
+  out->takes_model =
+      p.contains("takesModel") ? internal::Bool(p, "takesModel") : out->name == "npfkct";
   if (p.contains("options")) {
     const json& options = p.at("options");
     if (!options.is_array() || static_cast<int64_t>(options.size()) > limits.max_planner_options) {
@@ -66,7 +73,7 @@ Status ReadPlanner(const json& j, const Limits& limits, PlannerSpec* out) {
       if (Status s = internal::CheckPlannerOption(key, value, limits); !s.ok()) {
         return Lost(s.message());
       }
-      out->options.emplace_back(key, value);
+      out->options.emplace_back(SnakeCase(key), value);
       out->option_is_bool.push_back(internal::Bool(o, "bool"));
     }
   }

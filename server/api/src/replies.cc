@@ -33,10 +33,28 @@ const char* StateName(SessionState s) {
 
 using internal::ActionJson;
 
+// Option values keyed in the API's spelling (lowerCamelCase): whole numbers as integers, an
+// automatic value (NaN) as null.
+json OptionValuesJson(const std::vector<std::pair<std::string, double>>& values) {
+  json out = json::object();
+  for (const auto& [key, value] : values) {
+    const std::string k = CamelCase(key);
+    if (std::isnan(value)) {
+      out[k] = nullptr;
+    } else if (value == std::trunc(value) && std::abs(value) < 9007199254740992.0) {
+      out[k] = static_cast<int64_t>(value);
+    } else {
+      out[k] = value;
+    }
+  }
+  return out;
+}
+
 json OptionsJson(const PlannerSpec& p) {
   json options = json::object();
   for (size_t i = 0; i < p.options.size(); ++i) {
-    const auto& [key, value] = p.options[i];
+    const std::string key = CamelCase(p.options[i].first);
+    const double value = p.options[i].second;
     if (i < p.option_is_bool.size() && p.option_is_bool[i]) {
       options[key] = value != 0.0;
     } else if (value == std::floor(value) && std::abs(value) < 9e15) {
@@ -60,9 +78,9 @@ json SessionJson(const SessionView& s) {
   j["planner"] = {{"name", s.planner.name},
                   {"particles", s.planner.particles},
                   {"options", OptionsJson(s.planner)}};
-  // The model that plans: npfkct always says (""), so that uniform candidates are never silent.
-  if (!s.planner.model.empty() || s.planner.name == "npfkct")
-    j["planner"]["model"] = s.planner.model;
+  // The model that plans: a planner that takes one always says (""), so that uniform candidates
+  // are never silent.
+  if (!s.planner.model.empty() || s.planner.takes_model) j["planner"]["model"] = s.planner.model;
   j["seed"] = std::to_string(s.seed);
   j["target"] = {{"description", s.target_description}, {"photoCount", s.photo_count}};
   if (s.perception_tracks) j["perceptionTracks"] = *s.perception_tracks;
@@ -160,8 +178,38 @@ std::string RenderPlan(const PlanReply& r) {
   out["expectedValue"] = r.expected_value;
   out["stats"] = internal::StatsJson(r.stats, r.candidates);
   out["budget"] = BudgetJson(r.budget);
+  out["summary"] = {{"budgetGiven", BudgetJson(r.summary.budget_given)},
+                    {"optionsGiven", OptionValuesJson(r.summary.options_given)},
+                    {"optionsUsed", OptionValuesJson(r.summary.options_used)},
+                    {"resolved", OptionValuesJson(r.summary.resolved)}};
   out["session"] = SessionJson(r.session);
   return internal::Dump(out);
+}
+
+std::string RenderPlanners(const std::vector<PlannerView>& planners) {
+  json out;
+  out["planners"] = json::array();
+  for (const PlannerView& p : planners) {
+    out["planners"].push_back({{"name", p.name},
+                               {"summary", p.summary},
+                               {"takesModel", p.takes_model},
+                               {"defaults", OptionValuesJson(p.defaults)}});
+  }
+  return internal::Dump(out);
+}
+
+Status ToWire(const Status& domain) {
+  if (domain.field_violations().empty()) return domain;
+  const std::string& first = domain.field_violations().front().field;
+  std::string message = domain.message();
+  if (message.rfind(first + ": ", 0) == 0) {
+    message = CamelCase(first) + message.substr(first.size());
+  }
+  Status out(domain.code(), std::move(message));
+  for (const FieldViolation& v : domain.field_violations()) {
+    out.WithFieldViolation(CamelCase(v.field), v.description);
+  }
+  return out;
 }
 
 std::string RenderObserve(const ObserveReply& r) {

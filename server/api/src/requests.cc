@@ -7,7 +7,7 @@
 #include "json_util.h"
 #include "npfkct/api/api.h"
 #include "npfkct/api/wire.h"
-#include "npfkct/object_search/search_planner.h"
+#include "npfkct/object_search/planner_registry.h"
 #include "schema.h"
 #include "world_codec.h"
 
@@ -36,11 +36,13 @@ void IntegralNumbersAsIntegers(json& v) {
 }
 
 StatusOr<json> ParseAndValidate(std::string_view body, std::string_view message,
-                                const Limits& limits, bool allow_empty) {
+                                const Limits& limits, bool allow_empty,
+                                const std::vector<std::string>* planner_names = nullptr) {
   auto j = internal::ParseBody(body, limits.max_json_depth, limits.max_json_values, allow_empty);
   if (!j.ok()) return j.status();
   IntegralNumbersAsIntegers(*j);
-  NPFKCT_API_RETURN_IF_ERROR(internal::ValidateAgainstSchema(message, *j));
+  NPFKCT_API_RETURN_IF_ERROR(
+      internal::ValidateAgainstSchema(message, *j, /*max_violations=*/8, planner_names));
   return j;
 }
 
@@ -117,22 +119,24 @@ Status internal::CheckPlannerOption(const std::string& key, double value, const 
 
 namespace {
 
-Status ReadPlanner(const json& p, const Limits& limits, PlannerSpec* spec) {
+Status ReadPlanner(const json& p, const Limits& limits,
+                   const object_search::PlannerRegistry& planners, PlannerSpec* spec) {
   spec->name = internal::String(p, "name", spec->name);
-  const object_search::PlannerInfo* info = object_search::FindSearchPlanner(spec->name);
-  if (info == nullptr || info->needs_truth) {
+  const object_search::PlannerEntry* entry = planners.Find(spec->name);
+  if (entry == nullptr || entry->needs_truth) {
     std::string known;
-    for (const auto& planner : object_search::SearchPlanners()) {
-      if (!planner.needs_truth) known += (known.empty() ? "" : ", ") + planner.name;
+    for (const auto& name : planners.Names(/*servable_only=*/true)) {
+      known += (known.empty() ? "" : ", ") + name;
     }
     return InvalidFieldError(
         "planner.name",
-        info ? "'" + spec->name +
-                   "' is benchmark-only (it must be told the true "
-                   "world); the server plans with " +
-                   known
-             : "unknown planner '" + spec->name + "' (expected one of " + known + ")");
+        entry ? "'" + spec->name +
+                    "' is benchmark-only (it must be told the true "
+                    "world); the server plans with " +
+                    known
+              : "unknown planner '" + spec->name + "' (expected one of " + known + ")");
   }
+  spec->takes_model = entry->takes_sampler;
   if (p.contains("particles")) {
     const int64_t n = p.at("particles").get<int64_t>();
     if (n > limits.max_particles) {
@@ -159,7 +163,7 @@ Status ReadPlanner(const json& p, const Limits& limits, PlannerSpec* spec) {
     for (auto it = o.begin(); it != o.end(); ++it) {
       const double v = it->is_boolean() ? (it->get<bool>() ? 1.0 : 0.0) : it->get<double>();
       NPFKCT_API_RETURN_IF_ERROR(internal::CheckPlannerOption(it.key(), v, limits));
-      spec->options.emplace_back(it.key(), v);
+      spec->options.emplace_back(SnakeCase(it.key()), v);
       spec->option_is_bool.push_back(it->is_boolean());
     }
   }
@@ -294,8 +298,10 @@ bool IsModelName(std::string_view name) {
   });
 }
 
-StatusOr<CreateSessionRequest> ParseCreateSession(std::string_view body, const Limits& limits) {
-  auto parsed = ParseAndValidate(body, "create_session_request", limits, false);
+StatusOr<CreateSessionRequest> ParseCreateSession(std::string_view body, const Limits& limits,
+                                                  const object_search::PlannerRegistry& planners) {
+  const std::vector<std::string> names = planners.Names(/*servable_only=*/true);
+  auto parsed = ParseAndValidate(body, "create_session_request", limits, false, &names);
   if (!parsed.ok()) return parsed.status();
   const json& j = *parsed;
   CreateSessionRequest req;
@@ -326,9 +332,8 @@ StatusOr<CreateSessionRequest> ParseCreateSession(std::string_view body, const L
       }
     }
   }
-  if (j.contains("planner")) {
-    NPFKCT_API_RETURN_IF_ERROR(ReadPlanner(j.at("planner"), limits, &req.planner));
-  }
+  NPFKCT_API_RETURN_IF_ERROR(ReadPlanner(j.contains("planner") ? j.at("planner") : json::object(),
+                                         limits, planners, &req.planner));
   if (j.contains("seed")) {
     auto seed = ReadSeed(j.at("seed"));
     if (!seed.ok()) return seed.status();
@@ -415,6 +420,20 @@ StatusOr<BeliefFormat> ParseBeliefFormat(const std::optional<std::string>& forma
   if (!format || *format == "json") return BeliefFormat::kJson;
   if (*format == "png") return BeliefFormat::kPng;
   return InvalidFieldError("format", "expected \"json\" or \"png\"");
+}
+
+std::string CamelCase(const std::string& snake) {
+  std::string out;
+  bool upper = false;
+  for (char ch : snake) {
+    if (ch == '_' && !out.empty() && out.back() != '.') {
+      upper = true;
+    } else {
+      out += upper ? static_cast<char>(std::toupper(static_cast<unsigned char>(ch))) : ch;
+      upper = false;
+    }
+  }
+  return out;
 }
 
 std::string SnakeCase(const std::string& camel) {

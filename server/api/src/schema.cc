@@ -74,28 +74,45 @@ std::string FileOf(const std::string& uri) {
   return hash == std::string::npos ? name : name.substr(0, hash);
 }
 
-const Documents& Docs() {
-  static const Documents* docs = [] {
-    auto* d = new Documents();
-    for (const auto& [name, text] : EmbeddedSchemaFiles()) {
-      d->files[std::string(name)] = json::parse(text);
-    }
-    for (const auto& [name, doc] : d->files) {
-      auto schema = std::make_unique<valijson::Schema>();
-      valijson::SchemaParser parser(valijson::SchemaParser::kDraft7);
-      Adapter adapter(doc);
-      parser.populateSchema(
-          adapter, *schema,
-          [d](const std::string& uri) -> const json* {
-            auto it = d->files.find(FileOf(uri));
-            return it == d->files.end() ? nullptr : &it->second;
-          },
-          [](const json*) {});
-      d->schemas[name] = std::move(schema);
-    }
-    return d;
-  }();
-  return *docs;
+// The schema files, compiled; with `planner_names`, the create request's PlannerSpec.name lists
+// those names instead of the file's (a server whose registry differs from the built-in one). One
+// set of documents per list of names, kept for the process's life (a process has one or two).
+const Documents& Docs(const std::vector<std::string>* planner_names = nullptr) {
+  static std::mutex mutex;
+  static auto* cache = new std::map<std::vector<std::string>, std::unique_ptr<Documents>>();
+  static const std::vector<std::string> kAsInTheFiles;
+  const std::vector<std::string>& key = planner_names ? *planner_names : kAsInTheFiles;
+  std::lock_guard<std::mutex> lock(mutex);
+  auto it = cache->find(key);
+  if (it != cache->end()) return *it->second;
+  auto d = std::make_unique<Documents>();
+  for (const auto& [name, text] : EmbeddedSchemaFiles()) {
+    d->files[std::string(name)] = json::parse(text);
+  }
+  if (planner_names != nullptr) {
+    json& names = d->files.at("common.schema.json")["$defs"]["PlannerSpec"]["properties"]["name"];
+    names["enum"] = *planner_names;
+  }
+  for (const auto& [name, doc] : d->files) {
+    auto schema = std::make_unique<valijson::Schema>();
+    valijson::SchemaParser parser(valijson::SchemaParser::kDraft7);
+    Adapter adapter(doc);
+    const Documents* docs = d.get();
+    parser.populateSchema(
+        adapter, *schema,
+        [docs](const std::string& uri) -> const json* {
+          auto f = docs->files.find(FileOf(uri));
+          return f == docs->files.end() ? nullptr : &f->second;
+        },
+        [](const json*) {});
+    d->schemas[name] = std::move(schema);
+  }
+  return *cache->emplace(key, std::move(d)).first->second;
+}
+
+const json* FileIn(const Documents& d, std::string_view name) {
+  auto it = d.files.find(name);
+  return it == d.files.end() ? nullptr : &it->second;
 }
 
 // ---- finding the schema of an instance path, to describe violations ----
@@ -105,7 +122,7 @@ struct Node {
   const json* doc = nullptr;  // the file it lives in (for local $refs)
 };
 
-Node Resolve(Node n) {
+Node Resolve(Node n, const Documents& d) {
   for (int guard = 0; guard < 16 && n.schema && n.schema->is_object(); ++guard) {
     auto ref = n.schema->find("$ref");
     if (ref == n.schema->end() || !ref->is_string()) break;
@@ -113,9 +130,9 @@ Node Resolve(Node n) {
     const size_t hash = r.find('#');
     const std::string file = r.substr(0, hash);
     if (!file.empty()) {
-      const json* d = SchemaDocument(FileOf(file));
-      if (!d) return {};
-      n.doc = d;
+      const json* f = FileIn(d, FileOf(file));
+      if (!f) return {};
+      n.doc = f;
     }
     const std::string pointer = hash == std::string::npos ? "" : r.substr(hash + 1);
     const json::json_pointer p(pointer);
@@ -125,8 +142,8 @@ Node Resolve(Node n) {
   return n;
 }
 
-Node Child(Node n, const std::string& key, bool index) {
-  n = Resolve(n);
+Node Child(Node n, const std::string& key, bool index, const Documents& d) {
+  n = Resolve(n, d);
   if (!n.schema || !n.schema->is_object()) return {};
   const json& s = *n.schema;
   if (index) {
@@ -138,7 +155,7 @@ Node Child(Node n, const std::string& key, bool index) {
   auto all = s.find("allOf");
   if (all != s.end() && all->is_array()) {
     for (const json& part : *all) {
-      Node c = Child({&part, n.doc}, key, false);
+      Node c = Child({&part, n.doc}, key, false, d);
       if (c.schema) return c;
     }
   }
@@ -194,14 +211,11 @@ std::optional<std::string> StringWithNul(const json& v, const std::string& path)
 
 }  // namespace
 
-const json* SchemaDocument(std::string_view name) {
-  const auto& files = Docs().files;
-  auto it = files.find(name);
-  return it == files.end() ? nullptr : &it->second;
-}
+const json* SchemaDocument(std::string_view name) { return FileIn(Docs(), name); }
 
-Status ValidateAgainstSchema(std::string_view message, const json& doc, size_t max_violations) {
-  const Documents& d = Docs();
+Status ValidateAgainstSchema(std::string_view message, const json& doc, size_t max_violations,
+                             const std::vector<std::string>* planner_names) {
+  const Documents& d = Docs(planner_names);
   auto it = d.schemas.find(std::string(message) + ".schema.json");
   if (it == d.schemas.end()) return InternalError("no schema for " + std::string(message));
   const std::string root_file = std::string(message) + ".schema.json";
@@ -229,7 +243,7 @@ Status ValidateAgainstSchema(std::string_view message, const json& doc, size_t m
     // The instance path: "<root>", then "[key]" or "[index]" per level.
     std::string path;
     const json* at = &doc;
-    Node schema{SchemaDocument(root_file), SchemaDocument(root_file)};
+    Node schema{FileIn(d, root_file), FileIn(d, root_file)};
     int depth = 0;
     for (size_t i = 1; i < e.context.size(); ++i) {
       std::string token = e.context[i];
@@ -245,10 +259,10 @@ Status ValidateAgainstSchema(std::string_view message, const json& doc, size_t m
         path = Join(path, token);
         at = at && at->is_object() && at->contains(token) ? &at->at(token) : nullptr;
       }
-      schema = Child(schema, token, index);
+      schema = Child(schema, token, index, d);
       ++depth;
     }
-    const Node here = Resolve(schema);
+    const Node here = Resolve(schema, d);
     const std::string& m = e.description;
     auto add = [&](std::string field, std::string description, int extra_depth = 0) {
       out.push_back({std::move(field), std::move(description), depth + extra_depth});
@@ -263,7 +277,7 @@ Status ValidateAgainstSchema(std::string_view message, const json& doc, size_t m
       if (StartsWith(m, "Failed to validate against schema associated with property") &&
           depth + 1 > consequence.depth) {
         const std::string key = Quoted(m);
-        const Node member = Resolve(Child(schema, key, false));
+        const Node member = Resolve(Child(schema, key, false, d), d);
         std::string why = "does not match its schema";
         if (member.schema && member.schema->is_object()) {
           const auto names = member.schema->find("propertyNames");

@@ -1,6 +1,7 @@
 // Request validation against the JSON Schemas of schemas/ (embedded at build time) with valijson.
 #pragma once
 
+#include <string>
 #include <string_view>
 #include <utility>
 #include <vector>
@@ -17,7 +18,9 @@ const json* SchemaDocument(std::string_view name);
 
 /// Validates `doc` against schemas/`message`.schema.json. On failure: INVALID_ARGUMENT whose field
 /// violations name the offending fields by their paths in the request ("world.furniture[0].size",
-/// "planner.unknownKey"), at most `max_violations` of them, the most specific first.
-Status ValidateAgainstSchema(std::string_view message, const json& doc, size_t max_violations = 8);
+/// "planner.unknownKey"), at most `max_violations` of them, the most specific first. With
+/// `planner_names`, planner.name must be one of them (the schema file lists the built-in ones).
+Status ValidateAgainstSchema(std::string_view message, const json& doc, size_t max_violations = 8,
+                             const std::vector<std::string>* planner_names = nullptr);
 
 }  // namespace npfkct::api::internal

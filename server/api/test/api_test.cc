@@ -11,7 +11,7 @@
 #include <sstream>
 
 #include "npfkct/api/wire.h"
-#include "npfkct/object_search/search_planner.h"
+#include "npfkct/object_search/planner_registry.h"
 #include "schema.h"
 
 namespace npfkct::api {
@@ -382,10 +382,8 @@ TEST(Schemas, AgreeWithTheLimitsAndThePlannerRegistry) {
   EXPECT_EQ(create->at("properties")["target"]["properties"]["photos"]["maxItems"],
             hard.max_photos);
   // Every planner the server may run, and only those.
-  std::vector<std::string> servable;
-  for (const auto& p : object_search::SearchPlanners()) {
-    if (!p.needs_truth) servable.push_back(p.name);
-  }
+  const std::vector<std::string> servable =
+      object_search::PlannerRegistry::BuiltIn().Names(/*servable_only=*/true);
   EXPECT_EQ(defs["PlannerSpec"]["properties"]["name"]["enum"].get<std::vector<std::string>>(),
             servable);
   // Every bounded option of the schema is bounded under its bare leaf name too.
@@ -438,7 +436,7 @@ TEST(Records, RoundTripAndRefuseCorruptOrOversizedSnapshots) {
   SessionRecord r;
   r.id = std::string(32, 'a');
   r.planner = req->planner;
-  r.planner.options = {{"k", 4}, {"search.reuseTree", 1}};
+  r.planner.options = {{"k", 4}, {"search.reuse_tree", 1}};
   r.planner.option_is_bool = {false, true};
   r.seed = 18446744073709551615ull;
   r.state = SessionState::kActionPending;
@@ -548,7 +546,7 @@ TEST(Records, SessionSummariesRenderAsTheViewTheyWereMadeOf) {
   v.planner.name = "npfkct";
   v.planner.particles = 300;
   v.planner.model = "filter.pt";
-  v.planner.options = {{"k", 4}, {"search.reuseTree", 1}, {"w1", 1.5}};
+  v.planner.options = {{"k", 4}, {"search.reuse_tree", 1}, {"w1", 1.5}};
   v.planner.option_is_bool = {false, true, false};
   v.seed = 18446744073709551615ull;
   v.target_description = "blue box";

@@ -16,8 +16,8 @@
 #include <string>
 #include <vector>
 
-#include "npfkct/filter/features.h"
 #include "npfkct/common/status.h"
+#include "npfkct/filter/features.h"
 
 namespace npfkct::filter {
 

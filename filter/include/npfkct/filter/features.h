@@ -8,9 +8,9 @@
 #include <array>
 #include <vector>
 
+#include "npfkct/common/rng.h"
 #include "npfkct/object_search/model.h"
 #include "npfkct/object_search/proposals.h"
-#include "npfkct/common/rng.h"
 
 namespace npfkct::filter {
 

@@ -6,11 +6,12 @@
 #include <memory>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
+#include "npfkct/common/status.h"
 #include "npfkct/filter/features.h"
 #include "npfkct/solver/candidates.h"
-#include "npfkct/common/status.h"
 
 namespace npfkct::filter {
 
@@ -39,6 +40,8 @@ struct FilterOptions {
 /// min_keep, explore, target_share, object_share) to `value`; unknown keys and non-integers for
 /// integer fields are INVALID_ARGUMENT naming the key (Validate() checks the ranges).
 Status SetOption(FilterOptions* o, std::string_view key, double value);
+/// Every FilterOptions field as (key, value), keyed as SetOption's keys, in key order.
+std::vector<std::pair<std::string, double>> OptionValues(const FilterOptions& o);
 
 /// Sets how many threads libtorch and OpenBLAS use for the filter's tensor work in this process.
 /// Planning uses 1 (the default the filter sets before its first use): inference then runs on

@@ -5,9 +5,9 @@
 #include <string>
 #include <vector>
 
+#include "npfkct/common/status.h"
 #include "npfkct/filter/dataset.h"
 #include "npfkct/filter/filter.h"
-#include "npfkct/common/status.h"
 
 namespace npfkct::filter {
 

@@ -6,9 +6,9 @@
 #include <string>
 #include <vector>
 
-#include "npfkct/object_search/geometry.h"
 #include "npfkct/common/rng.h"
 #include "npfkct/common/status.h"
+#include "npfkct/object_search/geometry.h"
 
 namespace npfkct::object_search {
 

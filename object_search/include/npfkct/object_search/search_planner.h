@@ -1,5 +1,6 @@
 // Every planner on the object-search model behind one interface, as the server's sessions and the
-// benchmark use them, and the one registry of planner names.
+// benchmark use them, and the adapter that puts a solver Planner behind it. The planners are
+// named and made by the registry (planner_registry.h).
 #pragma once
 
 #include <memory>
@@ -7,13 +8,16 @@
 #include <utility>
 #include <vector>
 
-#include "npfkct/object_search/discrete.h"
 #include "npfkct/object_search/model.h"
 #include "npfkct/solver/belief.h"
 #include "npfkct/solver/candidates.h"
 #include "npfkct/solver/planner.h"
+#include "npfkct/solver/planner_base.h"
 
 namespace npfkct::object_search {
+
+/// Option values as (key, value): SetOption's keys (snake_case, nested as "search.max_depth").
+using OptionList = std::vector<std::pair<std::string, double>>;
 
 /// A planner of hybrid object-search actions whose belief is maintained outside it.
 class SearchPlanner {
@@ -45,33 +49,68 @@ class SearchPlanner {
   virtual int SearchThreads() const { return 1; }
   /// What the candidate sampler did in the last Plan() (NPF-kCT only).
   virtual CandidateStats candidate_stats() const { return {}; }
+  /// Every option as the planner runs with it (the registry's defaults with the overrides it was
+  /// made with), in key order.
+  virtual OptionList OptionsUsed() const = 0;
+  /// What the last Plan() resolved itself from the options and the belief (kCT's w2, c_r, value
+  /// scale, ...), as (name, value); empty for planners that resolve nothing.
+  virtual OptionList ResolvedByLastPlan() const { return {}; }
 };
 
-/// One entry of the planner registry.
-struct PlannerInfo {
-  std::string name;     ///< The name MakeSearchPlanner, the API and npfkct-bench accept.
-  std::string summary;  ///< What it is, for help texts and the README.
-  /// Whether it plans with NPF-kCT's candidate sampler (the neural filter) when one is given.
-  bool uses_sampler = false;
-  /// Whether it must be told the true world (only the benchmark can make it).
-  bool needs_truth = false;
+/// A solver Planner `P` over the hybrid object-search model behind the SearchPlanner interface.
+/// A new continuous planner needs nothing more than this adapter and a registry entry:
+///
+///   return std::unique_ptr<SearchPlanner>(new HybridSearchPlanner<MyPlanner<ObjectSearchModel>>(
+///       "mine", *args.model, options, option_values));
+template <Planner P>
+class HybridSearchPlanner final : public SearchPlanner {
+ public:
+  /// Makes `P(model, options, extra...)`; `used` is every option as it runs (OptionsUsed()).
+  template <class Options, class... Extra>
+  HybridSearchPlanner(std::string name, const ObjectSearchModel& model, Options options,
+                      OptionList used, Extra&&... extra)
+      : name_(std::move(name)),
+        planner_(model, options, std::forward<Extra>(extra)...),
+        used_(std::move(used)),
+        reuse_(options.search.reuse_tree),
+        threads_(options.search.threads) {}
+
+  const std::string& name() const override { return name_; }
+  void SetBelief(ParticleBelief<State> belief) override { planner_.SetBelief(std::move(belief)); }
+  using SearchPlanner::Plan;
+  Decision<HybridAction> Plan(const TerminationCondition& stop, Rng& rng) override {
+    return planner_.Plan(stop, rng);
+  }
+  void AdvanceTo(const HybridAction& a, const Observation& o,
+                 ParticleBelief<State> belief) override {
+    planner_.AdvanceTo(a, o, std::move(belief));
+  }
+  void DropTree() override { planner_.DropTree(); }
+  int64_t TreeSize() const override { return planner_.TreeSize(); }
+  bool ReusesTree() const override { return reuse_; }
+  int SearchThreads() const override { return threads_; }
+  CandidateStats candidate_stats() const override {
+    if constexpr (requires { planner_.candidate_stats(); }) {
+      return planner_.candidate_stats();
+    } else {
+      return {};
+    }
+  }
+  OptionList OptionsUsed() const override { return used_; }
+  OptionList ResolvedByLastPlan() const override {
+    if constexpr (requires { planner_.used().Values(); }) {
+      return planner_.used().Values();
+    } else {
+      return {};
+    }
+  }
+
+ private:
+  std::string name_;
+  P planner_;
+  OptionList used_;
+  bool reuse_;
+  int threads_;
 };
-
-/// The planner registry: every planner name, in the order tables list them.
-const std::vector<PlannerInfo>& SearchPlanners();
-/// The registry's names.
-std::vector<std::string> SearchPlannerNames();
-/// The registry entry of `name`, or null.
-const PlannerInfo* FindSearchPlanner(const std::string& name);
-
-/// Creates planner `name` over `model` (which must outlive it), with option overrides
-/// (SetOption keys of the planner's options struct) applied to the object-search defaults, and
-/// `sampler` as NPF-kCT's candidate source (uniform when null; ignored by other planners).
-/// Unknown names, planners that need the true world, and bad options are INVALID_ARGUMENT
-/// naming them.
-StatusOr<std::unique_ptr<SearchPlanner>> MakeSearchPlanner(
-    const std::string& name, const ObjectSearchModel& model,
-    const std::vector<std::pair<std::string, double>>& options,
-    std::shared_ptr<CandidateSampler<State>> sampler = nullptr);
 
 }  // namespace npfkct::object_search

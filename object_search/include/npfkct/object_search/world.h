@@ -9,9 +9,9 @@
 #include <utility>
 #include <vector>
 
+#include "npfkct/common/status.h"
 #include "npfkct/object_search/geometry.h"
 #include "npfkct/object_search/grid_world.h"
-#include "npfkct/common/status.h"
 
 namespace npfkct::object_search {
 

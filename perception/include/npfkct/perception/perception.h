@@ -21,8 +21,8 @@
 #include <string>
 #include <vector>
 
-#include "npfkct/object_search/world.h"
 #include "npfkct/common/status.h"
+#include "npfkct/object_search/world.h"
 
 namespace npfkct::perception {
 

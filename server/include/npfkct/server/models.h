@@ -10,9 +10,9 @@
 #include <vector>
 
 #include "npfkct/api/types.h"
+#include "npfkct/common/status.h"
 #include "npfkct/object_search/model.h"
 #include "npfkct/solver/candidates.h"
-#include "npfkct/common/status.h"
 
 namespace npfkct::filter {
 class NeuralFilter;
@@ -49,18 +49,19 @@ class ModelRegistry {
   std::map<std::string, std::weak_ptr<const filter::NeuralFilter>> dropped_;
 };
 
-/// Supplies NPF-kCT's candidate sampler for a session (Net_sam over a named model), or null for
-/// uniform candidates.
+/// Supplies the candidate sampler of a session whose planner takes one (Net_sam over a named
+/// model), or null for uniform candidates.
 using SamplerFactory =
     std::function<StatusOr<std::shared_ptr<CandidateSampler<object_search::State>>>(
         const api::PlannerSpec& spec, const object_search::ObjectSearchModel& model)>;
 
-/// Whether a planner option (lowerCamelCase as sent) is one of Net_sam's ("filter.explore"),
-/// which the sampler takes and the planner never sees.
+/// Whether a planner option is one of Net_sam's ("filter.explore"), which the sampler takes and
+/// the planner never sees.
 bool IsFilterOption(const std::string& key);
 
 /// The factory of the server: Net_sam over `models`' model spec.model with the "filter.*"
-/// options; errors are INVALID_ARGUMENT naming planner.model or planner.options.filter.<key>.
+/// options; errors are INVALID_ARGUMENT naming planner.model or planner.options.filter.<key>
+/// (the key as the filter takes it, snake_case).
 SamplerFactory FilterSamplerFactory(std::shared_ptr<ModelRegistry> models);
 
 }  // namespace npfkct::server

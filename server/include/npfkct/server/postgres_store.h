@@ -28,8 +28,8 @@
 #include <string>
 
 #include "npfkct/api/limits.h"
-#include "npfkct/server/session_store.h"
 #include "npfkct/common/status.h"
+#include "npfkct/server/session_store.h"
 
 namespace npfkct::server {
 

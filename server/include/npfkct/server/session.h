@@ -18,7 +18,7 @@
 
 #include "npfkct/api/types.h"
 #include "npfkct/object_search/model.h"
-#include "npfkct/object_search/search_planner.h"
+#include "npfkct/object_search/planner_registry.h"
 #include "npfkct/server/models.h"
 #include "npfkct/server/session_store.h"
 #include "npfkct/solver/planner.h"
@@ -65,14 +65,17 @@ void ReleaseFreedMemory();
 /// A session. Thread-safe.
 class Session {
  public:
-  /// A new session over `world`: INVALID_ARGUMENT naming planner.name, planner.model or
-  /// planner.options.<key> for a planner that cannot be made.
+  /// A new session over `world` with planner `config.planner.name` of `planners` (which must
+  /// outlive it): INVALID_ARGUMENT naming planner.name, planner.model or planner.options.<key>
+  /// (keys as the planners take them) for a planner that cannot be made.
   static StatusOr<std::unique_ptr<Session>> Create(SessionConfig config, object_search::World world,
                                                    const SamplerFactory& samplers,
+                                                   const object_search::PlannerRegistry& planners,
                                                    SessionLimits limits);
   /// A session from its record (the tree is rebuilt by the next plan).
   static StatusOr<std::unique_ptr<Session>> Restore(api::SessionRecord record, int64_t version,
                                                     const SamplerFactory& samplers,
+                                                    const object_search::PlannerRegistry& planners,
                                                     SessionLimits limits);
   ~Session();
 
@@ -113,7 +116,8 @@ class Session {
                                 SessionStore* store, const Admit& admit = {});
   /// Applies the observation that followed the pending action (all or nothing: a rejected
   /// observation changes nothing) and saves the session. FAILED_PRECONDITION for a missing,
-  /// stale or repeated actionId; raw sensor data go through the session's perception.
+  /// stale or repeated action_id; raw sensor data go through the session's perception. Errors
+  /// name the request's fields in snake_case (action_id, robot_state, point_cloud, detections).
   StatusOr<api::ObserveReply> Observe(api::ObserveRequest request, SessionStore* store);
   /// The API resource.
   api::SessionView View() const;
@@ -153,7 +157,7 @@ class Session {
 
  private:
   Session() = default;
-  Status Init(const SamplerFactory& samplers);
+  Status Init(const SamplerFactory& samplers, const object_search::PlannerRegistry& planners);
   void Reseed();
   ParticleBelief<object_search::State> FreshBelief();
   // The record to save; `unsaved_seconds` and `unsaved_simulations` get the usage in it that no

@@ -8,8 +8,8 @@
 #include <set>
 #include <string>
 
-#include "npfkct/sim/scenario.h"
 #include "npfkct/common/status.h"
+#include "npfkct/sim/scenario.h"
 
 namespace npfkct::sim::json_read {
 

@@ -8,6 +8,7 @@
 #include <map>
 #include <vector>
 
+#include "npfkct/object_search/planner_registry.h"
 #include "npfkct/object_search/world.h"
 #include "npfkct/sim/simulator.h"
 #include "npfkct/solver/spaces.h"
@@ -68,5 +69,22 @@ class Oracle {
   std::vector<object_search::Vec2> bases_;
   mutable std::map<int, std::vector<object_search::RobotConfig>> views_;
 };
+
+/// The true scene of a benchmark trial, for the planners that are told it (the oracles).
+class SceneTruth final : public object_search::Truth {
+ public:
+  /// The scene of `simulator` (which must outlive it).
+  explicit SceneTruth(const Simulator& simulator) : simulator_(simulator) {}
+  const Simulator& simulator() const { return simulator_; }
+
+ private:
+  const Simulator& simulator_;
+};
+
+/// Gives the registry's oracles their factory ("oracle"; "oracle-cover-unknown" with
+/// cover_unknown): an Oracle of the SceneTruth that PlannerArgs::truth carries, behind the
+/// SearchPlanner interface (each Plan() is Next() on the model's World, the robot's knowledge;
+/// planner options are ignored).
+Status AddOracleFactories(object_search::PlannerRegistry* registry);
 
 }  // namespace npfkct::sim

@@ -8,9 +8,9 @@
 #include <string>
 #include <vector>
 
+#include "npfkct/common/rng.h"
 #include "npfkct/object_search/model.h"
 #include "npfkct/sim/scenario.h"
-#include "npfkct/common/rng.h"
 #include "npfkct/solver/spaces.h"
 
 namespace npfkct::sim {

@@ -15,6 +15,7 @@
 #include "npfkct/solver/hybrid.h"
 #include "npfkct/solver/model.h"
 #include "npfkct/solver/planner.h"
+#include "npfkct/solver/planner_base.h"
 
 namespace npfkct {
 
@@ -64,49 +65,28 @@ struct AdvtOptions {
 /// The ADVT-style planner over a hybrid-action model (one Voronoi tree per continuous kind; kinds
 /// without a continuous part are single cells). The model must outlive the planner.
 template <HybridActionModel M>
-class Advt {
+class Advt : public PlannerBase<Advt<M>, M, AdvtOptions> {
+  using Base = PlannerBase<Advt<M>, M, AdvtOptions>;
+  friend Base;
+  using Base::belief_;
+  using Base::model_;
+  using Base::options_;
+
  public:
-  using State = typename M::State;
-  using Action = HybridAction;
-  using Observation = typename M::Observation;
+  using typename Base::Action;
+  using typename Base::Observation;
+  using typename Base::State;
 
-  Advt(const M& model, AdvtOptions options) : model_(model), options_(std::move(options)) {
-    c_ = std::isnan(options_.exploration_c) ? RewardRange(model_, 1.0) : options_.exploration_c;
+  Advt(const M& model, AdvtOptions options) : Base(model, std::move(options)) {
+    c_ = this->ExplorationConstant(options_.exploration_c);
   }
 
-  void Reset(Rng& rng) {
-    belief_ = ParticleBelief<State>::FromInitial(model_, options_.search.num_particles, rng);
-    tree_.Clear();
-  }
-  void SetBelief(ParticleBelief<State> belief) {
-    belief_ = std::move(belief);
-    tree_.Clear();
-  }
-  /// Drops the search tree and gives its memory back; the belief stays.
-  void DropTree() { tree_.Clear(); }
-  const ParticleBelief<State>& belief() const { return belief_; }
-  const AdvtOptions& options() const { return options_; }
-
-  /// Plans within a budget of its own (a condition created here, which nobody can cancel).
-  Decision<Action> Plan(const Budget& budget, Rng& rng) {
-    TerminationCondition stop(budget);
-    return Plan(stop, rng);
-  }
-
+  using Base::Plan;
   /// Searches from the current belief within `budget` and recommends an action.
   Decision<Action> Plan(const TerminationCondition& stop, Rng& rng) {
     Decision<Action> d;
     d.stats.budget_exhausted = false;
-    if (Status s = options_.Validate(); !s.ok()) return Fail(std::move(d), std::move(s));
-    if (Status s = stop.budget().Validate(); !s.ok()) return Fail(std::move(d), std::move(s));
-    if (belief_.empty()) return Fail(std::move(d), FailedPreconditionError("belief is empty"));
-    if constexpr (!HasObservationLikelihood<M>) {
-      if (options_.observations.enabled) {
-        return Fail(std::move(d),
-                    InvalidArgumentError("observations.enabled needs the model's observation "
-                                         "likelihood; use exact observation matching"));
-      }
-    }
+    if (Status s = this->CheckPlan(stop); !s.ok()) return Base::Fail(std::move(d), std::move(s));
     if (!options_.search.reuse_tree && tree_.root >= 0) {
       const auto t0 = Clock::now();
       tree_.Clear();
@@ -136,22 +116,6 @@ class Advt {
     return FinishSearch(std::move(d), stop);
   }
 
-  /// Updates the belief with the real step (a, o) and keeps the matching subtree.
-  BeliefUpdateSummary Advance(const Action& a, const Observation& o, Rng& rng) {
-    BeliefUpdateOptions b = options_.search.belief;
-    if (b.num_particles == 0) b.num_particles = options_.search.num_particles;
-    BeliefUpdateSummary summary = belief_.Update(model_, a, o, rng, b);
-    KeepChild(a, o);
-    return summary;
-  }
-
-  /// Keeps the subtree under (a, o) when tree reuse is on and installs `belief`: for models whose
-  /// belief is maintained outside the planner (object search).
-  void AdvanceTo(const Action& a, const Observation& o, ParticleBelief<State> belief) {
-    belief_ = std::move(belief);
-    KeepChild(a, o);
-  }
-
   int64_t TreeSize() const { return tree_.size(); }
   int64_t RootVisits() const { return tree_.root >= 0 ? tree_.obs[tree_.root].n : 0; }
   /// Leaf cells at the root (the current partition's size).
@@ -166,6 +130,8 @@ class Advt {
   };
   using Tree = BeliefTree<M, Cell>;
 
+  void ClearTree() { tree_.Clear(); }
+
   void KeepChild(const Action& a, const Observation& o) {
     int next = -1;
     if (options_.search.reuse_tree && tree_.root >= 0) {
@@ -177,11 +143,6 @@ class Advt {
     } else {
       tree_.KeepSubtree(next);
     }
-  }
-
-  static Decision<Action> Fail(Decision<Action> d, Status s) {
-    d.status = std::move(s);
-    return d;
   }
 
   bool InCell(const BoxSpace& box, const Cell& cell, const ActionVec& x) const {
@@ -378,10 +339,7 @@ class Advt {
     return options_.backup == AdvtOptions::Backup::kMax ? BestLeafValue(node) : total;
   }
 
-  const M& model_;
-  AdvtOptions options_;
   double c_ = 1.0;
-  ParticleBelief<State> belief_;
   Tree tree_;
   int max_depth_ = 0;
   std::vector<int> scratch_;

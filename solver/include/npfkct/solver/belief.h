@@ -8,9 +8,9 @@
 #include <utility>
 #include <vector>
 
-#include "npfkct/solver/model.h"
 #include "npfkct/common/rng.h"
 #include "npfkct/common/status.h"
+#include "npfkct/solver/model.h"
 
 namespace npfkct {
 

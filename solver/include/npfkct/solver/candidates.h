@@ -1,13 +1,15 @@
 // Candidate continuous actions for NPF-kCT's action lists: where Net_sam plugs in.
 #pragma once
 
+#include <string>
+#include <utility>
 #include <vector>
 
+#include "npfkct/common/rng.h"
+#include "npfkct/common/status.h"
 #include "npfkct/solver/belief.h"
 #include "npfkct/solver/planner.h"
-#include "npfkct/common/rng.h"
 #include "npfkct/solver/spaces.h"
-#include "npfkct/common/status.h"
 
 namespace npfkct {
 
@@ -31,6 +33,8 @@ class CandidateSampler {
   virtual Status Sample(const ParticleBelief<State>& belief, int kind, const BoxSpace& box,
                         int count, const TerminationCondition& stop, Rng& rng,
                         std::vector<ActionVec>* out, CandidateStats* stats) = 0;
+  /// Its settings as (key, value), for reports of what a planner ran with; none by default.
+  virtual std::vector<std::pair<std::string, double>> Settings() const { return {}; }
 };
 
 /// Candidates drawn uniformly from the box: NPF-kCT without the neural filter.

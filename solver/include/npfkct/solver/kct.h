@@ -25,6 +25,7 @@
 #include <mutex>
 #include <numbers>
 #include <set>
+#include <string>
 #include <thread>
 #include <utility>
 #include <vector>
@@ -36,6 +37,7 @@
 #include "npfkct/solver/hybrid.h"
 #include "npfkct/solver/model.h"
 #include "npfkct/solver/planner.h"
+#include "npfkct/solver/planner_base.h"
 
 namespace npfkct {
 
@@ -183,36 +185,38 @@ struct KctUsed {
   double value_scale = 0.0;  ///< With kValueScale.
   double mean_initial_range = 0.0;
   int threads = 1;
+  /// Every value as (name, value), for reports.
+  std::vector<std::pair<std::string, double>> Values() const {
+    return {{"w2", w2},
+            {"c_r", c_r},
+            {"value_scale", value_scale},
+            {"mean_initial_range", mean_initial_range},
+            {"threads", static_cast<double>(threads)}};
+  }
 };
 
 /// The k-center clustering tree planner over a hybrid-action model. The model must outlive it.
 template <HybridActionModel M>
-class KCenterTree {
+class KCenterTree : public PlannerBase<KCenterTree<M>, M, KctOptions> {
+  using Base = PlannerBase<KCenterTree<M>, M, KctOptions>;
+  friend Base;
+  using Base::belief_;
+  using Base::model_;
+  using Base::options_;
+
  public:
-  using State = typename M::State;
-  using Action = HybridAction;
-  using Observation = typename M::Observation;
+  using typename Base::Action;
+  using typename Base::Observation;
+  using typename Base::State;
 
   /// A planner whose candidates come from `sampler` (uniform when null).
   KCenterTree(const M& model, KctOptions options,
               std::shared_ptr<CandidateSampler<State>> sampler = nullptr)
-      : model_(model), options_(std::move(options)), sampler_(std::move(sampler)) {
+      : Base(model, std::move(options)), sampler_(std::move(sampler)) {
     if (!sampler_) sampler_ = std::make_shared<UniformCandidateSampler<State>>();
     workers_.resize(std::clamp(options_.search.threads, 1, 64));
   }
 
-  void Reset(Rng& rng) {
-    belief_ = ParticleBelief<State>::FromInitial(model_, options_.search.num_particles, rng);
-    ClearTrees();
-  }
-  void SetBelief(ParticleBelief<State> belief) {
-    belief_ = std::move(belief);
-    ClearTrees();
-  }
-  /// Drops the search tree and gives its memory back; the belief stays.
-  void DropTree() { ClearTrees(); }
-  const ParticleBelief<State>& belief() const { return belief_; }
-  const KctOptions& options() const { return options_; }
   /// Replaces the candidate sampler (e.g. with the neural filter).
   void SetSampler(std::shared_ptr<CandidateSampler<State>> sampler) {
     if (sampler) sampler_ = std::move(sampler);
@@ -226,29 +230,17 @@ class KCenterTree {
   /// The parameters the last Plan() used.
   const KctUsed& used() const { return used_; }
 
-  /// Plans within a budget of its own (a condition created here, which nobody can cancel).
-  Decision<Action> Plan(const Budget& budget, Rng& rng) {
-    TerminationCondition stop(budget);
-    return Plan(stop, rng);
-  }
-
+  using Base::Plan;
   /// Plans until `stop` says so (algorithm 1, lines 3-18) and recommends an executable action.
+  /// Advance (filtering, algorithm 1, line 20) keeps every worker's subtree under the executed
+  /// sphere and the real observation.
   Decision<Action> Plan(const TerminationCondition& stop, Rng& rng) {
     Decision<Action> d;
     d.stats.budget_exhausted = false;
-    if (Status s = options_.Validate(); !s.ok()) return Fail(std::move(d), std::move(s));
-    if (Status s = stop.budget().Validate(); !s.ok()) return Fail(std::move(d), std::move(s));
-    if (belief_.empty()) return Fail(std::move(d), FailedPreconditionError("belief is empty"));
-    if constexpr (!HasObservationLikelihood<M>) {
-      if (options_.observations.enabled) {
-        return Fail(std::move(d),
-                    InvalidArgumentError("observations.enabled needs the model's observation "
-                                         "likelihood; use exact observation matching"));
-      }
-    }
+    if (Status s = this->CheckPlan(stop); !s.ok()) return Base::Fail(std::move(d), std::move(s));
     if (!options_.search.reuse_tree && workers_[0].tree.root >= 0) {
       const auto t0 = Clock::now();
-      ClearTrees();
+      ClearTree();
       d.stats.teardown_ms = MillisSince(t0);
     }
     candidate_stats_ = {};
@@ -258,7 +250,7 @@ class KCenterTree {
     model_.ActionKinds(belief_.Sample(rng), &kinds);
     for (int kind : kinds) {
       if (Status s = EnsureSpheres(kind, rng, stop); !s.ok()) {
-        return Fail(std::move(d), std::move(s));
+        return Base::Fail(std::move(d), std::move(s));
       }
     }
     ResolveParameters();
@@ -277,13 +269,13 @@ class KCenterTree {
         ForgetRootOrigins(w, t);
         AddSpheresToTree(w);
         if (Status s = EnsureRootKinds(w, belief_.Sample(rng), rng); !s.ok()) {
-          return Fail(std::move(d), std::move(s));
+          return Base::Fail(std::move(d), std::move(s));
         }
       }
       d.stats.reused_visits += w.tree.obs[w.tree.root].n;
       if (w.tree.obs[w.tree.root].actions.empty()) {
         if (Status s = InitList(w, w.tree.root, belief_.Sample(rng), rng); !s.ok()) {
-          return Fail(std::move(d), s);
+          return Base::Fail(std::move(d), s);
         }
       }
       if (options_.search.rollout_first) AddRolloutFirst(w, rng);
@@ -315,7 +307,7 @@ class KCenterTree {
       for (std::thread& th : pool) th.join();
     }
     for (Worker& w : workers_) {
-      if (!w.status.ok()) return Fail(std::move(d), w.status);
+      if (!w.status.ok()) return Base::Fail(std::move(d), w.status);
       d.stats.simulations += w.simulations;
       d.stats.refinements += w.refinements;
       d.stats.max_depth = std::max(d.stats.max_depth, w.max_depth);
@@ -364,7 +356,7 @@ class KCenterTree {
       }
     }
     if (!executable && !ChooseRootEntry({}, &chosen_worker, &best)) {
-      return Fail(std::move(d), FailedPreconditionError("no legal action at the root"));
+      return Base::Fail(std::move(d), FailedPreconditionError("no legal action at the root"));
     }
     Worker& cw = workers_[chosen_worker];
     const auto& an = cw.tree.act[best];
@@ -387,23 +379,6 @@ class KCenterTree {
       for (const Worker& w : workers_) d.stats.cpu_ms += w.cpu_ms;  // every search thread's
     }
     return d;
-  }
-
-  /// Filtering (algorithm 1, line 20): updates the belief with the executed action and the real
-  /// observation, and keeps the subtree under the executed sphere and observation.
-  BeliefUpdateSummary Advance(const Action& a, const Observation& o, Rng& rng) {
-    BeliefUpdateOptions b = options_.search.belief;
-    if (b.num_particles == 0) b.num_particles = options_.search.num_particles;
-    BeliefUpdateSummary summary = belief_.Update(model_, a, o, rng, b);
-    for (Worker& w : workers_) KeepChild(w, a, o);
-    return summary;
-  }
-
-  /// Keeps the subtree under (a, o) when tree reuse is on and installs `belief`: for models whose
-  /// belief is maintained outside the planner (object search).
-  void AdvanceTo(const Action& a, const Observation& o, ParticleBelief<State> belief) {
-    belief_ = std::move(belief);
-    for (Worker& w : workers_) KeepChild(w, a, o);
   }
 
   /// Nodes in the trees (all workers).
@@ -481,13 +456,12 @@ class KCenterTree {
     const TerminationCondition* stop = nullptr;  // this worker's, while Plan() runs
   };
 
-  static Decision<Action> Fail(Decision<Action> d, Status s) {
-    d.status = std::move(s);
-    d.stats.budget_exhausted = false;
-    return d;
+  // Every worker keeps its subtree under (a, o), or clears its tree.
+  void KeepChild(const Action& a, const Observation& o) {
+    for (Worker& w : workers_) KeepChild(w, a, o);
   }
 
-  void ClearTrees() {
+  void ClearTree() {
     for (Worker& w : workers_) {
       w.tree.Clear();
       w.last_entry = -1;
@@ -1240,10 +1214,7 @@ class KCenterTree {
     return OkStatus();
   }
 
-  const M& model_;
-  KctOptions options_;
   std::shared_ptr<CandidateSampler<State>> sampler_;
-  ParticleBelief<State> belief_;
   std::vector<Worker> workers_;
   std::map<int, std::vector<Hypersphere>> spheres_;
   std::mutex spheres_mutex_;

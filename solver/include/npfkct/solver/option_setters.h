@@ -1,15 +1,16 @@
-// Setting planner options by name, for command lines and request payloads.
+// Setting and reading planner options by name, for command lines, request payloads and reports.
 #pragma once
 
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
+#include "npfkct/common/status.h"
 #include "npfkct/solver/advt.h"
 #include "npfkct/solver/kct.h"
 #include "npfkct/solver/pomcp.h"
 #include "npfkct/solver/pomcpow.h"
-#include "npfkct/common/status.h"
 
 namespace npfkct {
 
@@ -28,6 +29,16 @@ std::vector<std::string> OptionNames(const PomcpOptions*);
 std::vector<std::string> OptionNames(const PomcpowOptions*);
 std::vector<std::string> OptionNames(const AdvtOptions*);
 std::vector<std::string> OptionNames(const KctOptions*);
+
+/// Option values as (key, value), keyed as SetOption's keys.
+using OptionValueList = std::vector<std::pair<std::string, double>>;
+/// Every option of an options struct as SetOption would set it (booleans 0/1, enums the number
+/// SetOption takes), in key order: what a planner runs with.
+OptionValueList OptionValues(const SearchOptions& o);
+OptionValueList OptionValues(const PomcpOptions& o);
+OptionValueList OptionValues(const PomcpowOptions& o);
+OptionValueList OptionValues(const AdvtOptions& o);
+OptionValueList OptionValues(const KctOptions& o);
 
 /// Parses "key=value" and applies it with SetOption.
 template <class Options>

@@ -1,5 +1,6 @@
-// The table machinery behind SetOption: setters of option fields by name, shared by every options
-// struct that is set from command lines and request payloads (the solver's planners, the filter).
+// The table machinery behind SetOption and OptionValues: the fields of an options struct by name,
+// set and read back as numbers, shared by every options struct that is set from command lines and
+// request payloads (the solver's planners, the filter).
 #pragma once
 
 #include <cmath>
@@ -7,6 +8,7 @@
 #include <map>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "npfkct/common/status.h"
@@ -16,48 +18,89 @@ namespace npfkct::option_table {
 /// Sets one field of an options struct from a number.
 template <class O>
 using Setter = std::function<Status(O*, double)>;
+/// Reads one field of an options struct as a number (booleans 0/1, enums their index).
+template <class O>
+using Getter = std::function<double(const O&)>;
 
-/// A table of setters by snake_case key.
+/// One named field of an options struct: how to set it and how to read it back.
 template <class O>
-using Table = std::map<std::string, Setter<O>, std::less<>>;
+struct Field {
+  Setter<O> set;
+  Getter<O> get;
+};
 
-/// A setter of a double field.
+/// A table of fields by snake_case key.
 template <class O>
-Setter<O> Real(double O::*field) {
-  return [field](O* o, double v) {
-    o->*field = v;
-    return OkStatus();
-  };
-}
-/// A setter of an int field: integral values only.
+using Table = std::map<std::string, Field<O>, std::less<>>;
+
+/// A double field.
 template <class O>
-Setter<O> Int(int O::*field) {
-  return [field](O* o, double v) {
-    if (v != std::floor(v) || std::abs(v) > 1e9) return InvalidArgumentError("not an integer");
-    o->*field = static_cast<int>(v);
-    return OkStatus();
-  };
+Field<O> Real(double O::*field) {
+  return {[field](O* o, double v) {
+            o->*field = v;
+            return OkStatus();
+          },
+          [field](const O& o) { return o.*field; }};
 }
-/// A setter of a bool field: 0 or 1.
+/// An int field: integral values only.
 template <class O>
-Setter<O> Bool(bool O::*field) {
-  return [field](O* o, double v) {
-    if (v != 0.0 && v != 1.0) return InvalidArgumentError("not a boolean (0 or 1)");
-    o->*field = v != 0.0;
-    return OkStatus();
-  };
+Field<O> Int(int O::*field) {
+  return {[field](O* o, double v) {
+            if (v != std::floor(v) || std::abs(v) > 1e9) {
+              return InvalidArgumentError("not an integer");
+            }
+            o->*field = static_cast<int>(v);
+            return OkStatus();
+          },
+          [field](const O& o) { return static_cast<double>(o.*field); }};
 }
-/// A setter of a nested struct's field.
+/// A bool field: 0 or 1.
+template <class O>
+Field<O> Bool(bool O::*field) {
+  return {[field](O* o, double v) {
+            if (v != 0.0 && v != 1.0) return InvalidArgumentError("not a boolean (0 or 1)");
+            o->*field = v != 0.0;
+            return OkStatus();
+          },
+          [field](const O& o) { return o.*field ? 1.0 : 0.0; }};
+}
+/// An enum field set by the index of its value in `values`; `what` says which index is which
+/// (the error message, e.g. "0 (rollout) or 1 (heuristic)").
+template <class O, class E>
+Field<O> Enum(E O::*field, std::vector<E> values, std::string what) {
+  return {[field, values, what](O* o, double v) {
+            for (size_t i = 0; i < values.size(); ++i) {
+              if (v == static_cast<double>(i)) {
+                o->*field = values[i];
+                return OkStatus();
+              }
+            }
+            return InvalidArgumentError(what);
+          },
+          [field, values](const O& o) {
+            for (size_t i = 0; i < values.size(); ++i) {
+              if (o.*field == values[i]) return static_cast<double>(i);
+            }
+            return -1.0;
+          }};
+}
+/// A field of a nested struct.
 template <class O, class Inner>
-Setter<O> Nested(Inner O::*member, Setter<Inner> inner) {
-  return [member, inner](O* o, double v) { return inner(&(o->*member), v); };
+Field<O> Nested(Inner O::*member, Field<Inner> inner) {
+  return {[member, set = inner.set](O* o, double v) { return set(&(o->*member), v); },
+          [member, get = inner.get](const O& o) { return get(o.*member); }};
+}
+/// Adds every field of `inner` to `table` under "prefix." + its key, through `member`.
+template <class O, class Inner>
+void AddNested(Table<O>* table, const std::string& prefix, Inner O::*member,
+               const Table<Inner>& inner) {
+  for (const auto& [key, field] : inner) (*table)[prefix + "." + key] = Nested(member, field);
 }
 
 /// Sets option `key` of `o` from `table` (the bare leaf name of a nested key is accepted when
 /// unambiguous); unknown keys, non-numbers and rejected values are INVALID_ARGUMENT naming the key.
 template <class O>
-Status Apply(const std::map<std::string, Setter<O>, std::less<>>& table, O* o, std::string_view key,
-             double value) {
+Status Apply(const Table<O>& table, O* o, std::string_view key, double value) {
   auto it = table.find(key);
   if (it == table.end()) {
     // Allow the bare leaf name when exactly one nested key ends with it.
@@ -83,17 +126,25 @@ Status Apply(const std::map<std::string, Setter<O>, std::less<>>& table, O* o, s
     return InvalidArgumentError("option " + it->first + ": value must be a number");
   }
   if (std::isinf(value)) return InvalidArgumentError("option " + it->first + ": value is infinite");
-  Status s = it->second(o, value);
+  Status s = it->second.set(o, value);
   if (!s.ok()) return InvalidArgumentError("option " + it->first + ": " + s.message());
   return OkStatus();
 }
 
 /// The keys of a table.
 template <class O>
-std::vector<std::string> Keys(const std::map<std::string, Setter<O>, std::less<>>& table) {
+std::vector<std::string> Keys(const Table<O>& table) {
   std::vector<std::string> keys;
   for (const auto& [k, v] : table) keys.push_back(k);
   return keys;
+}
+
+/// Every field of `o` as (key, value), in the table's (alphabetical) order.
+template <class O>
+std::vector<std::pair<std::string, double>> Values(const Table<O>& table, const O& o) {
+  std::vector<std::pair<std::string, double>> values;
+  for (const auto& [k, field] : table) values.emplace_back(k, field.get(o));
+  return values;
 }
 
 }  // namespace npfkct::option_table

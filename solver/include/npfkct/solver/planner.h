@@ -16,10 +16,10 @@
 #include <utility>
 #include <vector>
 
-#include "npfkct/solver/belief.h"
-#include "npfkct/solver/model.h"
 #include "npfkct/common/rng.h"
 #include "npfkct/common/status.h"
+#include "npfkct/solver/belief.h"
+#include "npfkct/solver/model.h"
 
 namespace npfkct {
 

@@ -12,6 +12,7 @@
 #include "npfkct/solver/model.h"
 #include "npfkct/solver/node_array.h"
 #include "npfkct/solver/planner.h"
+#include "npfkct/solver/planner_base.h"
 
 namespace npfkct {
 
@@ -43,43 +44,27 @@ struct PomcpOptions {
 
 /// POMCP over a discrete-action generative model. The model must outlive the planner.
 template <DiscreteActionModel M>
-class Pomcp {
+class Pomcp : public PlannerBase<Pomcp<M>, M, PomcpOptions, int> {
+  using Base = PlannerBase<Pomcp<M>, M, PomcpOptions, int>;
+  friend Base;
+  using Base::belief_;
+  using Base::model_;
+  using Base::options_;
+
  public:
-  using State = typename M::State;
-  using Action = int;
-  using Observation = typename M::Observation;
+  using typename Base::Action;
+  using typename Base::Observation;
+  using typename Base::State;
 
-  Pomcp(const M& model, PomcpOptions options) : model_(model), options_(std::move(options)) {
-    c_ = std::isnan(options_.exploration_c) ? RewardRange(model_, 1.0) : options_.exploration_c;
+  Pomcp(const M& model, PomcpOptions options) : Base(model, std::move(options)) {
+    c_ = this->ExplorationConstant(options_.exploration_c);
   }
 
-  /// Sets the belief to `num_particles` samples of the initial distribution; drops the tree.
-  void Reset(Rng& rng) {
-    belief_ = ParticleBelief<State>::FromInitial(model_, options_.search.num_particles, rng);
-    ClearTree();
-  }
-  /// Replaces the belief; drops the tree.
-  void SetBelief(ParticleBelief<State> belief) {
-    belief_ = std::move(belief);
-    ClearTree();
-  }
-  /// Drops the search tree and gives its memory back; the belief stays.
-  void DropTree() { ClearTree(); }
-  const ParticleBelief<State>& belief() const { return belief_; }
-  const PomcpOptions& options() const { return options_; }
-
-  /// Plans within a budget of its own (a condition created here, which nobody can cancel).
-  Decision<Action> Plan(const Budget& budget, Rng& rng) {
-    TerminationCondition stop(budget);
-    return Plan(stop, rng);
-  }
-
+  using Base::Plan;
   /// Searches from the current belief within `budget` and recommends an action.
   Decision<Action> Plan(const TerminationCondition& stop, Rng& rng) {
     Decision<Action> d;
-    if (Status s = options_.Validate(); !s.ok()) return Fail(std::move(d), std::move(s));
-    if (Status s = stop.budget().Validate(); !s.ok()) return Fail(std::move(d), std::move(s));
-    if (belief_.empty()) return Fail(std::move(d), FailedPreconditionError("belief is empty"));
+    if (Status s = this->CheckPlan(stop); !s.ok()) return Base::Fail(std::move(d), std::move(s));
     if (!options_.search.reuse_tree && root_ >= 0) {
       const auto t0 = Clock::now();
       ClearTree();
@@ -105,21 +90,6 @@ class Pomcp {
     return Finish(std::move(d), stop);
   }
 
-  /// Updates the belief with the real step (a, o) and keeps the matching subtree when tree reuse
-  /// is on.
-  BeliefUpdateSummary Advance(Action a, const Observation& o, Rng& rng) {
-    BeliefUpdateSummary summary = belief_.Update(model_, a, o, rng, BeliefOptions());
-    KeepChild(a, o);
-    return summary;
-  }
-
-  /// Keeps the subtree under (a, o) when tree reuse is on and installs `belief`: for models whose
-  /// belief is maintained outside the planner (object search).
-  void AdvanceTo(Action a, const Observation& o, ParticleBelief<State> belief) {
-    belief_ = std::move(belief);
-    KeepChild(a, o);
-  }
-
   /// Nodes in the tree (observation + action nodes).
   int64_t TreeSize() const { return static_cast<int64_t>(obs_.size() + act_.size()); }
   /// Visit count of the root (0 when there is no tree).
@@ -137,12 +107,6 @@ class Pomcp {
     double q = 0.0;
     ObservationChildren<Observation> children;
   };
-
-  BeliefUpdateOptions BeliefOptions() const {
-    BeliefUpdateOptions b = options_.search.belief;
-    if (b.num_particles == 0) b.num_particles = options_.search.num_particles;
-    return b;
-  }
 
   void KeepChild(Action a, const Observation& o) {
     int next = -1;
@@ -169,12 +133,6 @@ class Pomcp {
       if (act_[root.first_action + i].action != scratch_[i]) return false;
     }
     return true;
-  }
-
-  static Decision<Action> Fail(Decision<Action> d, Status s) {
-    d.status = std::move(s);
-    d.stats.budget_exhausted = false;
-    return d;
   }
 
   void ClearTree() {
@@ -304,10 +262,7 @@ class Pomcp {
     root_ = 0;
   }
 
-  const M& model_;
-  PomcpOptions options_;
   double c_ = 1.0;
-  ParticleBelief<State> belief_;
   NodeArray<ObsNode> obs_;
   NodeArray<ActNode> act_;
   int root_ = -1;

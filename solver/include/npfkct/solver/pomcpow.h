@@ -14,6 +14,7 @@
 #include "npfkct/solver/hybrid.h"
 #include "npfkct/solver/model.h"
 #include "npfkct/solver/planner.h"
+#include "npfkct/solver/planner_base.h"
 
 namespace npfkct {
 
@@ -61,45 +62,29 @@ struct PomcpowOptions {
 /// POMCPOW over a generative model with an observation likelihood. Discrete-action models
 /// (Action = int) and hybrid-action models are both supported. The model must outlive the planner.
 template <GenerativeModel M>
-requires HasObservationLikelihood<M> &&
-    (DiscreteActionModel<M> || HybridActionModel<M>)class Pomcpow {
+requires HasObservationLikelihood<M> &&(DiscreteActionModel<M> || HybridActionModel<M>)class Pomcpow
+    : public PlannerBase<Pomcpow<M>, M, PomcpowOptions> {
+  using Base = PlannerBase<Pomcpow<M>, M, PomcpowOptions>;
+  friend Base;
+  using Base::belief_;
+  using Base::model_;
+  using Base::options_;
+
  public:
-  using State = typename M::State;
-  using Action = typename M::Action;
-  using Observation = typename M::Observation;
+  using typename Base::Action;
+  using typename Base::Observation;
+  using typename Base::State;
 
-  Pomcpow(const M& model, PomcpowOptions options) : model_(model), options_(std::move(options)) {
-    c_ = std::isnan(options_.exploration_c) ? RewardRange(model_, 1.0) : options_.exploration_c;
+  Pomcpow(const M& model, PomcpowOptions options) : Base(model, std::move(options)) {
+    c_ = this->ExplorationConstant(options_.exploration_c);
   }
 
-  /// Sets the belief to `num_particles` samples of the initial distribution; drops the tree.
-  void Reset(Rng& rng) {
-    belief_ = ParticleBelief<State>::FromInitial(model_, options_.search.num_particles, rng);
-    tree_.Clear();
-  }
-  /// Replaces the belief; drops the tree.
-  void SetBelief(ParticleBelief<State> belief) {
-    belief_ = std::move(belief);
-    tree_.Clear();
-  }
-  /// Drops the search tree and gives its memory back; the belief stays.
-  void DropTree() { tree_.Clear(); }
-  const ParticleBelief<State>& belief() const { return belief_; }
-  const PomcpowOptions& options() const { return options_; }
-
-  /// Plans within a budget of its own (a condition created here, which nobody can cancel).
-  Decision<Action> Plan(const Budget& budget, Rng& rng) {
-    TerminationCondition stop(budget);
-    return Plan(stop, rng);
-  }
-
+  using Base::Plan;
   /// Searches from the current belief within `budget` and recommends an action.
   Decision<Action> Plan(const TerminationCondition& stop, Rng& rng) {
     Decision<Action> d;
     d.stats.budget_exhausted = false;
-    if (Status s = options_.Validate(); !s.ok()) return Fail(std::move(d), std::move(s));
-    if (Status s = stop.budget().Validate(); !s.ok()) return Fail(std::move(d), std::move(s));
-    if (belief_.empty()) return Fail(std::move(d), FailedPreconditionError("belief is empty"));
+    if (Status s = this->CheckPlan(stop); !s.ok()) return Base::Fail(std::move(d), std::move(s));
     if (!options_.search.reuse_tree && tree_.root >= 0) {
       const auto t0 = Clock::now();
       tree_.Clear();
@@ -119,7 +104,7 @@ requires HasObservationLikelihood<M> &&
     d.stats.budget_exhausted = true;
     if (tree_.obs[tree_.root].actions.empty()) AddActions(tree_.root, belief_.Sample(rng), rng);
     if (tree_.obs[tree_.root].actions.empty()) {
-      return Fail(std::move(d), FailedPreconditionError("no legal action at the root"));
+      return Base::Fail(std::move(d), FailedPreconditionError("no legal action at the root"));
     }
     int best = -1;
     for (int ai : tree_.obs[tree_.root].actions) {
@@ -131,28 +116,13 @@ requires HasObservationLikelihood<M> &&
     return FinishSearch(std::move(d), stop);
   }
 
-  /// Updates the belief with the real step (a, o) and keeps the matching subtree when tree reuse
-  /// is on and the observation matches a child exactly.
-  BeliefUpdateSummary Advance(const Action& a, const Observation& o, Rng& rng) {
-    BeliefUpdateOptions b = options_.search.belief;
-    if (b.num_particles == 0) b.num_particles = options_.search.num_particles;
-    BeliefUpdateSummary summary = belief_.Update(model_, a, o, rng, b);
-    KeepChild(a, o);
-    return summary;
-  }
-
-  /// Keeps the subtree under (a, o) when tree reuse is on and installs `belief`: for models whose
-  /// belief is maintained outside the planner (object search).
-  void AdvanceTo(const Action& a, const Observation& o, ParticleBelief<State> belief) {
-    belief_ = std::move(belief);
-    KeepChild(a, o);
-  }
-
   int64_t TreeSize() const { return tree_.size(); }
   int64_t RootVisits() const { return tree_.root >= 0 ? tree_.obs[tree_.root].n : 0; }
 
  private:
   using Tree = BeliefTree<M>;
+
+  void ClearTree() { tree_.Clear(); }
 
   void KeepChild(const Action& a, const Observation& o) {
     int next = -1;
@@ -165,12 +135,6 @@ requires HasObservationLikelihood<M> &&
     } else {
       tree_.KeepSubtree(next);
     }
-  }
-
-  static Decision<Action> Fail(Decision<Action> d, Status s) {
-    d.status = std::move(s);
-    d.stats.budget_exhausted = false;
-    return d;
   }
 
   // Adds all legal actions (discrete, no PW) or one new action (PW). Uses state `s` for legality.
@@ -270,10 +234,7 @@ requires HasObservationLikelihood<M> &&
     return total;
   }
 
-  const M& model_;
-  PomcpowOptions options_;
   double c_ = 1.0;
-  ParticleBelief<State> belief_;
   Tree tree_;
   int max_depth_ = 0;
   std::vector<int> scratch_;

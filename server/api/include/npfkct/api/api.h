@@ -18,13 +18,17 @@
 
 #include "npfkct/api/limits.h"
 #include "npfkct/api/types.h"
+#include "npfkct/object_search/planner_registry.h"
 
 namespace npfkct::api {
 
 // ---- requests ----
 
-/// POST /v1/sessions.
-StatusOr<CreateSessionRequest> ParseCreateSession(std::string_view body, const Limits& limits);
+/// POST /v1/sessions; planner.name is one of `planners`' servable planners (the schema's list
+/// of names is theirs).
+StatusOr<CreateSessionRequest> ParseCreateSession(
+    std::string_view body, const Limits& limits,
+    const object_search::PlannerRegistry& planners = object_search::PlannerRegistry::BuiltIn());
 /// POST :plan (an empty body asks for the default budget).
 StatusOr<PlanRequest> ParsePlan(std::string_view body, const Limits& limits);
 /// POST :observe.
@@ -60,6 +64,8 @@ std::string RenderSession(const SessionView& session);
 std::string RenderSessionList(const std::vector<SessionView>& sessions,
                               const std::string& next_page_token);
 std::string RenderPlan(const PlanReply& reply);
+/// GET /v1/planners: {"planners": [{"name", "summary", "takesModel", "defaults"}]}.
+std::string RenderPlanners(const std::vector<PlannerView>& planners);
 std::string RenderObserve(const ObserveReply& reply);
 /// Grid-world log-odds per workspace, objects with face odds, the robot and its camera frustum,
 /// the furniture and the picture's crop; with `session`, the planned next view (a pending MOVE).
@@ -104,7 +110,15 @@ std::string EncodeSessionSummary(const SessionView& session);
 StatusOr<SessionView> DecodeSessionSummary(std::string_view bytes, const Limits& limits);
 
 /// lowerCamelCase to snake_case per dot-separated segment ("search.maxDepth" ->
-/// "search.max_depth"), for planner option keys.
+/// "search.max_depth"): planner option keys as sent to the keys the planners take.
 std::string SnakeCase(const std::string& camel);
+/// snake_case to lowerCamelCase per dot-separated segment ("search.max_depth" ->
+/// "search.maxDepth"): SnakeCase's inverse for lowerCamelCase keys.
+std::string CamelCase(const std::string& snake);
+
+/// A status from below the API layer (a session's, a planner's) with its field paths in the
+/// API's spelling: each field violation's path (and the message's "<field>: " prefix) from the
+/// domain's snake_case ("robot_state", "planner.options.search.max_depth") to lowerCamelCase.
+Status ToWire(const Status& domain);
 
 }  // namespace npfkct::api

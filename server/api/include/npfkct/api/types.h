@@ -45,10 +45,14 @@ struct PlannerSpec {
   int particles = 300;
   /// A model file name inside the server's --model-dir (planner.model); empty: none.
   std::string model;
-  /// Whether the request named planner.model (when it did not, npfkct gets the server's default
-  /// model; "" asks for none).
+  /// Whether the request named planner.model (when it did not, a planner that takes a filter
+  /// model gets the server's default model; "" asks for none).
   bool model_given = false;
-  /// Option overrides in the order given: (key as sent, lowerCamelCase; value, booleans 0/1).
+  /// Whether the planner takes a filter model (its registry entry's takes_sampler).
+  bool takes_model = false;
+  /// Option overrides in the order given, keyed as the planners take them (snake_case,
+  /// "search.max_depth"; the API layer converts the lowerCamelCase keys of the wire); booleans
+  /// 0/1.
   std::vector<std::pair<std::string, double>> options;
   /// Which option values were booleans (for echoing them back as booleans).
   std::vector<bool> option_is_bool;
@@ -134,6 +138,20 @@ struct SessionView {
   double planning_seconds_used = 0.0;
 };
 
+/// What a plan was asked for and what it used (Ceres style: given and used side by side).
+struct PlanSummary {
+  /// The budget as the request asked for it (absent fields: not asked for).
+  Budget budget_given;
+  /// The planner's options as the session was created with them (planner.options).
+  std::vector<std::pair<std::string, double>> options_given;
+  /// Every option as the planner ran with it: its registry defaults with the overrides applied
+  /// (SetOption keys).
+  std::vector<std::pair<std::string, double>> options_used;
+  /// What the search resolved itself from the options and the belief (kCT's w2, c_r, value
+  /// scale, ...).
+  std::vector<std::pair<std::string, double>> resolved;
+};
+
 /// The :plan reply: the action, its value, the search statistics, and the budget as used.
 struct PlanReply {
   std::string action_id;
@@ -143,7 +161,18 @@ struct PlanReply {
   CandidateStats candidates;
   /// The budget the planner ran under (defaults and caps applied).
   Budget budget;
+  PlanSummary summary;
   SessionView session;
+};
+
+/// One planner of GET /v1/planners.
+struct PlannerView {
+  std::string name;
+  std::string summary;
+  /// Whether it plans with a filter model (planner.model; the server's default when absent).
+  bool takes_model = false;
+  /// Every option with its default (SetOption keys; filter.* for a planner that takes a model).
+  std::vector<std::pair<std::string, double>> defaults;
 };
 
 /// The :observe reply.

@@ -8,8 +8,8 @@
 #include <string>
 #include <string_view>
 
-#include "npfkct/perception/perception.h"
 #include "npfkct/common/status.h"
+#include "npfkct/perception/perception.h"
 
 namespace npfkct::api {
 

@@ -7,8 +7,8 @@
 #include <string>
 #include <vector>
 
-#include "npfkct/filter/dataset.h"
 #include "npfkct/common/status.h"
+#include "npfkct/filter/dataset.h"
 
 namespace npfkct::filter {
 
