@@ -44,6 +44,16 @@
                                    second with 1 and 2 search threads, and the rewards.
   results_table.py model-speed DIR The model's simulation speed, base and new builds
                                    (bench/bench_model_speed.sh, DIR/{base,new}-rN.jsonl).
+  results_table.py classic FILE    The classic problems beside their published results
+                                   (bench/bench_classic.sh, bench/results/classic.jsonl).
+  results_table.py filter EVAL BENCH
+                                   The neural filter's accuracy and time (tools/train_filter.sh:
+                                   filter_eval.json, filter_bench.json).
+  results_table.py perception-stages FILE
+                                   The perception pipeline's time per stage
+                                   (npfkct-perception-bench, perception_stages.json).
+  results_table.py load FILE       One server under many sessions (bench/load_bench.py).
+  results_table.py fleet FILE      A fleet's throughput and failover (bench/fleet_bench.py).
 
 Intervals are two-sided 95% Student's t intervals of the mean (n - 1 degrees of freedom); the bench
 writes them per cell, and this script computes them the same way for derived figures.
@@ -996,14 +1006,20 @@ Pooled rows pool two runs with new episodes (seeds 1 and 2) as independent sampl
 
     bench/bench_classic.sh                     # every section; or name some: tiger rocksample ...
     SEED=2 THREADS=1 bench/bench_classic.sh kct-vdptag
+    python3 bench/results_table.py classic bench/results/classic.jsonl
 """, [lambda r: classic(os.path.join(r, "classic.jsonl"))]),
     ("The neural process filter", """\
 The shipped model (an ensemble of three networks) on test sets of layouts it never saw, 1,500
 snapshots each; the interval of an accuracy is the 95% normal interval of the ratio over
 snapshots (delta method), a lower bound since snapshots of one scene are not independent.
 
-    tools/train_filter.sh      # data, training, the ensemble, then these figures
-    build/bin/npfkct-train evaluate ...; build/bin/npfkct-train bench ...   # the last two steps
+    MODEL=/tmp/filter.pt tools/train_filter.sh   # data, training, the ensemble, these figures
+    python3 bench/results_table.py filter bench/results/filter_eval.json \\
+      bench/results/filter_bench.json
+
+`tools/train_filter.sh` writes `bench/results/filter_eval.json` (`npfkct-train evaluate`, one line
+per test set) and `filter_bench.json` (`npfkct-train bench`); without `MODEL` it replaces the
+shipped `filter/model/filter.pt`.
 """, [lambda r: filter_figures(os.path.join(r, "filter_eval.json"),
                                os.path.join(r, "filter_bench.json"))]),
     ("Perception in the loop", """\
@@ -1015,6 +1031,7 @@ and Complex1.
 
     bench/bench_perception.sh
     python3 bench/results_table.py flat bench/results/perception.jsonl
+    python3 bench/results_table.py perception-stages bench/results/perception_stages.json
 """, [lambda r: flat(os.path.join(r, "perception.jsonl")), lambda r: print(),
       lambda r: perception_stages(os.path.join(r, "perception_stages.json"))]),
     ("Server load", """\
@@ -1025,7 +1042,8 @@ planning admission existed (the script now starts the server with `--plan-queue`
 sessions, so that every session may wait for a slot instead of being refused). With one or two
 sessions the resident memory per session is mostly the process's own.
 
-    bench/load_bench.py --sessions 32
+    for n in 1 2 8 32; do bench/load_bench.py --sessions $n; done > bench/results/load.jsonl
+    python3 bench/results_table.py load bench/results/load.jsonl
 """, [lambda r: load_table(os.path.join(r, "load.jsonl"))]),
     ("Fleet", """\
 `bench/fleet_bench.py` starts PostgreSQL (with `fsync=off`, as in the tests), nginx and 1 or 3
@@ -1036,6 +1054,7 @@ until the robot's next acknowledged request. These figures were measured while t
 benchmark processes ran on the same 2 cores (see [fleet.md](fleet.md)).
 
     bench/fleet_bench.py --out bench/results/fleet.json
+    python3 bench/results_table.py fleet bench/results/fleet.json
 """, [lambda r: fleet_table(os.path.join(r, "fleet.json"))]),
 ]
 
@@ -1072,7 +1091,9 @@ def docs():
 def main():
     commands = {"table1": (1, None), "generated": (1, 2), "ablation": (1, 1),
                 "sensitivity": (1, 1), "mirror": (1, 1), "trace": (1, 1), "compare": (2, 2),
-                "flat": (1, 1), "threads": (2, 2), "model-speed": (1, 1), "docs": (0, 1)}
+                "flat": (1, 1), "threads": (2, 2), "model-speed": (1, 1), "classic": (1, 1),
+                "filter": (2, 2), "perception-stages": (1, 1), "load": (1, 1), "fleet": (1, 1),
+                "docs": (0, 1)}
     args = sys.argv[2:]
     if len(sys.argv) < 2 or sys.argv[1] not in commands:
         print(__doc__)
@@ -1112,6 +1133,16 @@ def main():
         threads(*args)
     elif command == "model-speed":
         model_speed(*args)
+    elif command == "classic":
+        classic(*args)
+    elif command == "filter":
+        filter_figures(*args)
+    elif command == "perception-stages":
+        perception_stages(*args)
+    elif command == "load":
+        load_table(*args)
+    elif command == "fleet":
+        fleet_table(*args)
     else:
         flat(*args)
 
