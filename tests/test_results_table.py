@@ -4,6 +4,7 @@ answers; and docs/benchmarks.md itself, which must be what the script makes of b
 
 import json
 import os
+import re
 import subprocess
 import sys
 
@@ -288,3 +289,22 @@ def test_classic_pools_runs_as_independent_samples(tmp_path):
         results_table.CLASSIC_ROWS = saved
     pooled = [line for line in out.splitlines() if "pooled | kCT" in line]
     assert len(pooled) == 1 and "| 200 | 29.00 ± 2.50 |" in pooled[0]
+
+
+def test_the_readme_headline_figures_are_those_of_docs_benchmarks():
+    # The README's table of headline figures is typed by hand; every figure in it must still be
+    # one that docs/benchmarks.md (generated from bench/results) shows.
+    root = os.path.join(SCRIPTS, "..")
+    with open(os.path.join(root, "README.md"), encoding="utf-8") as f:
+        readme = f.read()
+    with open(os.path.join(root, "docs", "benchmarks.md"), encoding="utf-8") as f:
+        benchmarks = f.read()
+    rows = readme.split("<!-- headline -->\n", 1)[1].split("\n\n", 1)[0].splitlines()[2:]
+    assert len(rows) >= 4
+    figure = re.compile(r"\d+(?:\.\d+)?%(?: ± \d+(?:\.\d+)?)?|\d+\.\d+ m?s\b")
+    for row in rows:
+        value = row.split("|")[2]
+        found = figure.findall(value)
+        assert found, row
+        for x in found:
+            assert x in benchmarks, f"README headline figure {x!r} is not in docs/benchmarks.md"
