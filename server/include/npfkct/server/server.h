@@ -1,5 +1,5 @@
-// npfkct-server: sessions over a gRPC-style HTTP/JSON API (see schemas/openapi.yaml and the
-// README's API section, which lists every limit and its error).
+// npfkct-server: sessions over a gRPC-style HTTP/JSON API (see schemas/openapi.yaml and
+// docs/api.md, which lists every limit and its error).
 #pragma once
 
 #include <memory>
