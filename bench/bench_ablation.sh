@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
-# The ablation table of the README: NPF-kCT from the paper's algorithm to the shipped planner, one
-# change per row, each row keeping the changes above it, on the paper's six scenes at Table 1's
-# protocol (1 s of the planning thread's CPU time per step, the same trial seeds; TRIALS per
-# cell, 20 by default). Resumable like bench/bench_table1.sh: one file per row and scene,
-# bench/results/ablation/RUN/ROW/SCENE.jsonl; finished cells are skipped; --commit commits each.
-# The rows (npfkct-bench planner and options):
+# The ablation table of docs/benchmarks.md: NPF-kCT from the paper's algorithm to the shipped
+# planner, one change per row, each row keeping the changes above it, on the paper's six scenes at
+# Table 1's protocol (1 s of the planning thread's CPU time per step, the same trial seeds; TRIALS
+# per cell, 20 by default). Resumable like bench/bench_table1.sh: one file per row and scene,
+# bench/results/ablation/RUN/ROW/SCENE.jsonl; finished cells are skipped; --commit commits each. The
+# rows (npfkct-bench planner and options):
 #   paper        kct with the paper's choices: uniform candidates, executed points uniform in the
 #                sphere, the highest Qhat at the root, Qhat over the reward range, w2 = 0.5
 #   aimed        + candidates aimed at what is left to see (object_search/proposals.h)

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Reproduces every figure of the README's "Published benchmarks" section. Results are appended as
-# JSON lines to bench/results/classic.jsonl (one object per run, see npfkct-bench --help).
+# Reproduces every figure of docs/benchmarks.md, "Classic problems with published results".
+# Results are appended as JSON lines to bench/results/classic.jsonl (one object per run, see
+# npfkct-bench --help).
 # Usage: bench/bench_classic.sh [section ...]
 #   sections: tiger rocksample throughput lightdark vdptag kct (kct: kCT beside POMCPOW and VOMCPOW
 #   on VDP Tag and SimpleLightDark at the published 1 s budgets, as CPU time of the planning thread;

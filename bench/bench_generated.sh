@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
-# The held-out generated scenes of the README: the 30 scenes npfkct-scenegen makes from seeds
-# 900001-900030 (no filter training data comes from seeds above 900000), 5 trials per scene and
-# planner, 0.25 s of the planning thread's CPU time per step, success within 50 steps. The summary
-# gives each planner's mean share of the oracle's reward over the scenes (with a Student's t
-# interval over the 30 scene means) and its success rate over all trials, then the same shares
-# per placement of the target (in the open, hidden behind tall boxes, covered by a larger box).
+# The held-out generated scenes of docs/benchmarks.md: the 30 scenes npfkct-scenegen makes from
+# seeds 900001-900030 (no filter training data comes from seeds above 900000), 5 trials per scene
+# and planner, 0.25 s of the planning thread's CPU time per step, success within 50 steps. The
+# summary gives each planner's mean share of the oracle's reward over the scenes (with a Student's t
+# interval over the 30 scene means) and its success rate over all trials, then the same shares per
+# placement of the target (in the open, hidden behind tall boxes, covered by a larger box).
 # oracle-cover-unknown is a second ceiling: the oracle not told which box covers the target.
 #
 # Resumable like bench/bench_table1.sh: one file per scene and planner,

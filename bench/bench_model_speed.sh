@@ -5,7 +5,8 @@
 # fixed number of simulations per step, one trial at a time. A change that only makes the model
 # faster must give the same rewards and steps in every cell (the script fails otherwise); the
 # table gives each scene's median simulations per CPU-second of the planning thread, base and
-# new, and their ratio (medians over rounds). Writes bench/results/model_speed/{base,new}-rN.jsonl.
+# new, and their ratio (medians over rounds). Writes bench/results/model_speed/{base,new}-rN.jsonl
+# and the table (summary.md, by results_table.py model-speed).
 # Usage: bench/bench_model_speed.sh BASE_COMMIT [ROUNDS]
 #        env: SCENES (scenario files), PLANNERS, SIMS (per step), TRIALS, BUILD_DIR
 set -euo pipefail
@@ -36,27 +37,7 @@ for round in $(seq 1 "$ROUNDS"); do
       --sims "${SIMS:-1000}" --threads 1 --seed 3 >"$OUT/$side-r$round.jsonl"
   done
 done
-python3 - "$OUT" "$ROUNDS" "$BASE" <<'EOF'
-import json, statistics, sys
-out, rounds, base = sys.argv[1], int(sys.argv[2]), sys.argv[3]
-def load(side, r):
-    return {(d["scenario"], d["planner"]): d
-            for d in map(json.loads, open(f"{out}/{side}-r{r}.jsonl"))}
-runs = {side: [load(side, r) for r in range(1, rounds + 1)] for side in ("base", "new")}
-cells = list(runs["base"][0])
-for key in cells:
-    for run in runs["base"] + runs["new"]:
-        if run[key]["rewards"] != runs["base"][0][key]["rewards"]:
-            sys.exit(f"{key}: the rewards differ between the runs; the model's results changed")
-print(f"Base {base}; the same rewards in every cell of every run. Simulations per CPU-second of "
-      f"the planning thread (median over steps), median over {rounds} rounds:")
-print("| Scene | Planner | base | new | new / base |")
-print("|---|---|---|---|---|")
-ratios = []
-for key in cells:
-    b, n = (statistics.median(r[key]["median_sims_per_cpu_second"] for r in runs[s])
-            for s in ("base", "new"))
-    ratios.append(n / b)
-    print(f"| {key[0]} | {key[1]} | {b:.0f} | {n:.0f} | {n / b:.2f}x |")
-print(f"Median ratio over the cells: {statistics.median(ratios):.2f}x")
-EOF
+{
+  echo "Base $BASE."
+  python3 "$NPFKCT_ROOT/bench/results_table.py" model-speed "$OUT"
+} | tee "$OUT/summary.md"

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# Table 1 of the README: every planner on the paper's six scenes, 20 trials per cell, 1 s of the
-# planning thread's CPU time per step, success within 50 steps, trials seeded 1000003 + i in every
-# cell (the same worlds and noise for every planner).
+# Table 1 of docs/benchmarks.md: every planner on the paper's six scenes, 20 trials per cell, 1 s of
+# the planning thread's CPU time per step, success within 50 steps, trials seeded 1000003 + i in
+# every cell (the same worlds and noise for every planner).
 #
 # Resumable: each (scene, planner) cell is one file, bench/results/table1/RUN/SCENE/PLANNER.jsonl,
 # and a cell whose file holds a finished run is skipped, so an interrupted run continues where it

@@ -23,15 +23,5 @@ for threads in 1 2; do
     --opt "search.threads=$threads" --trials "$TRIALS" --time-ms "${TIME_MS:-1000}" --threads 1 \
     --seed 1 | tee "$OUT/$PLANNER-t$threads.jsonl"
 done
-python3 - "$OUT/$PLANNER-t1.jsonl" "$OUT/$PLANNER-t2.jsonl" <<'EOF'
-import json, sys
-one = [json.loads(l) for l in open(sys.argv[1])]
-two = [json.loads(l) for l in open(sys.argv[2])]
-print("| Scene | sims/s, 1 thread | sims/s, 2 threads | ratio | reward, 1 thread | reward, 2 threads |")
-print("|---|---|---|---|---|---|")
-for a, b in zip(one, two):
-    ratio = b["median_sims_per_second"] / max(a["median_sims_per_second"], 1e-9)
-    print(f"| {a['scenario']} | {a['median_sims_per_second']:.0f} | {b['median_sims_per_second']:.0f} "
-          f"| {ratio:.2f}x | {a['mean_discounted_reward']:.1f} ± {a['ci95']:.1f} "
-          f"| {b['mean_discounted_reward']:.1f} ± {b['ci95']:.1f} |")
-EOF
+python3 "$NPFKCT_ROOT/bench/results_table.py" threads "$OUT/$PLANNER-t1.jsonl" \
+  "$OUT/$PLANNER-t2.jsonl"

@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
-"""The perception attacks behind the README's limits section, one request each against a real
-server, printing the status, the server's CPU seconds for the request and its peak memory.
+"""The perception attacks behind docs/api.md, "Perception under hostile input", one request each
+against a real server, printing the status, the server's CPU seconds for the request and its peak
+memory.
 
 Usage: bench/perception_attacks.py ATTACK [N]   (server: NPFKCT_SERVER_BIN, default
 build/bin/npfkct-server; run the build of another commit to see the "before" figures)

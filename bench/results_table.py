@@ -1,5 +1,9 @@
 #!/usr/bin/env python3
-"""Builds the README's benchmark tables from npfkct-bench JSON lines.
+"""Builds the benchmark tables from npfkct-bench JSON lines, and docs/benchmarks.md from them.
+
+  results_table.py docs [--write]  The whole of docs/benchmarks.md from the files in
+                                   bench/results (to stdout; --write writes the file):
+                                   every table below, each with the commands that make its cells.
 
   results_table.py table1 DIR [DIR ...]
                                    Table 1 from DIR/SCENE/PLANNER.jsonl (bench/bench_table1.sh):
@@ -36,16 +40,33 @@
                                    other run's 95% interval.
   results_table.py flat FILE       A table from one file of JSON lines (rows planners, columns
                                    scenarios), as written by --observe comparisons.
+  results_table.py threads ONE TWO The thread scaling (bench/bench_threads.sh): simulations per
+                                   second with 1 and 2 search threads, and the rewards.
+  results_table.py model-speed DIR The model's simulation speed, base and new builds
+                                   (bench/bench_model_speed.sh, DIR/{base,new}-rN.jsonl).
+  results_table.py classic FILE    The classic problems beside their published results
+                                   (bench/bench_classic.sh, bench/results/classic.jsonl).
+  results_table.py filter EVAL BENCH
+                                   The neural filter's accuracy and time (tools/train_filter.sh:
+                                   filter_eval.json, filter_bench.json).
+  results_table.py perception-stages FILE
+                                   The perception pipeline's time per stage
+                                   (npfkct-perception-bench, perception_stages.json).
+  results_table.py load FILE       One server under many sessions (bench/load_bench.py).
+  results_table.py fleet FILE      A fleet's throughput and failover (bench/fleet_bench.py).
 
 Intervals are two-sided 95% Student's t intervals of the mean (n - 1 degrees of freedom); the bench
 writes them per cell, and this script computes them the same way for derived figures.
 """
 
+import contextlib
 import glob
+import io
 import json
 import math
 import os
 import re
+import statistics
 import sys
 
 PAPER_SCENES = ["Loose1", "Loose2", "Hidden1", "Covered1", "Complex1", "Fig16"]
@@ -491,27 +512,639 @@ def flat(path):
                   lambda p, s: cell_text(cells[(p, s)]) if (p, s) in cells else None)
 
 
+def threads(one_path, two_path):
+    """Thread scaling (bench/bench_threads.sh): per scene the median simulations per second with
+    one and two search threads, their ratio, and the rewards."""
+    one = [json.loads(line) for line in open(one_path, encoding="utf-8") if line.strip()]
+    two = [json.loads(line) for line in open(two_path, encoding="utf-8") if line.strip()]
+    print("| Scene | sims/s, 1 thread | sims/s, 2 threads | ratio | reward, 1 thread | "
+          "reward, 2 threads |")
+    print("|---|---|---|---|---|---|")
+    for a, b in zip(one, two):
+        ratio = b["median_sims_per_second"] / max(a["median_sims_per_second"], 1e-9)
+        print(f"| {a['scenario']} | {a['median_sims_per_second']:.0f} | "
+              f"{b['median_sims_per_second']:.0f} | {ratio:.2f}x | "
+              f"{a['mean_discounted_reward']:.1f} ± {a['ci95']:.1f} | "
+              f"{b['mean_discounted_reward']:.1f} ± {b['ci95']:.1f} |")
+
+
+def model_speed(root):
+    """The model's simulation speed (bench/bench_model_speed.sh): ROOT/{base,new}-rN.jsonl, the
+    same cells run by two builds in turn. Fails unless every run gave the same rewards (a change
+    that only makes the model faster cannot change a result); per cell the median over rounds of
+    the simulations per CPU-second of the planning thread, base and new, and their ratio."""
+    def load(path):
+        return {(d["scenario"], d["planner"]): d
+                for d in map(json.loads, open(path, encoding="utf-8"))}
+    rounds = sorted(int(m[1]) for m in (re.match(r"base-r(\d+)\.jsonl$", f)
+                                         for f in os.listdir(root)) if m)
+    runs = {side: [load(os.path.join(root, f"{side}-r{r}.jsonl")) for r in rounds]
+            for side in ("base", "new")}
+    cells = list(runs["base"][0])
+    for key in cells:
+        for run in runs["base"] + runs["new"]:
+            if run[key]["rewards"] != runs["base"][0][key]["rewards"]:
+                sys.exit(f"{key}: the rewards differ between the runs; the model's results changed")
+    print(f"The same rewards in every cell of every run. Simulations per CPU-second of the "
+          f"planning thread (median over steps), median over {len(rounds)} rounds:\n")
+    print("| Scene | Planner | base | new | new / base |")
+    print("|---|---|---|---|---|")
+    ratios = []
+    for key in cells:
+        b, n = (statistics.median(r[key]["median_sims_per_cpu_second"] for r in runs[side])
+                for side in ("base", "new"))
+        ratios.append(n / b)
+        print(f"| {key[0]} | {key[1]} | {b:.0f} | {n:.0f} | {n / b:.2f}x |")
+    print(f"\nMedian ratio over the {len(cells)} cells: {statistics.median(ratios):.2f}x")
+
+
+# The classic problems' rows (bench/bench_classic.sh, bench/results/classic.jsonl): the problem,
+# planner and budget as printed, the fields a run must have (the last line that has them is
+# taken; several selectors are pooled), and the figure its authors published.
+CLASSIC_ROWS = [
+    ("Tiger (γ 0.95, 100 steps)", "POMCP", "5,000 sims",
+     [{"problem": "tiger", "planner": "pomcp", "sims": 5000, "rollout": ""}],
+     "19.25 (the 100-step optimum)"),
+    ("RockSample(7,8)", "POMCP", "1 s",
+     [{"problem": "rocksample", "planner": "pomcp", "time_ms": 1000, "threads": 2}],
+     "20.71 ± 0.21 (Silver & Veness 2010)"),
+    ("SimpleLightDark", "POMCPOW", "1 s",
+     [{"problem": "lightdark", "planner": "pomcpow", "time_ms": 1000}],
+     "56.1 ± 0.6 (Sunberg & Kochenderfer 2018)"),
+    ("SimpleLightDark", "POMCP", "0.1 s",
+     [{"problem": "lightdark", "planner": "pomcp", "time_ms": 100}],
+     "-7.1 ± 1.0 (ibid., at 1 s)"),
+    ("VDP Tag", "POMCPOW", "0.1 s",
+     [{"problem": "vdptag", "planner": "pomcpow", "time_ms": 100}],
+     "29.3 ± 0.8 (ibid., at 1 s)"),
+    ("VDP Tag", "VOMCPOW", "0.1 s",
+     [{"problem": "vdptag", "planner": "vomcpow", "time_ms": 100}],
+     "above POMCPOW (Lim, Tomlin & Sunberg 2021)"),
+    ("VDP Tag (ToNextML rollout)", "POMCPOW", "1 s",
+     [{"problem": "vdptag", "planner": "pomcpow", "time_ms": 1000, "rollout": "tonextml"}],
+     "28.3 ± 1.0 (ibid.)"),
+    ("VDP Tag (ToNextML rollout)", "VOMCPOW", "1 s",
+     [{"problem": "vdptag", "planner": "vomcpow", "time_ms": 1000, "rollout": "tonextml"}],
+     "33.2 ± 0.9 (ibid.)"),
+    ("SimpleLightDark", "kCT", "1 s of CPU",
+     [{"problem": "lightdark", "planner": "kct", "cpu_ms": 1000}], "–"),
+    ("SimpleLightDark", "POMCPOW", "1 s of CPU",
+     [{"problem": "lightdark", "planner": "pomcpow", "cpu_ms": 1000}],
+     "56.1 ± 0.6 (Sunberg & Kochenderfer 2018)"),
+    ("VDP Tag (ToNextML rollout), seeds 1 and 2 pooled", "kCT", "1 s of CPU",
+     [{"problem": "vdptag", "planner": "kct", "cpu_ms": 1000, "threads": 1, "seed": 1},
+      {"problem": "vdptag", "planner": "kct", "cpu_ms": 1000, "threads": 1, "seed": 2}], "–"),
+    ("VDP Tag (ToNextML rollout), seeds 1 and 2 pooled", "VOMCPOW", "1 s of CPU",
+     [{"problem": "vdptag", "planner": "vomcpow", "cpu_ms": 1000, "threads": 1, "seed": 1},
+      {"problem": "vdptag", "planner": "vomcpow", "cpu_ms": 1000, "threads": 1, "seed": 2}],
+     "33.2 ± 0.9 (Lim, Tomlin & Sunberg 2021)"),
+    ("VDP Tag (ToNextML rollout), seed 1", "kCT", "1 s of CPU",
+     [{"problem": "vdptag", "planner": "kct", "cpu_ms": 1000, "threads": 1, "seed": 1}], "–"),
+    ("VDP Tag (ToNextML rollout), seed 1", "VOMCPOW", "1 s of CPU",
+     [{"problem": "vdptag", "planner": "vomcpow", "cpu_ms": 1000, "threads": 1, "seed": 1}], "–"),
+    ("VDP Tag (ToNextML rollout), seed 2", "kCT", "1 s of CPU",
+     [{"problem": "vdptag", "planner": "kct", "cpu_ms": 1000, "threads": 1, "seed": 2}], "–"),
+    ("VDP Tag (ToNextML rollout), seed 2", "VOMCPOW", "1 s of CPU",
+     [{"problem": "vdptag", "planner": "vomcpow", "cpu_ms": 1000, "threads": 1, "seed": 2}], "–"),
+]
+# Defaults of fields older lines of classic.jsonl leave out.
+CLASSIC_DEFAULTS = {"cpu_ms": 0, "time_ms": 0, "sims": 0, "seed": 1, "rollout": ""}
+
+
+def classic(path):
+    """The classic problems with published results (bench/bench_classic.sh): mean discounted
+    return ± standard error; runs pooled as independent samples (the mean weighted by episodes,
+    the standard error sqrt(sum n_i^2 se_i^2) / sum n_i)."""
+    lines = [json.loads(line) for line in open(path, encoding="utf-8") if line.strip()]
+
+    def last(selector):
+        found = [r for r in lines
+                 if all(r.get(k, CLASSIC_DEFAULTS.get(k)) == v for k, v in selector.items())]
+        if not found:
+            sys.exit(f"{path}: no run with {selector}")
+        return found[-1]
+
+    print("| Problem | Planner | Budget | Episodes | Ours: return ± s.e. | Steps | Success | "
+          "Published |")
+    print("|---|---|---|---|---|---|---|---|")
+    for problem, planner, budget, selectors, published in CLASSIC_ROWS:
+        runs = [last(sel) for sel in selectors]
+        n = sum(r["episodes"] for r in runs)
+        mean = sum(r["episodes"] * r["mean_discounted_return"] for r in runs) / n
+        se = math.sqrt(sum((r["episodes"] * r["stderr"]) ** 2 for r in runs)) / n
+        steps = sum(r["episodes"] * r["mean_steps"] for r in runs) / n
+        rates = [r["success_rate"] for r in runs]
+        success = ("–" if any(x is None for x in rates) else
+                   f"{100 * sum(r['episodes'] * r['success_rate'] for r in runs) / n:.1f}%")
+        print(f"| {problem} | {planner} | {budget} | {n} | {mean:.2f} ± {se:.2f} | {steps:.1f} | "
+              f"{success} | {published} |")
+    print("\nSimulations per second of POMCP on RockSample(7,8) at 1 s per step (median over "
+          "steps):\n")
+    print("| Episodes | Episodes at once | Return ± s.e. | Median sims/s | First step sims/s |")
+    print("|---|---|---|---|---|")
+    for r in lines:
+        if r["problem"] == "rocksample" and r["planner"] == "pomcp":
+            print(f"| {r['episodes']} | {r['threads']} | {r['mean_discounted_return']:.2f} ± "
+                  f"{r['stderr']:.2f} | {r['median_sims_per_second']:,.0f} | "
+                  f"{r['median_first_step_sims_per_second']:,.0f} |")
+
+
+FILTER_TEST_SETS = {"heldout": "Held-out generated scenes (seeds 900001-900030)",
+                    "paper": "The paper's six scenes"}
+
+
+def filter_figures(eval_path, bench_path):
+    """The neural filter's accuracy on its test sets (npfkct-train evaluate) and its time on one
+    core (npfkct-train bench)."""
+    sets = [json.loads(line) for line in open(eval_path, encoding="utf-8") if line.strip()]
+    rows = [
+        ("Snapshots (16 context and 48 predicted queries each)",
+         lambda x: f"{x['test_samples']:,}"),
+        ("Queries predicted (efficient: g > 0.05)", lambda x: f"{x['queries']:,} "
+                                                              f"({x['efficient']:,})"),
+        ("Accuracy (the paper's definition: efficient queries not predicted mu < 0.05)",
+         lambda x: f"**{100 * x['accuracy']:.2f}% ± {100 * x['accuracy_ci95']:.2f}**"),
+        ("The same among the clearly efficient queries (g > 0.1)",
+         lambda x: f"{100 * x['accuracy_clear']:.2f}%"),
+        ("Useless queries predicted mu < 0.05", lambda x: f"{100 * x['specificity']:.2f}%"),
+        ("Efficient queries kept by Net_sam's rule mu > beta* sigma",
+         lambda x: f"{100 * x['kept_efficient']:.2f}%"),
+        ("Useless queries dropped by that rule", lambda x: f"{100 * x['dropped_useless']:.2f}%"),
+        ("Mean absolute error of mu; share with g within 2 sigma",
+         lambda x: f"{x['mean_abs_error']:.3f}; {100 * x['within_2_sigma']:.2f}%"),
+    ]
+    print("| |" + "".join(f" {FILTER_TEST_SETS.get(x['test_set'], x['test_set'])} |"
+                         for x in sets))
+    print("|---|" + "---|" * len(sets))
+    for label, text in rows:
+        print(f"| {label} |" + "".join(f" {text(x)} |" for x in sets))
+    with open(bench_path, encoding="utf-8") as f:
+        b = json.load(f)
+    print(f"\nTime on one core ({b['scenario']} after one step, {b['networks']} networks, median of "
+          f"{b['runs']} calls; clock: {b['clock']}):\n")
+    print(f"| Network scores of {b['candidates']:,} candidates (scene encoding included) | "
+          f"Whole Net_sam call | Scene features | Exact scores of the same candidates |")
+    print("|---|---|---|---|")
+    print(f"| {b['median_network_ms']:.1f} ms | {b['median_net_sam_ms']:.1f} ms | "
+          f"{b['median_scene_features_ms']:.1f} ms | {b['median_exact_score_ms']:.1f} ms |")
+
+
+def perception_stages(path):
+    """The perception pipeline's time per stage (npfkct-perception-bench)."""
+    with open(path, encoding="utf-8") as f:
+        p = json.load(f)
+    stages = ["registration", "segmentation", "association", "detection", "total"]
+    print(f"{p['frames']} frames of {p['resolution']}, {p['threads']} thread, wall-clock medians; "
+          f"{p['target_detections']} target and {p['other_detections']:,} other detections:\n")
+    print("| " + " | ".join(s.capitalize() for s in stages) + " | Target recall | "
+          "Others rejected |")
+    print("|" + "---|" * (len(stages) + 2))
+    print("| " + " | ".join(f"{p['median_ms'][s]:.1f} ms" for s in stages) +
+          f" | {p['target_recall']:.3f} | {p['other_rejected']:.3f} |")
+
+
+def load_table(path):
+    """The server under many sessions (bench/load_bench.py, one JSON line per run)."""
+    print("| Sessions | Plan budget | Plans/s | Plan overhead p50 / p99 (ms) | "
+          "Observe p50 / p99 (ms) | Server's own overhead p50 / p99 (histogram bucket, ms) | "
+          "RSS per session (MiB) |")
+    print("|---|---|---|---|---|---|---|")
+    for line in open(path, encoding="utf-8"):
+        if not line.strip():
+            continue
+        r = json.loads(line)
+        print(f"| {r['sessions']} | {r['budget_ms']:.0f} ms | {r['throughput_plans_per_s']:.1f} | "
+              f"{r['plan_overhead_ms_p50']:.1f} / {r['plan_overhead_ms_p99']:.1f} | "
+              f"{r['observe_latency_ms_p50']:.1f} / {r['observe_latency_ms_p99']:.1f} | "
+              f"<= {r['server_plan_overhead_ms_p50_bucket']:g} / "
+              f"<= {r['server_plan_overhead_ms_p99_bucket']:g} | "
+              f"{r['rss_per_session_kib'] / 1024:.1f} |")
+
+
+def fleet_table(path):
+    """A fleet's throughput and failover (bench/fleet_bench.py)."""
+    with open(path, encoding="utf-8") as f:
+        fl = json.load(f)
+
+    def bucket(x):
+        return "–" if x is None else f"<= {x:g}"
+
+    load = ", ".join(f"{x:.1f}" for x in fl["load_average_at_start"][:1] +
+                     fl["load_average_at_end"][:1])
+    budget = ", ".join(f"{k} {v:g}" for k, v in fl["budget"].items())
+    print(f"{fl['robots']} robots ({fl['planner']}, {fl['scenario']}, budget {budget} per plan), "
+          f"{fl['plans_per_fleet_size']} plans per fleet size, on a machine of {fl['machine']} "
+          f"(1-minute load average at the start and the end: {load}):\n")
+    print("| Replicas | Plans measured | Plans/s | Plan overhead p50 / p99 (ms) | Store save p50 / "
+          "p99, refresh p50 (ms, histogram bucket) |")
+    print("|---|---|---|---|---|")
+    for r in fl["fleets"]:
+        print(f"| {r['replicas']} | {r['plans']} | {r['plans_per_s']:.1f} | "
+              f"{r['plan_overhead_ms_p50']:.1f} / {r['plan_overhead_ms_p99']:.1f} | "
+              f"{bucket(r['store_save_ms_p50_bucket'])} / {bucket(r['store_save_ms_p99_bucket'])}, "
+              f"{bucket(r['store_refresh_ms_p50_bucket'])} |")
+    fo = fl["failover"]
+    sessions = sum(fo["sessions_on_killed_replica"])
+    print(f"\n| Failover ({fo['replicas']} replicas, {fo['kills']} kills, {sessions} sessions on "
+          f"the killed replicas) | median | max |")
+    print("|---|---|---|")
+    print(f"| SIGKILL to the session served again | {fo['probe_s_median']:.3f} s | "
+          f"{fo['probe_s_max']:.3f} s |")
+    print(f"| SIGKILL to the robot's next acknowledged plan or observe | "
+          f"{fo['next_step_s_median']:.2f} s | {fo['next_step_s_max']:.2f} s |")
+
+
+def generated_runs(runs):
+    """Other runs of the held-out generated scenes: per run (name, folder) and planner its share
+    of the oracle's reward, success and steps (the oracle's rows left out)."""
+    print("| Run | Planner | Share of the oracle's reward | Success | Steps | Median sims/CPU-s | "
+          "Scenes |")
+    print("|---|---|---|---|---|---|---|")
+    for name, root in runs:
+        cells = {(p, s): r for (s, p), r in load_cells(root).items()}
+        scenes = sorted({s for _, s in cells})
+        planners = [p for p in order({p for p, _ in cells}, PLANNER_ORDER)
+                    if not p.startswith("oracle")]
+        for p, x in oracle_summary(cells, planners, scenes).items():
+            sims = statistics.median(cells[(p, s)]["median_sims_per_cpu_second"] for s in scenes
+                                     if (p, s) in cells)
+            print(f"| {name} | {p} | {100 * x['share']:.1f}% ± {100 * x['share_ci']:.1f} | "
+                  f"{x['success']:.1f}% | {x['steps']:.1f} ± {x['steps_ci']:.1f} | {sims:.0f} | "
+                  f"{x['scenes']} |")
+
+
+def share_series(kind, root, name):
+    """{scene: (share of the oracle's reward, median sims per CPU-second)} of one planner of a
+    run (kind "cells": ROOT/SCENE/PLANNER.jsonl) or one row of an ablation (kind "rows":
+    ROOT/ROW/SCENE.jsonl), each against the oracle of the same folder."""
+    if kind == "rows":
+        cells = {(s, row): r for (row, s), r in load_row_cells(root).items()}
+    else:
+        cells = load_cells(root)
+    out = {}
+    for (s, p), r in cells.items():
+        o = cells.get((s, "oracle"))
+        if p == name and o is not None and o["mean_discounted_reward"] > 0:
+            out[s] = (r["mean_discounted_reward"] / o["mean_discounted_reward"],
+                      r.get("median_sims_per_cpu_second"))
+    return out
+
+
+def paired(comparisons, base):
+    """Paired comparisons over the scenes two runs share: per scene B's share of the oracle's
+    reward minus A's, mean ± 95% t interval, the scenes where B is higher, and each side's median
+    simulations per CPU-second. `comparisons`: (label, A, B), each side (kind, folder under
+    `base`, planner or row)."""
+    print("| Comparison | A | B | B - A (points of the oracle's reward) | B higher in | "
+          "Median sims/CPU-s, A / B |")
+    print("|---|---|---|---|---|---|")
+    for label, a, b in comparisons:
+        sa = share_series(a[0], os.path.join(base, a[1]), a[2])
+        sb = share_series(b[0], os.path.join(base, b[1]), b[2])
+        scenes = sorted(s for s in sa if s in sb)
+        m, ci = mean_ci([sb[s][0] - sa[s][0] for s in scenes])
+        higher = sum(sb[s][0] > sa[s][0] for s in scenes)
+        ma = statistics.median(sa[s][1] for s in scenes)
+        mb = statistics.median(sb[s][1] for s in scenes)
+        print(f"| {label} | `{a[1]}` {a[2]} | `{b[1]}` {b[2]} | {100 * m:+.1f} ± {100 * ci:.1f} | "
+              f"{higher} of {len(scenes)} | {ma:.0f} / {mb:.0f} ({mb / ma:.2f}x) |")
+
+
+# The paired comparisons of the held-out generated scenes that docs/experiments.md discusses:
+# (label, A, B), each side (kind, folder under bench/results, planner or ablation row).
+GENERATED_COMPARISONS = [
+    ("Aimed rollout against greedy (npfkct, single network)",
+     ("cells", "generated/rollout-greedy", "npfkct"), ("rows", "ablation/generated", "rollout")),
+    ("Ensemble model against the single network (npfkct, aimed rollout)",
+     ("rows", "ablation/generated", "rollout"), ("cells", "generated/rollout-aimed", "npfkct")),
+    ("npfkct against kct (aimed rollout)",
+     ("cells", "generated/rollout-aimed", "kct"), ("cells", "generated/rollout-aimed", "npfkct")),
+    ("1 s of CPU per step against 0.25 s (npfkct, greedy rollout)",
+     ("cells", "generated/run2", "npfkct"), ("cells", "generated/budget1000", "npfkct")),
+] + [
+    (f"Faster model and machine, run 2 against run 1 ({p}, greedy rollout)",
+     ("cells", "generated/run1", p), ("cells", "generated/run2", p))
+    for p in ["npfkct", "kct", "gpomcp", "pomcp-joint", "vomcpow"]
+] + [
+    ("Aimed rollout against run 2's greedy one (npfkct, single network)",
+     ("cells", "generated/run2", "npfkct"), ("rows", "ablation/generated", "rollout")),
+] + [
+    (f"Aimed rollout against run 2's greedy one ({p})",
+     ("cells", "generated/run2", p), ("cells", "generated/rollout-aimed", p))
+    for p in ["kct", "gpomcp", "pomcp-joint", "vomcpow"]
+]
+
+
+DOCS_PREAMBLE = """\
+# Benchmarks
+
+<!-- Written by `python3 bench/results_table.py docs > docs/benchmarks.md` from the files in
+bench/results. Edit the script, not this file: tests/test_results_table.py fails when they differ.
+-->
+
+Every table in this file is computed by `bench/results_table.py` from the raw cells kept in
+`bench/results/`. Each section names the script that measures its cells (a bench script run again
+measures only the cells that are missing) and the command that prints the table alone. What the
+figures mean, and what was tried on the way to them, is in [experiments.md](experiments.md).
+
+## Protocol
+
+- **Budget.** CPU time of the planning thread (`CLOCK_THREAD_CPUTIME_ID`): 1 s per step on the
+  paper's six scenes, 0.25 s on generated scenes (`npfkct-bench --cpu-ms`; the server's
+  `budget.cpuMs`; the solver's `Budget::cpu_ms`). The paper used 60 s of wall time per step. A
+  unit test (`solver/test/termination_test.cc`) holds the budget within 5% while another thread
+  burns the same core. CPU time shrinks far less than wall time when other work shares the
+  machine, but it is not the same on every machine: a second 2-core machine of the same kind ran
+  the same planner at about 0.7x the simulations per CPU-second of the first, and more work
+  beside the bench costs a little more (cache sharing). Every cell records its median simulations
+  per CPU-second, the commit it was measured at and the machine, so such differences can be seen.
+  The bench runs two trials at once on 2 cores. The filter's tensor work runs on the planning
+  thread (one libtorch and one OpenBLAS thread), so its time is inside the budget.
+- **Trials and seeds.** 20 trials per cell on the paper's scenes, 5 per generated scene; trial i
+  is seeded 1000003 + i in every cell, so every planner meets the same world draws, noise and
+  particles. Success is the target removed within 50 steps. Generated scenes come from
+  `npfkct-scenegen --seed N`: the held-out benchmark uses seeds 900001-900030, the tuning scenes
+  910001-910020, the filter's training data 30001-830000 and its validation data 20001-22000; no
+  training data comes from seeds above 900000.
+- **Intervals.** Two-sided 95% Student's t intervals of the mean with n - 1 degrees of freedom
+  (`common/include/npfkct/common/stats.h` in the bench; this script computes derived figures the
+  same way). A share of the oracle is, per scene, the planner's mean reward over the oracle's;
+  over many scenes, the mean of those shares ± the t interval over the scenes. A paired change
+  is the mean of per-scene differences ± their t interval.
+- **One model for every planner.** 300 particles, search depth 12, gamma 0.9, the reward table of
+  [architecture.md](architecture.md#the-object-search-model), base clearance 0.05 m, and one
+  rollout policy, the model's, for every planner (the discrete planners roll out in the same
+  hybrid model). The default is the aimed rollout (`SearchRollout::kAimed`, `npfkct-bench
+  --rollout aimed`): a legal declare or remove when the particle's odds allow it, else, with
+  probability 0.5, a camera aimed at a placement of the target drawn from the grid world (drawn
+  again, up to 4 times, while it lies inside a known object still standing), else a uniformly
+  random feasible configuration. Where a run or row says greedy, it ran `--rollout greedy`, the
+  same without the aimed moves.
+- **Starts.** The robot starts in its rest pose (lift, pan and tilt 0) out of view of every
+  workspace, so no planner gets a free first look.
+- **Files.** A cell is one JSON-lines file (`bench/results/table1/RUN/SCENE/PLANNER.jsonl`,
+  `bench/results/generated/RUN/SEED/PLANNER.jsonl`, ...) holding every trial's reward and steps,
+  the commit and the machine. The scenario files are in `scenarios/`; generated scenes are written
+  into the build folder by the bench scripts.
+"""
+
+# Each section of docs/benchmarks.md: (title, hand-written text, the tables), a table being a
+# function of the results folder that prints Markdown.
+DOCS_SECTIONS = [
+    ("Table 1: the paper's six scenes", """\
+Every planner of the registry on the paper's scenes, 1 s of CPU per step, 20 trials per cell
+(run 4, aimed rollout, the shipped ensemble filter model).
+
+    bench/bench_table1.sh --run run4                                  # the cells
+    python3 bench/results_table.py table1 bench/results/table1/run4   # the table
+""", [lambda r: table1(os.path.join(r, "table1", "run4"))]),
+    ("Repeatability of Table 1", """\
+The same cells measured again. Run 2 repeats Loose1 and Complex1 for every planner, and Hidden1
+and Covered1 for the planners that beat NPF-kCT there; run 3 is every cell with the greedy
+rollout, run 4 (Table 1) every cell with the aimed rollout. A cell agrees when each run's mean
+lies inside the other run's 95% interval.
+
+    SCENES="loose1 complex1" bench/bench_table1.sh --run run2
+    SCENES="hidden1 covered1" PLANNERS="oracle npfkct kct pomcp-joint gpomcp" \\
+      bench/bench_table1.sh --run run2
+    python3 bench/results_table.py compare bench/results/table1/run1 bench/results/table1/run2
+""", [lambda r: compare(os.path.join(r, "table1", "run1"), os.path.join(r, "table1", "run2")),
+      lambda r: print("\nRun 3 (greedy rollout) against run 4 (aimed rollout; npfkct's cells of "
+                      "run 4 are the ensemble's):\n"),
+      lambda r: compare(os.path.join(r, "table1", "run3"), os.path.join(r, "table1", "run4")),
+      lambda r: print("\nRun 1 against run 3 (both greedy; run 3 with a faster model, on "
+                      "another machine), agreement only:\n"),
+      lambda r: print(capture(compare, os.path.join(r, "table1", "run1"),
+                              os.path.join(r, "table1", "run3")).rstrip().splitlines()[-1])]),
+    ("Which side first: paper scenes mirrored", """\
+Hidden1, Complex1 and Covered1 beside their mirror images (every object's position mirrored across
+the table's short axis), at Table 1's protocol, with the trials whose first view saw the target
+(from `--trace`, `bench/results/mirror/SCENE/PLANNER.first-views`).
+
+    bench/bench_mirror.sh
+    python3 bench/results_table.py mirror bench/results/mirror
+""", [lambda r: mirror(os.path.join(r, "mirror"))]),
+    ("Held-out generated scenes", """\
+The 30 held-out scenes of `npfkct-scenegen` (seeds 900001-900030), 0.25 s of CPU per step, 5
+trials per scene and planner, aimed rollout. `oracle-cover-unknown` is a second ceiling: the oracle
+not told which object covers the target.
+
+    bench/bench_generated.sh --run rollout-aimed
+    python3 bench/results_table.py generated bench/results/generated/rollout-aimed
+""", [lambda r: generated(os.path.join(r, "generated", "rollout-aimed"))]),
+    ("Held-out generated scenes by placement of the target", """\
+The same cells grouped by where the generator put the target (in the open, hidden behind tall
+boxes, covered by a larger box), as each scene file's description says. The scene files are not
+kept in `bench/results` (`bench/bench_generated.sh` writes them into the build folder with
+`npfkct-scenegen`), so this table is the one `bench_generated.sh` wrote with them, copied from
+`bench/results/generated/rollout-aimed/summary.md`:
+
+    python3 bench/results_table.py generated bench/results/generated/rollout-aimed \\
+      build/generated-scenes
+""", [lambda r: print(placement_block(os.path.join(r, "generated", "rollout-aimed",
+                                                   "summary.md")))]),
+    ("Other runs of the held-out generated scenes", """\
+Runs 1 and 2 ran every planner with the greedy rollout (run 2 with the faster model, on a faster
+machine); `rollout-greedy` is npfkct with the greedy rollout run beside the aimed one;
+`budget1000` is npfkct with 1 s of CPU per step instead of 0.25 s (greedy rollout).
+
+    ROLLOUT=greedy bench/bench_generated.sh --run run2
+    PLANNERS="oracle npfkct" ROLLOUT=greedy bench/bench_generated.sh --run rollout-greedy
+    PLANNERS="oracle npfkct" ROLLOUT=greedy bench/bench_generated.sh --run budget1000 --cpu-ms 1000
+""", [lambda r: generated_runs([(name, os.path.join(r, "generated", name))
+                                for name in ["run1", "run2", "rollout-greedy", "budget1000"]])]),
+    ("Paired comparisons on the held-out generated scenes", """\
+Two sets of cells compared scene by scene (each against the oracle of its own folder; `rows` of
+`ablation/generated` are the ablation's rows below).
+""", [lambda r: paired(GENERATED_COMPARISONS, r)]),
+    ("Ablation", """\
+NPF-kCT from the paper's algorithm to the shipped planner, one change per row, each row keeping
+the changes above it, on the 30 held-out generated scenes at their protocol. The rows `filter`,
+`rollout` and `lcb` ran the single filter network shipped before the ensemble
+(`bench/models/filter-single.pt`, under the name `filter.pt`); `ensemble` is the shipped model.
+Rows measured and not kept are compared with the kept row they modify.
+
+    bench/bench_ablation.sh --generated
+    ROWS="visits lcb" bench/bench_ablation.sh --generated
+    python3 bench/results_table.py ablation bench/results/ablation/generated
+""", [lambda r: ablation(os.path.join(r, "ablation", "generated"))]),
+    ("Sensitivity of kCT's defaults", """\
+`npfkct` with its defaults and with one option changed per row, on the 20 tuning scenes
+(seeds 910001-910020) at the generated scenes' protocol, greedy rollout; then Net_sam's own
+settings with the aimed rollout.
+
+    bench/bench_sensitivity.sh
+    python3 bench/results_table.py sensitivity bench/results/sensitivity/run1
+    ROWS="oracle defaults filter.confidence=0.3 filter.confidence=0.7 filter.candidates=2000" \\
+      bench/bench_sensitivity.sh --run filter
+    python3 bench/results_table.py sensitivity bench/results/sensitivity/filter
+""", [lambda r: sensitivity(os.path.join(r, "sensitivity", "run1")),
+      lambda r: print(),
+      lambda r: sensitivity(os.path.join(r, "sensitivity", "filter"))]),
+    ("Planning on several cores", """\
+`npfkct` with 1 and 2 root-parallel search threads, 1 s of wall time per step, trials one after
+the other on an otherwise idle 2-core machine, 8 trials per scene.
+
+    bench/bench_threads.sh 8
+    python3 bench/results_table.py threads bench/results/threads/npfkct-t1.jsonl \\
+      bench/results/threads/npfkct-t2.jsonl
+""", [lambda r: threads(os.path.join(r, "threads", "npfkct-t1.jsonl"),
+                        os.path.join(r, "threads", "npfkct-t2.jsonl"))]),
+    ("Simulation speed", """\
+The object-search model's simulation speed against the build before its faster occlusion test
+(`base`; the commit is named in `bench/results/model_speed/summary.md`): both builds in turn, 3
+rounds, 1,000 simulations per step, 2 trials per cell, the same seeds.
+
+    bench/bench_model_speed.sh BASE_COMMIT
+    python3 bench/results_table.py model-speed bench/results/model_speed
+""", [lambda r: model_speed(os.path.join(r, "model_speed"))]),
+    ("Classic problems with published results", """\
+The planners of `solver/` on the problems their authors published (`solver/include/npfkct/solver/
+models/`). The rows at 1 s of CPU give kCT (the project's defaults) and the planner beside it the
+same rollout, run on one machine; the rows above them used wall-clock or simulation budgets.
+Pooled rows pool two runs with new episodes (seeds 1 and 2) as independent samples.
+
+    bench/bench_classic.sh                     # every section; or name some: tiger rocksample ...
+    SEED=2 THREADS=1 bench/bench_classic.sh kct-vdptag
+    python3 bench/results_table.py classic bench/results/classic.jsonl
+""", [lambda r: classic(os.path.join(r, "classic.jsonl"))]),
+    ("The neural process filter", """\
+The shipped model (an ensemble of three networks) on test sets of layouts it never saw, 1,500
+snapshots each; the interval of an accuracy is the 95% normal interval of the ratio over
+snapshots (delta method), a lower bound since snapshots of one scene are not independent.
+
+    MODEL=/tmp/filter.pt tools/train_filter.sh   # data, training, the ensemble, these figures
+    python3 bench/results_table.py filter bench/results/filter_eval.json \\
+      bench/results/filter_bench.json
+
+`tools/train_filter.sh` writes `bench/results/filter_eval.json` (`npfkct-train evaluate`, one line
+per test set) and `filter_bench.json` (`npfkct-train bench`); without `MODEL` it replaces the
+shipped `filter/model/filter.pt`.
+""", [lambda r: filter_figures(os.path.join(r, "filter_eval.json"),
+                               os.path.join(r, "filter_bench.json"))]),
+    ("Perception in the loop", """\
+Loose1 and Hidden1 with the simulator rendering each view (ray-cast 640x480 RGB-D, the robot
+reporting its pose with localization noise) and the perception pipeline making the detections,
+beside the simulator's geometric observation (`kct`, 20 trials, 1 s of CPU per step). Then the
+pipeline's time per stage on one core over the frames of the manual view set of Loose1, Hidden1
+and Complex1.
+
+    bench/bench_perception.sh
+    python3 bench/results_table.py flat bench/results/perception.jsonl
+    python3 bench/results_table.py perception-stages bench/results/perception_stages.json
+""", [lambda r: flat(os.path.join(r, "perception.jsonl")), lambda r: print(),
+      lambda r: perception_stages(os.path.join(r, "perception_stages.json"))]),
+    ("Server load", """\
+`bench/load_bench.py` drives N sessions at once against one server, each planning with a 100 ms
+budget and observing through the simulated robot, on a 2-core machine. Overhead is the `:plan`
+latency the client sees minus the planner's own `elapsedMs`. These rows were measured before
+planning admission existed (the script now starts the server with `--plan-queue` equal to the
+sessions, so that every session may wait for a slot instead of being refused). With one or two
+sessions the resident memory per session is mostly the process's own.
+
+    for n in 1 2 8 32; do bench/load_bench.py --sessions $n; done > bench/results/load.jsonl
+    python3 bench/results_table.py load bench/results/load.jsonl
+""", [lambda r: load_table(os.path.join(r, "load.jsonl"))]),
+    ("Fleet", """\
+`bench/fleet_bench.py` starts PostgreSQL (with `fsync=off`, as in the tests), nginx and 1 or 3
+replicas (2 planning slots each) on one machine, and drives simulated robots through nginx; then,
+5 times, kills with SIGKILL the replica holding the most of their sessions. "Served again" is the
+time from the kill until a GET of each of its sessions through nginx answers 200; "next step"
+until the robot's next acknowledged request. These figures were measured while two other
+benchmark processes ran on the same 2 cores (see [fleet.md](fleet.md)).
+
+    bench/fleet_bench.py --out bench/results/fleet.json
+    python3 bench/results_table.py fleet bench/results/fleet.json
+""", [lambda r: fleet_table(os.path.join(r, "fleet.json"))]),
+]
+
+
+def capture(function, *args):
+    """What `function(*args)` prints, as a string."""
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        function(*args)
+    return out.getvalue()
+
+
+def placement_block(summary_path):
+    """The per-placement table of a generated run's summary.md, as bench_generated.sh wrote it
+    (it needs the scene files, which bench/results does not keep)."""
+    with open(summary_path, encoding="utf-8") as f:
+        text = f.read()
+    start = text.find("By placement of the target")
+    if start < 0:
+        sys.exit(f"{summary_path}: no table by placement")
+    return text[start:].strip()
+
+
+def docs():
+    """docs/benchmarks.md, from the results under bench/results beside this script."""
+    results = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results")
+    parts = [DOCS_PREAMBLE]
+    for title, text, tables in DOCS_SECTIONS:
+        body = "".join(capture(table, results) for table in tables).strip()
+        parts.append(f"## {title}\n\n{text}\n{body}\n")
+    return "\n".join(parts)
+
+
 def main():
-    if len(sys.argv) < 3 or sys.argv[1] not in ("table1", "generated", "ablation", "sensitivity",
-                                                 "mirror", "trace", "compare", "flat"):
+    commands = {"table1": (1, None), "generated": (1, 2), "ablation": (1, 1),
+                "sensitivity": (1, 1), "mirror": (1, 1), "trace": (1, 1), "compare": (2, 2),
+                "flat": (1, 1), "threads": (2, 2), "model-speed": (1, 1), "classic": (1, 1),
+                "filter": (2, 2), "perception-stages": (1, 1), "load": (1, 1), "fleet": (1, 1),
+                "docs": (0, 1)}
+    args = sys.argv[2:]
+    if len(sys.argv) < 2 or sys.argv[1] not in commands:
         print(__doc__)
         sys.exit(2)
-    if sys.argv[1] == "table1":
-        table1(*sys.argv[2:])
-    elif sys.argv[1] == "generated":
-        generated(sys.argv[2], sys.argv[3] if len(sys.argv) > 3 else None)
-    elif sys.argv[1] == "ablation":
-        ablation(sys.argv[2])
-    elif sys.argv[1] == "sensitivity":
-        sensitivity(sys.argv[2])
-    elif sys.argv[1] == "mirror":
-        mirror(sys.argv[2])
-    elif sys.argv[1] == "trace":
-        trace(sys.argv[2])
-    elif sys.argv[1] == "compare":
-        compare(sys.argv[2], sys.argv[3])
+    least, most = commands[sys.argv[1]]
+    if len(args) < least or (most is not None and len(args) > most):
+        print(__doc__)
+        sys.exit(2)
+    command = sys.argv[1]
+    if command == "docs":
+        text = docs()
+        if args == ["--write"]:
+            path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "docs",
+                                "benchmarks.md")
+            with open(path, "w", encoding="utf-8") as f:
+                f.write(text)
+        elif args:
+            print(__doc__)
+            sys.exit(2)
+        else:
+            sys.stdout.write(text)
+    elif command == "table1":
+        table1(*args)
+    elif command == "generated":
+        generated(*args)
+    elif command == "ablation":
+        ablation(*args)
+    elif command == "sensitivity":
+        sensitivity(*args)
+    elif command == "mirror":
+        mirror(*args)
+    elif command == "trace":
+        trace(*args)
+    elif command == "compare":
+        compare(*args)
+    elif command == "threads":
+        threads(*args)
+    elif command == "model-speed":
+        model_speed(*args)
+    elif command == "classic":
+        classic(*args)
+    elif command == "filter":
+        filter_figures(*args)
+    elif command == "perception-stages":
+        perception_stages(*args)
+    elif command == "load":
+        load_table(*args)
+    elif command == "fleet":
+        fleet_table(*args)
     else:
-        flat(sys.argv[2])
+        flat(*args)
 
 
 if __name__ == "__main__":

@@ -1,4 +1,4 @@
-// npfkct-server: the planning server (see README.md, "The server and its API", and
+// npfkct-server: the planning server (see docs/api.md and
 // schemas/openapi.yaml).
 #include <malloc.h>
 #include <pthread.h>

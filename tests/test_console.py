@@ -1,7 +1,7 @@
 """The web console in a real browser: Debian's Chromium, headless, driven by playwright-core
 (tests/js/console_check.mjs), watches a session while the simulated robot plays an episode
 against the same server. The server runs with --api-key: the page must ask for it. The
-screenshots land in BUILD/console-screenshots (the README's pictures are copies of them)."""
+screenshots land in BUILD/console-screenshots (docs/pictures/ holds copies of them)."""
 
 import json
 import os

@@ -1,4 +1,4 @@
-"""The hostile suite: the attacks of issue 13, each class against the real server.
+"""The hostile suite: every class of attack on the server, each against the real server.
 
 Every test holds the server to the same contract: no crash, no 5xx, no hang, clear errors naming
 the field, and every session that existed before an attack intact after it. scripts/test.sh runs
@@ -343,7 +343,7 @@ def test_feature_of_points_a_denormal_apart_does_not_abort(hostile_server):
 
 
 def test_the_attack_script_runs():
-    """bench/perception_attacks.py, which measured the README's figures, on small inputs."""
+    """bench/perception_attacks.py, which measured the figures of docs/api.md, on small inputs."""
     script = os.path.join(ROOT, "bench", "perception_attacks.py")
     for attack in (["far-blob", "1000"], ["sift-plates", "3"]):
         out = subprocess.run([sys.executable, script, *attack], capture_output=True, text=True,

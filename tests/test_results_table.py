@@ -1,8 +1,10 @@
-"""bench/results_table.py, which makes the README's benchmark tables: Student's t quantiles, the
-share of the oracle's reward and the ablation's paired change, on cells with known answers."""
+"""bench/results_table.py, which makes the benchmark tables of docs/benchmarks.md: Student's t
+quantiles, the share of the oracle's reward and the ablation's paired change, on cells with known
+answers; and docs/benchmarks.md itself, which must be what the script makes of bench/results."""
 
 import json
 import os
+import re
 import subprocess
 import sys
 
@@ -237,3 +239,72 @@ def test_table1_takes_each_cell_from_the_first_run_that_has_it(tmp_path):
     assert "| advt | 20.0 ± 1.0 \\| 4.0 ± 0.0 \\| 100% | – | run1 |" in lines
     # The shares come from the same merged cells: npfkct 80 of the oracle's 100.
     assert "| npfkct | 80% |" in lines
+
+
+def test_docs_benchmarks_is_what_the_script_makes_of_the_results():
+    # docs/benchmarks.md is written by `python3 bench/results_table.py docs > docs/benchmarks.md`;
+    # a new cell in bench/results, or an edit of the file by hand, must show here.
+    with open(os.path.join(SCRIPTS, "..", "docs", "benchmarks.md"), encoding="utf-8") as f:
+        committed = f.read()
+    assert committed == results_table.docs(), (
+        "docs/benchmarks.md differs from what bench/results_table.py makes of bench/results: "
+        "run python3 bench/results_table.py docs --write")
+
+
+def test_the_docs_command_prints_the_file(tmp_path):
+    out = subprocess.run([sys.executable, os.path.join(SCRIPTS, "results_table.py"), "docs"],
+                         check=True, capture_output=True, env={**os.environ,
+                                                               "PYTHONIOENCODING": "utf-8"}).stdout
+    assert out.decode("utf-8") == results_table.docs()
+
+
+def test_threads_gives_the_ratio_of_simulations_per_second(tmp_path):
+    for n, sims, reward in [(1, 100.0, 10.0), (2, 250.0, 12.0)]:
+        (tmp_path / f"t{n}.jsonl").write_text(json.dumps(
+            {"scenario": "Loose1", "median_sims_per_second": sims, "mean_discounted_reward": reward,
+             "ci95": 1.0}) + "\n", encoding="utf-8")
+    out = subprocess.run([sys.executable, os.path.join(SCRIPTS, "results_table.py"), "threads",
+                          str(tmp_path / "t1.jsonl"), str(tmp_path / "t2.jsonl")], check=True,
+                         capture_output=True, text=True).stdout
+    assert "| Loose1 | 100 | 250 | 2.50x | 10.0 ± 1.0 | 12.0 ± 1.0 |" in out.splitlines()
+
+
+def test_classic_pools_runs_as_independent_samples(tmp_path):
+    # Two runs of 100 episodes: means 28 and 30, standard errors 3 and 4: pooled 29 ± 2.5.
+    path = tmp_path / "classic.jsonl"
+    lines = []
+    for seed, mean, se in [(1, 28.0, 3.0), (2, 30.0, 4.0)]:
+        for planner in ("kct", "vomcpow"):
+            lines.append(json.dumps({"problem": "vdptag", "planner": planner, "episodes": 100,
+                                     "cpu_ms": 1000, "threads": 1, "seed": seed,
+                                     "mean_discounted_return": mean, "stderr": se,
+                                     "mean_steps": 10.0, "success_rate": 1.0}))
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    rows = [r for r in results_table.CLASSIC_ROWS if r[0].startswith("VDP Tag (ToNextML rollout),")]
+    saved = results_table.CLASSIC_ROWS
+    results_table.CLASSIC_ROWS = rows
+    try:
+        out = results_table.capture(results_table.classic, str(path))
+    finally:
+        results_table.CLASSIC_ROWS = saved
+    pooled = [line for line in out.splitlines() if "pooled | kCT" in line]
+    assert len(pooled) == 1 and "| 200 | 29.00 ± 2.50 |" in pooled[0]
+
+
+def test_the_readme_headline_figures_are_those_of_docs_benchmarks():
+    # The README's table of headline figures is typed by hand; every figure in it must still be
+    # one that docs/benchmarks.md (generated from bench/results) shows.
+    root = os.path.join(SCRIPTS, "..")
+    with open(os.path.join(root, "README.md"), encoding="utf-8") as f:
+        readme = f.read()
+    with open(os.path.join(root, "docs", "benchmarks.md"), encoding="utf-8") as f:
+        benchmarks = f.read()
+    rows = readme.split("<!-- headline -->\n", 1)[1].split("\n\n", 1)[0].splitlines()[2:]
+    assert len(rows) >= 4
+    figure = re.compile(r"\d+(?:\.\d+)?%(?: ± \d+(?:\.\d+)?)?|\d+\.\d+ m?s\b")
+    for row in rows:
+        value = row.split("|")[2]
+        found = figure.findall(value)
+        assert found, row
+        for x in found:
+            assert x in benchmarks, f"README headline figure {x!r} is not in docs/benchmarks.md"

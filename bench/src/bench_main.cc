@@ -150,7 +150,7 @@ int Unsupported(const Config& c) {
 }
 
 int RunTiger(const Config& c) {
-  // Default rollout: always listen (random rollouts bury every value under -600, see README).
+  // Default rollout: always listen (random rollouts bury every value under -600).
   models::Tiger::Rollout rollout = models::Tiger::Rollout::kListen;
   if (c.rollout == "random") {
     rollout = models::Tiger::Rollout::kRandom;

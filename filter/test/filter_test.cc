@@ -362,7 +362,8 @@ TEST(FilterTest, ShippedModelSeparatesEfficientFromUselessOnUnseenLayouts) {
   auto filter = NeuralFilter::Load(NPFKCT_FILTER_MODEL);
   ASSERT_TRUE(filter.ok()) << filter.status().ToString();
   // Layouts the model never saw: held-out generated scenes and the paper's scenes, at the
-  // production context size. (The README's figures come from larger sets: npfkct-train evaluate.)
+  // production context size. (docs/benchmarks.md's figures come from larger sets: npfkct-train
+  // evaluate.)
   GenerateOptions held_out = SmallGeneration(30, 987654, sim::kHeldOutSeedBase + 1);
   held_out.scene_count = 30;
   GenerateOptions paper = SmallGeneration(30, 987655, 0);

@@ -3,7 +3,7 @@
 //   const std::string text = GenerateScenarioJson(42);   // a scenario file, reproducible from 42
 //   StatusOr<Scenario> s = ParseScenario(text);           // always parses
 //
-// Seeds are split by use (the README lists them): the filter trains on seeds below
+// Seeds are split by use (docs/benchmarks.md lists them): the filter trains on seeds below
 // kHeldOutSeedBase, and the benchmark's held-out scenes are kHeldOutSeedBase + 1 ... + 30.
 #pragma once
 

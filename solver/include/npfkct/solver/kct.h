@@ -70,7 +70,7 @@ struct KctOptions {
   /// mean radius of this step's initial spheres, so that a sphere of that radius is refined after
   /// refine_share N_p visits. That rule was made for 60 s of planning per step; at budgets of a
   /// second it refines too slowly (object search, VDP Tag and the linear-quadratic test all do
-  /// better at 0.05; README, "kCT's defaults"), hence the fixed default.
+  /// better at 0.05; docs/experiments.md, "Are kCT's defaults right?"), hence the fixed default.
   double c_r = 0.05;
   /// The share of N_p in appendix J's C_r rule (30% to 50% there).
   double refine_share = 0.4;

@@ -1,6 +1,6 @@
 // The documented limits of the API: every resource a request can make the server use (cells,
 // points, pixels, particles, candidates, budgets, sessions) is bounded here, and checked before
-// anything of that size is allocated. README.md ("Limits") lists each with its error; the JSON
+// anything of that size is allocated. docs/api.md ("Limits") lists each with its error; the JSON
 // Schemas in schemas/ carry the same numbers (a unit test keeps them in step).
 //
 //   api::Limits limits;                // the defaults, as documented
@@ -87,7 +87,7 @@ struct Limits {
   Status Validate() const;
 };
 
-/// The hard maxima: what the schemas and the README document.
+/// The hard maxima: what the schemas and docs/api.md document.
 const Limits& HardLimits();
 
 }  // namespace npfkct::api
