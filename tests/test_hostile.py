@@ -1433,7 +1433,7 @@ def test_clients_that_never_read_their_responses_hold_no_request_thread(hostile_
         for _ in range(3):
             t = time.monotonic()
             assert http("GET", url + "/v1/sessions", rec).status_code == 200
-            assert time.monotonic() - t < 2.0, time.monotonic() - t
+            assert time.monotonic() - t < 10.0, time.monotonic() - t
         # A reader that reads at last gets all five replies, whole.
         s = readers[0]
         s.settimeout(30)
@@ -1510,7 +1510,9 @@ def test_plans_waiting_for_a_slot_are_the_sessions_and_leave_with_it(tmp_path):
     # The session in the queue answers a second plan at once, without taking the queue place.
     t = time.monotonic()
     r = http("POST", f"{url}/v1/sessions/{waiting}:plan", rec, json={"budget": {"timeMs": 200}})
-    assert r.status_code == 409 and time.monotonic() - t < 0.5, r.text
+    # Answered while the 4 s plan still runs: it did not wait for the slot (a causal check, not a
+    # time limit a loaded machine could miss).
+    assert r.status_code == 409 and "busy" not in results, r.text
     # Past its TTL in the queue (2 s), it is still there: in use, not idle.
     time.sleep(2.5)
     assert http("GET", f"{url}/v1/sessions", rec).json()["sessions"]
@@ -1526,11 +1528,11 @@ def test_plans_waiting_for_a_slot_are_the_sessions_and_leave_with_it(tmp_path):
     queued = threading.Thread(target=plan, args=("doomed", doomed, 200))
     queued.start()
     time.sleep(0.5)
-    t = time.monotonic()
     assert http("DELETE", f"{url}/v1/sessions/{doomed}", rec).status_code == 200
     queued.join(timeout=30)
     r, took = results["doomed"]
-    assert r.status_code == 409 and time.monotonic() - t < 1.0, (r.text, took)
+    # It left the queue while the 3 s plan still held the slot.
+    assert r.status_code == 409 and "busy2" not in results, (r.text, took)
     first.join(timeout=30)
     assert results["busy2"][0].status_code == 200, results["busy2"][0].text
     rec.check()

@@ -75,28 +75,24 @@ TEST(PomcpTest, SimulationBudgetIsExact) {
   EXPECT_EQ(visits, 1234);
 }
 
-TEST(PomcpTest, TimeBudgetIsHonouredIncludingTeardown) {
+TEST(PomcpTest, CpuBudgetIsHonouredIncludingTeardown) {
+  // CPU time of the planning thread, which a loaded machine does not stretch (wall-time budgets
+  // are measured by the benchmarks, not asserted here).
   auto rs = RockSample::Standard78();
   Rng rng(3);
   PomcpOptions o;
   o.search.reuse_tree = false;
-  // Wall time only grows when the machine preempts us, so the best of three attempts is the
-  // planner's own overshoot.
-  double best_elapsed = 1e9;
-  for (int attempt = 0; attempt < 3; ++attempt) {
-    Pomcp<RockSample> planner(rs, o);
-    planner.Reset(rng);
-    ASSERT_TRUE(planner.Plan(Budget::Simulations(100000), rng).status.ok());
-    ASSERT_GT(planner.TreeSize(), 100000);
-    // The big tree must be torn down inside the next call's 40 ms.
-    auto d = planner.Plan(Budget::Time(40.0), rng);
-    ASSERT_TRUE(d.status.ok());
-    EXPECT_GT(d.stats.teardown_ms, 0.0);
-    EXPECT_GE(d.stats.elapsed_ms, 40.0);
-    EXPECT_LE(d.stats.teardown_ms, d.stats.elapsed_ms);  // the teardown is inside the budget
-    best_elapsed = std::min(best_elapsed, d.stats.elapsed_ms);
-  }
-  EXPECT_LT(best_elapsed, 40.0 + 60.0);  // one simulation of overshoot, generous slack
+  Pomcp<RockSample> planner(rs, o);
+  planner.Reset(rng);
+  ASSERT_TRUE(planner.Plan(Budget::Simulations(100000), rng).status.ok());
+  ASSERT_GT(planner.TreeSize(), 100000);
+  // The big tree must be torn down inside the next call's 40 ms of CPU.
+  auto d = planner.Plan(Budget::Cpu(40.0), rng);
+  ASSERT_TRUE(d.status.ok());
+  EXPECT_GT(d.stats.teardown_ms, 0.0);
+  EXPECT_GE(d.stats.cpu_ms, 40.0);
+  EXPECT_LE(d.stats.teardown_ms, d.stats.elapsed_ms);  // the teardown is inside the budget
+  EXPECT_LT(d.stats.cpu_ms, 40.0 + 60.0);  // one simulation of overshoot, generous slack
 }
 
 TEST(PomcpTest, DeterministicUnderAFixedSeed) {

@@ -125,7 +125,8 @@ TEST(PomcpowTest, VoronoiSamplingConcentratesNearTheBestAction) {
   EXPECT_GT(static_cast<double>(near) / same_kind, 0.5);
 }
 
-TEST(PomcpowTest, TimeBudgetIsHonoured) {
+TEST(PomcpowTest, CpuBudgetIsHonoured) {
+  // CPU time, which a loaded machine does not stretch (wall time is the benchmarks' business).
   VdpTag tag;
   Rng rng(5);
   PomcpowOptions o = VdpOptions();
@@ -133,10 +134,10 @@ TEST(PomcpowTest, TimeBudgetIsHonoured) {
   Pomcpow<VdpTag> planner(tag, o);
   planner.Reset(rng);
   ASSERT_TRUE(planner.Plan(Budget::Simulations(30000), rng).status.ok());
-  auto d = planner.Plan(Budget::Time(30.0), rng);
+  auto d = planner.Plan(Budget::Cpu(30.0), rng);
   ASSERT_TRUE(d.status.ok());
-  EXPECT_GE(d.stats.elapsed_ms, 30.0);
-  EXPECT_LT(d.stats.elapsed_ms, 30.0 + 60.0);
+  EXPECT_GE(d.stats.cpu_ms, 30.0);
+  EXPECT_LT(d.stats.cpu_ms, 30.0 + 60.0);
   EXPECT_GT(d.stats.teardown_ms, 0.0);
 }
 
