@@ -185,99 +185,72 @@ void Session::Cancel() {
   if (running_ != nullptr) running_->Terminate();
 }
 
-StatusOr<api::PlanReply> Session::Plan(const Budget& asked,
-                                       const std::function<bool()>& client_gone,
-                                       SessionStore* store, const Admit& admit) {
-  std::unique_lock<std::mutex> op(op_mutex_, std::try_to_lock);
-  if (!op.owns_lock()) return Busy();
-  if (stale_) return Stale();
+StatusOr<Budget> Session::ClaimForPlan(const Budget& asked) {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  if (state_ == api::SessionState::kDone) {
+    return FailedPreconditionError("the target was removed: session " + id_ + " is done");
+  }
+  if (state_ == api::SessionState::kActionPending) {
+    return FailedPreconditionError("action " + pending_action_id_ +
+                                   " is pending: POST :observe with its outcome first");
+  }
+  const double left_ms = 1000.0 * (limits_.max_plan_seconds - planning_seconds_);
+  if (left_ms < 10.0) {  // a few milliseconds plan nothing
+    return FieldError(StatusCode::kResourceExhausted, "budget",
+                      "this session has spent its " +
+                          std::to_string(static_cast<int64_t>(limits_.max_plan_seconds)) +
+                          " s of planning");
+  }
   Budget budget = asked;
-  {
-    std::lock_guard<std::mutex> lock(state_mutex_);
-    if (state_ == api::SessionState::kDone) {
-      return FailedPreconditionError("the target was removed: session " + id_ + " is done");
-    }
-    if (state_ == api::SessionState::kActionPending) {
-      return FailedPreconditionError("action " + pending_action_id_ +
-                                     " is pending: POST :observe with its outcome first");
-    }
-    const double left_ms = 1000.0 * (limits_.max_plan_seconds - planning_seconds_);
-    if (left_ms < 10.0) {  // a few milliseconds plan nothing
-      return FieldError(StatusCode::kResourceExhausted, "budget",
-                        "this session has spent its " +
-                            std::to_string(static_cast<int64_t>(limits_.max_plan_seconds)) +
-                            " s of planning");
-    }
-    budget.time_ms = budget.time_ms > 0.0 ? std::min(budget.time_ms, left_ms) : left_ms;
-    in_use_ = true;
-  }
-  SlotHold slots;
-  if (admit) {
-    auto held =
-        admit([&] { return cancel_.load() || (client_gone && client_gone()); }, SearchThreads());
-    if (!held.ok()) {
-      {
-        std::lock_guard<std::mutex> lock(state_mutex_);
-        in_use_ = false;
-        last_used_ = std::chrono::steady_clock::now();
-      }
-      if (held.status().code() != StatusCode::kCancelled) return held.status();
-      return WhyCancelled();
-    }
-    slots = std::move(held).value();
-  }
-  Decision<HybridAction> d;
-  bool cancelled = false;
-  {
-    // Constructed here, in the planning thread: a CPU budget reads this thread's clock. Past the
-    // heap bound the search ends early and its best action stands.
-    TerminationCondition stop(
-        budget, [&] { return cancel_.load() || (client_gone && client_gone()); }, 2.0);
-    stop.StopAtLimit([this] { return HeapPastBound(limits_); });
-    {
-      std::lock_guard<std::mutex> lock(running_mutex_);
-      running_ = &stop;
-    }
-    if (cancel_) stop.Terminate();
-    d = planner_->Plan(stop, rng_);
-    {
-      std::lock_guard<std::mutex> lock(running_mutex_);
-      running_ = nullptr;
-    }
-    cancelled = stop.cancelled();
-    if (!cancelled && stop.limit_reached() && d.status.ok() && d.stats.simulations == 0) {
-      d.status = HeapBoundError(limits_, "plan");
-    }
-    bool deleted = false;
-    if (cancelled) {
-      std::lock_guard<std::mutex> persist(persist_mutex_);
-      deleted = deleted_;
-    }
-    if (stop.limit_reached() || deleted) {
-      // At the heap bound the tree holds the heap past it: kept, it would refuse this session's
-      // own observation (and everyone's plans) until the session is deleted; the next plan
-      // starts a fresh tree. A deleted session's tree would stay resident until the last
-      // request holding the session lets go of it, after the DELETE gave memory back.
-      planner_->DropTree();
-      ReleaseFreedMemory();
-    }
-  }
-  std::unique_lock<std::mutex> state(state_mutex_);
+  budget.time_ms = budget.time_ms > 0.0 ? std::min(budget.time_ms, left_ms) : left_ms;
+  in_use_ = true;
+  return budget;
+}
+
+void Session::Release() {
+  std::lock_guard<std::mutex> lock(state_mutex_);
   in_use_ = false;
   last_used_ = std::chrono::steady_clock::now();
-  planning_seconds_ += d.stats.elapsed_ms / 1000.0;
-  total_simulations_ += d.stats.simulations;
-  unsaved_seconds_ += d.stats.elapsed_ms / 1000.0;
-  unsaved_simulations_ += d.stats.simulations;
-  if (cancelled || !d.status.ok()) {
-    // The planning was spent: stored, so that a restart or another replica counts it (a client
-    // that hangs up on every plan would otherwise plan past --max-session-plan-seconds).
-    const bool spent = d.stats.elapsed_ms > 0.0 || d.stats.simulations > 0;
-    state.unlock();
-    if (spent) (void)SaveUnderOp(store);
-    if (cancelled || d.status.code() == StatusCode::kCancelled) return WhyCancelled();
-    return d.status;
+}
+
+Decision<HybridAction> Session::Search(const Budget& budget,
+                                       const std::function<bool()>& client_gone, bool* cancelled) {
+  // Constructed here, in the planning thread: a CPU budget reads this thread's clock. Past the
+  // heap bound the search ends early and its best action stands.
+  TerminationCondition stop(
+      budget, [&] { return cancel_.load() || (client_gone && client_gone()); }, 2.0);
+  stop.StopAtLimit([this] { return HeapPastBound(limits_); });
+  {
+    std::lock_guard<std::mutex> lock(running_mutex_);
+    running_ = &stop;
   }
+  if (cancel_) stop.Terminate();
+  Decision<HybridAction> d = planner_->Plan(stop, rng_);
+  {
+    std::lock_guard<std::mutex> lock(running_mutex_);
+    running_ = nullptr;
+  }
+  *cancelled = stop.cancelled();
+  if (!*cancelled && stop.limit_reached() && d.status.ok() && d.stats.simulations == 0) {
+    d.status = HeapBoundError(limits_, "plan");
+  }
+  bool deleted = false;
+  if (*cancelled) {
+    std::lock_guard<std::mutex> persist(persist_mutex_);
+    deleted = deleted_;
+  }
+  if (stop.limit_reached() || deleted) {
+    // At the heap bound the tree holds the heap past it: kept, it would refuse this session's
+    // own observation (and everyone's plans) until the session is deleted; the next plan
+    // starts a fresh tree. A deleted session's tree would stay resident until the last
+    // request holding the session lets go of it, after the DELETE gave memory back.
+    planner_->DropTree();
+    ReleaseFreedMemory();
+  }
+  return d;
+}
+
+api::PlanReply Session::PendLocked(const Decision<HybridAction>& d, const Budget& budget) {
   ++actions_;
   pending_action_ = d.action;
   char id[64];
@@ -298,22 +271,58 @@ StatusOr<api::PlanReply> Session::Plan(const Budget& asked,
   history_.push_back({static_cast<int>(actions_), reply.action_id, reply.action, d.value, d.stats,
                       reply.candidates, api::UnixMillis(std::chrono::system_clock::now()),
                       std::nullopt});
-  if (history_.size() > static_cast<size_t>(api::kMaxHistorySteps))
+  if (history_.size() > static_cast<size_t>(api::kMaxHistorySteps)) {
     history_.erase(history_.begin());
+  }
+  return reply;
+}
+
+StatusOr<api::PlanReply> Session::Plan(const Budget& asked,
+                                       const std::function<bool()>& client_gone,
+                                       SessionStore* store, const Admit& admit) {
+  std::unique_lock<std::mutex> op(op_mutex_, std::try_to_lock);
+  if (!op.owns_lock()) return Busy();
+  if (stale_) return Stale();
+  StatusOr<Budget> budget = ClaimForPlan(asked);
+  if (!budget.ok()) return budget.status();
+  SlotHold slots;
+  if (admit) {
+    auto held =
+        admit([&] { return cancel_.load() || (client_gone && client_gone()); }, SearchThreads());
+    if (!held.ok()) {
+      Release();
+      if (held.status().code() != StatusCode::kCancelled) return held.status();
+      return WhyCancelled();
+    }
+    slots = std::move(held).value();
+  }
+  bool cancelled = false;
+  const Decision<HybridAction> d = Search(*budget, client_gone, &cancelled);
+  std::unique_lock<std::mutex> state(state_mutex_);
+  in_use_ = false;
+  last_used_ = std::chrono::steady_clock::now();
+  planning_seconds_ += d.stats.elapsed_ms / 1000.0;
+  total_simulations_ += d.stats.simulations;
+  unsaved_seconds_ += d.stats.elapsed_ms / 1000.0;
+  unsaved_simulations_ += d.stats.simulations;
+  if (cancelled || !d.status.ok()) {
+    // The planning was spent: stored, so that a restart or another replica counts it (a client
+    // that hangs up on every plan would otherwise plan past --max-session-plan-seconds).
+    const bool spent = d.stats.elapsed_ms > 0.0 || d.stats.simulations > 0;
+    state.unlock();
+    if (spent) (void)SaveUnderOp(store);
+    if (cancelled || d.status.code() == StatusCode::kCancelled) return WhyCancelled();
+    return d.status;
+  }
+  api::PlanReply reply = PendLocked(d, *budget);
   state.unlock();
   if (Status s = SaveUnderOp(store); !s.ok()) return s;
   reply.session = View();
   return reply;
 }
 
-StatusOr<api::ObserveReply> Session::Observe(api::ObserveRequest req, SessionStore* store) {
-  std::unique_lock<std::mutex> op(op_mutex_, std::try_to_lock);
-  if (!op.owns_lock()) return Busy();
-  if (stale_) return Stale();
-  // An observation grows every particle by the objects it adds.
-  if (Status heap = CheckHeap(limits_, "observe"); !heap.ok()) return heap;
-  std::shared_ptr<const World> world;
-  HybridAction action;
+StatusOr<Session::Pending> Session::CheckObservation(const api::ObserveRequest& req) const {
+  Pending p;
   {
     std::lock_guard<std::mutex> lock(state_mutex_);
     if (state_ != api::SessionState::kActionPending) {
@@ -329,30 +338,94 @@ StatusOr<api::ObserveReply> Session::Observe(api::ObserveRequest req, SessionSto
                         "'" + req.action_id + "' is stale or unknown; the pending action is " +
                             pending_action_id_);
     }
-    world = world_;
-    action = pending_action_;
+    p.world = world_;
+    p.action = pending_action_;
   }
-  const bool is_move = action.kind == object_search::kMoveKind;
-  if (is_move && req.succeeded && !req.robot_state) {
+  if (p.is_move() && req.succeeded && !req.robot_state) {
     return InvalidFieldError("robot_state", "missing (required after a MOVE)");
   }
   for (size_t i = 0; i < req.detections.size(); ++i) {
-    if (req.detections[i].key == world->objects[0].key) {
+    if (req.detections[i].key == p.world->objects[0].key) {
       return InvalidFieldError("detections[" + std::to_string(i) + "].id", "reserved id");
     }
   }
+  return p;
+}
+
+Status Session::EnsurePerception(const World& world) {
+  if (perception_) return OkStatus();
+  const int64_t points = perception::PriorMapPoints(world, {});
+  if (points > limits_.max_perception_map_points) {
+    return FieldError(StatusCode::kFailedPrecondition, "point_cloud",
+                      "perception would map this world with " + std::to_string(points) +
+                          " points, more than " +
+                          std::to_string(limits_.max_perception_map_points) +
+                          " (a smaller room or less furniture); send detections instead");
+  }
+  perception::TargetModel target;
+  for (size_t i = 0; i < target_.photos.size(); ++i) {
+    auto image = api::DecodeImage(target_.photos[i], limits_.max_photo_pixels,
+                                  "target.photos[" + std::to_string(i) + "]");
+    if (!image.ok()) return image.status();
+    target.photos.push_back(*image);
+  }
+  perception_ = std::make_unique<perception::Perception>(world, std::move(target),
+                                                         perception::PerceptionOptions{});
+  if (stored_tracks_) {
+    // Checked when the record was restored.
+    if (Status st = perception_->RestoreTracks(stored_tracks_->second, stored_tracks_->first);
+        !st.ok()) {
+      perception_.reset();
+      return Status(StatusCode::kDataLoss, "snapshot: " + st.message());
+    }
+    stored_tracks_.reset();
+  }
+  return OkStatus();
+}
+
+StatusOr<perception::PerceptionResult> Session::Perceive(perception::SensorFrame frame,
+                                                         const Pending& p, bool succeeded,
+                                                         object_search::RealObservation* obs,
+                                                         SavedTracks* saved) {
+  if (Status s = EnsurePerception(*p.world); !s.ok()) return s;
+  saved->tracks = perception_->SaveTracks(&saved->next_id);
+  if (!p.is_move() && succeeded &&
+      object_search::KindOffset(p.action.kind) == object_search::kRemoveOffset) {
+    // The object left the scene.
+    perception_->DropTrack(p.world->objects[object_search::KindObject(p.action.kind)].key);
+  }
+  frame.reported = obs->achieved;
+  auto result = perception_->Process(frame);
+  if (!result.ok()) {
+    (void)perception_->RestoreTracks(saved->tracks, saved->next_id);
+    return result.status();
+  }
+  obs->achieved = result->observation.achieved;
+  obs->objects = result->observation.objects;
+  return result;
+}
+
+StatusOr<api::ObserveReply> Session::Observe(api::ObserveRequest req, SessionStore* store) {
+  std::unique_lock<std::mutex> op(op_mutex_, std::try_to_lock);
+  if (!op.owns_lock()) return Busy();
+  if (stale_) return Stale();
+  // An observation grows every particle by the objects it adds.
+  if (Status heap = CheckHeap(limits_, "observe"); !heap.ok()) return heap;
+  StatusOr<Pending> pending = CheckObservation(req);
+  if (!pending.ok()) return pending.status();
+  const Pending& p = *pending;
   object_search::RealObservation obs;
-  obs.achieved = req.robot_state.value_or(world->robot_config);
+  obs.achieved = req.robot_state.value_or(p.world->robot_config);
   obs.objects = std::move(req.detections);
 
   // Apply to a copy and swap on success: a rejected observation changes nothing.
-  World next = *world;
+  World next = *p.world;
   bool done = false;
   using object_search::ActionOutcome;
   ActionOutcome outcome = req.succeeded ? ActionOutcome::kMoved : ActionOutcome::kIllegal;
-  const int object = is_move ? -1 : object_search::KindObject(action.kind);
-  const int offset = is_move ? -1 : object_search::KindOffset(action.kind);
-  if (!is_move && req.succeeded) {
+  if (!p.is_move() && req.succeeded) {
+    const int object = object_search::KindObject(p.action.kind);
+    const int offset = object_search::KindOffset(p.action.kind);
     outcome = object_search::SuccessfulOutcome(offset, next.objects[object].status);
     done = outcome == ActionOutcome::kRemovedTarget;
     if (Status s = object_search::ApplyDiscreteOutcome(&next, object, offset, true); !s.ok()) {
@@ -362,54 +435,16 @@ StatusOr<api::ObserveReply> Session::Observe(api::ObserveRequest req, SessionSto
   const double reward = object_search::RewardOf(next.params, outcome);
   // Raw data: perception turns the frame into the corrected pose and detections. Its tracks are
   // restored if anything below fails.
-  std::vector<perception::TrackState> saved_tracks;
-  int saved_next_id = 0;
+  SavedTracks saved;
   std::optional<perception::PerceptionResult> perceived;
   if (req.frame) {
-    if (!perception_) {
-      const int64_t points = perception::PriorMapPoints(*world, {});
-      if (points > limits_.max_perception_map_points) {
-        return FieldError(StatusCode::kFailedPrecondition, "point_cloud",
-                          "perception would map this world with " + std::to_string(points) +
-                              " points, more than " +
-                              std::to_string(limits_.max_perception_map_points) +
-                              " (a smaller room or less furniture); send detections instead");
-      }
-      perception::TargetModel target;
-      for (size_t i = 0; i < target_.photos.size(); ++i) {
-        auto image = api::DecodeImage(target_.photos[i], limits_.max_photo_pixels,
-                                      "target.photos[" + std::to_string(i) + "]");
-        if (!image.ok()) return image.status();
-        target.photos.push_back(*image);
-      }
-      perception_ = std::make_unique<perception::Perception>(*world, std::move(target),
-                                                             perception::PerceptionOptions{});
-      if (stored_tracks_) {
-        // Checked when the record was restored.
-        if (Status st = perception_->RestoreTracks(stored_tracks_->second, stored_tracks_->first);
-            !st.ok()) {
-          perception_.reset();
-          return Status(StatusCode::kDataLoss, "snapshot: " + st.message());
-        }
-        stored_tracks_.reset();
-      }
-    }
-    saved_tracks = perception_->SaveTracks(&saved_next_id);
-    if (!is_move && req.succeeded && offset == object_search::kRemoveOffset) {
-      perception_->DropTrack(world->objects[object].key);  // the object left the scene
-    }
-    req.frame->reported = obs.achieved;
-    auto result = perception_->Process(*req.frame);
-    if (!result.ok()) {
-      (void)perception_->RestoreTracks(saved_tracks, saved_next_id);
-      return result.status();
-    }
-    obs.achieved = result->observation.achieved;
-    obs.objects = result->observation.objects;
+    auto result = Perceive(std::move(*req.frame), p, req.succeeded, &obs, &saved);
+    if (!result.ok()) return result.status();
     perceived = std::move(result).value();
   }
+  const bool raw = perceived.has_value();
   auto fail = [&](Status s) {
-    if (req.frame) (void)perception_->RestoreTracks(saved_tracks, saved_next_id);
+    if (raw) (void)perception_->RestoreTracks(saved.tracks, saved.next_id);
     return s;
   };
   std::vector<int> detected;
@@ -419,47 +454,24 @@ StatusOr<api::ObserveReply> Session::Observe(api::ObserveRequest req, SessionSto
     if (index < 0) fresh.insert(det.key);
     detected.push_back(index);
   }
+  const char* field = raw ? "point_cloud" : "detections";
   if (next.objects.size() + fresh.size() > object_search::kMaxObjects) {
-    return fail(InvalidFieldError(req.frame ? "point_cloud" : "detections",
-                                  "the session would know more than " +
-                                      std::to_string(object_search::kMaxKnownObjects) +
-                                      " objects"));
+    return fail(InvalidFieldError(field, "the session would know more than " +
+                                             std::to_string(object_search::kMaxKnownObjects) +
+                                             " objects"));
   }
   const object_search::Observation key = model_->RealObservationKey(detected);
   if (Status s = object_search::ApplyRealObservation(&next, obs); !s.ok()) {
-    return fail(InvalidFieldError(req.frame ? "point_cloud" : "detections", s.message()));
+    return fail(InvalidFieldError(field, s.message()));
   }
-  auto updated = std::make_shared<const World>(std::move(next));
-  model_->SetWorld(updated);
-  planner_->OnWorldChanged();
-  {
-    std::lock_guard<std::mutex> lock(state_mutex_);
-    world_ = updated;
-    last_action_id_ = pending_action_id_;
-    pending_action_id_.clear();
-    state_ = done ? api::SessionState::kDone : api::SessionState::kReady;
-    update_time_ = std::chrono::system_clock::now();
-    last_used_ = std::chrono::steady_clock::now();
-    if (perception_) perception_tracks_ = perception_->tracks();
-    if (!history_.empty() && history_.back().action_id == last_action_id_) {
-      history_.back().outcome = {req.succeeded,
-                                 reward,
-                                 static_cast<int>(obs.objects.size()),
-                                 static_cast<int>(fresh.size()),
-                                 req.frame.has_value(),
-                                 done,
-                                 api::UnixMillis(std::chrono::system_clock::now())};
-    }
-  }
-  Reseed();
-  if (!done) {
-    auto belief = FreshBelief();
-    if (!fresh.empty()) {
-      planner_->SetBelief(std::move(belief));
-    } else {
-      planner_->AdvanceTo(action, key, std::move(belief));
-    }
-  }
+  const api::StepRecord::Outcome step{req.succeeded,
+                                      reward,
+                                      static_cast<int>(obs.objects.size()),
+                                      static_cast<int>(fresh.size()),
+                                      raw,
+                                      done,
+                                      api::UnixMillis(std::chrono::system_clock::now())};
+  Advance(std::make_shared<const World>(std::move(next)), p.action, key, !fresh.empty(), step);
   if (Status s = SaveUnderOp(store); !s.ok()) return s;
   api::ObserveReply reply;
   reply.done = done;
@@ -467,6 +479,35 @@ StatusOr<api::ObserveReply> Session::Observe(api::ObserveRequest req, SessionSto
   reply.perception = std::move(perceived);
   reply.session = View();
   return reply;
+}
+
+void Session::Advance(std::shared_ptr<const World> updated, const HybridAction& action,
+                      const object_search::Observation& key, bool new_objects,
+                      const api::StepRecord::Outcome& step) {
+  model_->SetWorld(updated);
+  planner_->OnWorldChanged();
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    world_ = updated;
+    last_action_id_ = pending_action_id_;
+    pending_action_id_.clear();
+    state_ = step.done ? api::SessionState::kDone : api::SessionState::kReady;
+    update_time_ = std::chrono::system_clock::now();
+    last_used_ = std::chrono::steady_clock::now();
+    if (perception_) perception_tracks_ = perception_->tracks();
+    if (!history_.empty() && history_.back().action_id == last_action_id_) {
+      history_.back().outcome = step;
+    }
+  }
+  Reseed();
+  if (!step.done) {
+    auto belief = FreshBelief();
+    if (new_objects) {
+      planner_->SetBelief(std::move(belief));
+    } else {
+      planner_->AdvanceTo(action, key, std::move(belief));
+    }
+  }
 }
 
 Status Session::SaveUnderOp(SessionStore* store) {

@@ -19,13 +19,10 @@
 #include "npfkct/api/types.h"
 #include "npfkct/object_search/model.h"
 #include "npfkct/object_search/planner_registry.h"
+#include "npfkct/perception/perception.h"
 #include "npfkct/server/models.h"
 #include "npfkct/server/session_store.h"
 #include "npfkct/solver/planner.h"
-
-namespace npfkct::perception {
-class Perception;
-}  // namespace npfkct::perception
 
 namespace npfkct::server {
 
@@ -166,6 +163,46 @@ class Session {
   api::SessionView ViewLocked() const;
   static api::ActionView ActionViewOf(const HybridAction& a, const object_search::World& w);
   Status SaveUnderOp(SessionStore* store);
+
+  // ---- Plan's stages ----
+  // Claims the session for a plan (in use, not idle): the budget capped by what is left of the
+  // session's planning time; FAILED_PRECONDITION or RESOURCE_EXHAUSTED when it cannot plan.
+  StatusOr<Budget> ClaimForPlan(const Budget& asked);
+  // Ends a claim that planned nothing.
+  void Release();
+  // Runs the planner under a condition Cancel() and `client_gone` stop (and the heap bound).
+  Decision<HybridAction> Search(const Budget& budget, const std::function<bool()>& client_gone,
+                                bool* cancelled);
+  // Makes `d`'s action the pending one and records the step (state_mutex_ held).
+  api::PlanReply PendLocked(const Decision<HybridAction>& d, const Budget& budget);
+
+  // ---- Observe's stages ----
+  // The pending action an observation answers, and the world it was planned in.
+  struct Pending {
+    std::shared_ptr<const object_search::World> world;
+    HybridAction action;
+    bool is_move() const { return action.kind == object_search::kMoveKind; }
+  };
+  // Perception's tracks as they were before a frame, to restore when the observation fails.
+  struct SavedTracks {
+    std::vector<perception::TrackState> tracks;
+    int next_id = 0;
+  };
+  // The checks of an observation against the pending action (action_id, robot_state, ids).
+  StatusOr<Pending> CheckObservation(const api::ObserveRequest& req) const;
+  // The session's perception, built on the first raw frame (prior map, target photos, tracks
+  // of a restored record).
+  Status EnsurePerception(const object_search::World& world);
+  // A raw frame through perception: the corrected pose and the detections into `obs`.
+  StatusOr<perception::PerceptionResult> Perceive(perception::SensorFrame frame, const Pending& p,
+                                                  bool succeeded,
+                                                  object_search::RealObservation* obs,
+                                                  SavedTracks* saved);
+  // Installs the observed world and the step's outcome, and moves the planner to its subtree
+  // (a fresh belief, and a fresh tree when objects were seen for the first time).
+  void Advance(std::shared_ptr<const object_search::World> updated, const HybridAction& action,
+               const object_search::Observation& key, bool new_objects,
+               const api::StepRecord::Outcome& step);
   // Why a plan that was cancelled ends: ABORTED when the session was deleted, else CANCELLED
   // (the server stops, or the client left).
   Status WhyCancelled() const;
