@@ -47,6 +47,165 @@ int Fail(const npfkct::Status& s) {
   return 1;
 }
 
+// npfkct-train generate: a dataset file, and one JSON line of what it holds.
+int Generate(const GenerateOptions& gen, const std::string& gen_out) {
+  if (gen.scene_seed != 0 && gen.scene_seed + gen.scene_count > sim::kHeldOutSeedBase + 1 &&
+      gen.scene_seed <= sim::kHeldOutSeedBase + 30) {
+    std::cerr << "npfkct-train: note: scene seeds overlap the benchmark's held-out scenes ("
+              << sim::kHeldOutSeedBase + 1 << "-" << sim::kHeldOutSeedBase + 30
+              << "): use them for test sets only\n";
+  }
+  auto data = GenerateDataset(gen, [](int done, int total) {
+    if (done % 10 == 0 || done == total) Bar("generate", done, total, "");
+  });
+  if (isatty(STDERR_FILENO)) std::fprintf(stderr, "\n");
+  if (!data.ok()) return Fail(data.status());
+  int efficient = 0, total = 0;
+  for (const Sample& s : data->samples) {
+    for (float g : s.scores) efficient += g > kEfficientScore, ++total;
+  }
+  if (Status s = WriteDataset(*data, gen_out); !s.ok()) return Fail(s);
+  std::printf(
+      "{\"samples\": %zu, \"queries\": %d, \"efficient_fraction\": %.4f, \"file\": \"%s\"}\n",
+      data->samples.size(), total, total ? double(efficient) / total : 0.0, gen_out.c_str());
+  return 0;
+}
+
+// npfkct-train train: the best epoch's model file, and one JSON line.
+int Train(const std::string& train_file, const std::string& val_file, const TrainOptions& train,
+          const std::string& model_out, int threads) {
+  SetComputeThreads(threads);
+  auto t = ReadDataset(train_file);
+  if (!t.ok()) return Fail(t.status());
+  auto v = ReadDataset(val_file);
+  if (!v.ok()) return Fail(v.status());
+  auto report = TrainFilter(
+      *t, *v, train, model_out,
+      [&](int epoch, int step, int steps, double loss) {
+        if (step % 5 == 0 || step == steps) {
+          char tail[64];
+          std::snprintf(tail, sizeof(tail), "loss %.4f", loss);
+          Bar("epoch " + std::to_string(epoch) + "/" + std::to_string(train.epochs), step, steps,
+              tail);
+        }
+      },
+      [](const EpochReport& e) {
+        std::fprintf(stderr, "%sepoch %d: train loss %.4f, validation loss %.4f (%.1f s)\n",
+                     isatty(STDERR_FILENO) ? "\n" : "", e.epoch, e.train_loss, e.val_loss,
+                     e.seconds);
+      });
+  if (!report.ok()) return Fail(report.status());
+  std::printf("{\"best_epoch\": %d, \"best_val_loss\": %.5f, \"model\": \"%s\"}\n",
+              report->best_epoch, report->best_val_loss, model_out.c_str());
+  return 0;
+}
+
+// npfkct-train ensemble: the networks of several model files as one.
+int Ensemble(const std::vector<std::string>& member_files, const std::string& ensemble_out) {
+  if (Status s = NeuralFilter::Combine(member_files, ensemble_out); !s.ok()) return Fail(s);
+  auto written = NeuralFilter::Load(ensemble_out);
+  if (!written.ok()) return Fail(written.status());
+  std::printf("{\"networks\": %d, \"model\": \"%s\"}\n", (*written)->members(),
+              ensemble_out.c_str());
+  return 0;
+}
+
+// npfkct-train evaluate: the test set's accuracy figures as one JSON line in *line.
+Status Evaluate(const NeuralFilter& filter, const std::string& test_file, const FilterOptions& fo,
+                const std::string& label, std::string* line) {
+  auto test = ReadDataset(test_file);
+  if (!test.ok()) return test.status();
+  auto m = EvaluateFilter(filter, *test, fo);
+  if (!m.ok()) return m.status();
+  char buf[512];
+  std::snprintf(buf, sizeof(buf),
+                "{\"test_set\": \"%s\", \"test_samples\": %zu, \"queries\": %d, \"efficient\": "
+                "%d, \"accuracy\": %.4f, \"accuracy_ci95\": %.4f, \"accuracy_clear\": %.4f, "
+                "\"specificity\": %.4f, \"kept_efficient\": %.4f, \"dropped_useless\": %.4f, "
+                "\"mean_abs_error\": %.4f, \"within_2_sigma\": %.4f}",
+                label.c_str(), test->samples.size(), m->queries, m->efficient, m->accuracy,
+                m->accuracy_ci95, m->accuracy_clear, m->specificity, m->kept_efficient,
+                m->dropped_useless, m->mean_abs_error, m->within_2_sigma);
+  *line = buf;
+  return OkStatus();
+}
+
+// npfkct-train bench: the medians of scoring candidates on one core as one JSON line in *line.
+Status Bench(const std::shared_ptr<NeuralFilter>& filter, const std::string& bench_scenario,
+             const FilterOptions& fo, int runs, std::string* line) {
+  // One core: the filter runs on the planning thread.
+  auto sc = sim::LoadScenario(bench_scenario);
+  if (!sc.ok()) return sc.status();
+  sim::Simulator simulator(*sc, 1);
+  auto world = simulator.InitialWorld();
+  if (!world.ok()) return world.status();
+  Rng rng(7);
+  // One real step so that objects and odds are in the scene.
+  const auto manual = world->ManualConfigurations();
+  if (!manual.empty()) simulator.ExecuteMove(manual[0], world->params, rng);
+  if (Status s = object_search::ApplyRealObservation(&*world, simulator.Observe(rng)); !s.ok()) {
+    return s;
+  }
+  object_search::ObjectSearchModel model(std::make_shared<const object_search::World>(*world));
+  std::vector<State> particles;
+  for (int i = 0; i < 200; ++i) particles.push_back(model.SampleInitialState(rng));
+  ParticleBelief<State> belief(particles);
+  const State& s = particles[0];
+  const auto placements = SamplePlacements(*world, fo.placements, rng);
+  const SceneFeatures scene = SceneOf(*world, rng);
+  const std::vector<Vec3> probe = SamplePlacements(*world, kProbePlacements, rng);
+  const ScoredConfigs context = ScoreConfigs(model, s, placements, probe, fo.context, rng);
+  const int candidate = object_search::TargetCandidate(*world);
+  std::vector<object_search::RobotConfig> configs;
+  object_search::ProposeMoves(model, TrainingProposals(), fo.candidates, rng, &configs, nullptr);
+  std::vector<float> q(configs.size() * kQueryDim);
+  for (size_t i = 0; i < configs.size(); ++i)
+    QueryOf(*world, configs[i], candidate, probe, &q[i * kQueryDim]);
+  std::vector<double> network, netsam, exact, scene_ms;
+  auto sampler = MakeNetSam(filter, model, fo);
+  if (!sampler.ok()) return sampler.status();
+  for (int r = 0; r < runs + 3; ++r) {
+    double t0 = ThreadCpuMillis();  // CPU time: the figures hold on a loaded machine
+    const Prediction p = filter->Predict(scene, context.queries, context.scores, q);
+    const double ms = ThreadCpuMillis() - t0;
+    const TerminationCondition unlimited(Budget::Time(60'000.0));  // a fresh one each run
+    t0 = ThreadCpuMillis();
+    std::vector<ActionVec> out;
+    CandidateStats stats;
+    if (Status st = (*sampler)->Sample(belief, object_search::kMoveKind,
+                                       model.KindSpace(object_search::kMoveKind), 256, unlimited,
+                                       rng, &out, &stats);
+        !st.ok()) {
+      return st;
+    }
+    const double ns = ThreadCpuMillis() - t0;
+    t0 = ThreadCpuMillis();
+    const SceneFeatures encoded = SceneOf(*world, rng);
+    const double sc_ms = ThreadCpuMillis() - t0;
+    if (encoded.points.empty()) return InternalError("no scene features");
+    if (r < 3) continue;  // warm-up
+    network.push_back(ms);
+    netsam.push_back(ns);
+    scene_ms.push_back(sc_ms);
+    if (r < 3 + 5) {
+      t0 = ThreadCpuMillis();
+      for (const auto& c : configs) TargetScore(model, s, candidate, c, placements);
+      exact.push_back(ThreadCpuMillis() - t0);
+    }
+  }
+  char buf[512];
+  std::snprintf(
+      buf, sizeof(buf),
+      "{\"scenario\": \"%s\", \"networks\": %d, \"candidates\": %d, \"runs\": %d, "
+      "\"threads\": 1, "
+      "\"clock\": \"thread CPU\", \"median_network_ms\": %.3f, \"median_net_sam_ms\": %.3f, "
+      "\"median_scene_features_ms\": %.3f, \"median_exact_score_ms\": %.3f}",
+      sc->name.c_str(), filter->members(), fo.candidates, runs, Median(network), Median(netsam),
+      Median(scene_ms), Median(exact));
+  *line = buf;
+  return OkStatus();
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -121,149 +280,16 @@ int main(int argc, char** argv) {
 
   CLI11_PARSE(app, argc, argv);
 
-  if (*generate) {
-    if (gen.scene_seed != 0 && gen.scene_seed + gen.scene_count > sim::kHeldOutSeedBase + 1 &&
-        gen.scene_seed <= sim::kHeldOutSeedBase + 30) {
-      std::cerr << "npfkct-train: note: scene seeds overlap the benchmark's held-out scenes ("
-                << sim::kHeldOutSeedBase + 1 << "-" << sim::kHeldOutSeedBase + 30
-                << "): use them for test sets only\n";
-    }
-    auto data = GenerateDataset(gen, [](int done, int total) {
-      if (done % 10 == 0 || done == total) Bar("generate", done, total, "");
-    });
-    if (isatty(STDERR_FILENO)) std::fprintf(stderr, "\n");
-    if (!data.ok()) return Fail(data.status());
-    int efficient = 0, total = 0;
-    for (const Sample& s : data->samples) {
-      for (float g : s.scores) efficient += g > kEfficientScore, ++total;
-    }
-    if (Status s = WriteDataset(*data, gen_out); !s.ok()) return Fail(s);
-    std::printf(
-        "{\"samples\": %zu, \"queries\": %d, \"efficient_fraction\": %.4f, \"file\": \"%s\"}\n",
-        data->samples.size(), total, total ? double(efficient) / total : 0.0, gen_out.c_str());
-    return 0;
-  }
-  if (*tr) {
-    SetComputeThreads(threads);
-    auto t = ReadDataset(train_file);
-    if (!t.ok()) return Fail(t.status());
-    auto v = ReadDataset(val_file);
-    if (!v.ok()) return Fail(v.status());
-    auto report = TrainFilter(
-        *t, *v, train, model_out,
-        [&](int epoch, int step, int steps, double loss) {
-          if (step % 5 == 0 || step == steps) {
-            char tail[64];
-            std::snprintf(tail, sizeof(tail), "loss %.4f", loss);
-            Bar("epoch " + std::to_string(epoch) + "/" + std::to_string(train.epochs), step, steps,
-                tail);
-          }
-        },
-        [](const EpochReport& e) {
-          std::fprintf(stderr, "%sepoch %d: train loss %.4f, validation loss %.4f (%.1f s)\n",
-                       isatty(STDERR_FILENO) ? "\n" : "", e.epoch, e.train_loss, e.val_loss,
-                       e.seconds);
-        });
-    if (!report.ok()) return Fail(report.status());
-    std::printf("{\"best_epoch\": %d, \"best_val_loss\": %.5f, \"model\": \"%s\"}\n",
-                report->best_epoch, report->best_val_loss, model_out.c_str());
-    return 0;
-  }
-  if (*ens) {
-    if (Status s = NeuralFilter::Combine(member_files, ensemble_out); !s.ok()) return Fail(s);
-    auto written = NeuralFilter::Load(ensemble_out);
-    if (!written.ok()) return Fail(written.status());
-    std::printf("{\"networks\": %d, \"model\": \"%s\"}\n", (*written)->members(),
-                ensemble_out.c_str());
-    return 0;
-  }
+  if (*generate) return Generate(gen, gen_out);
+  if (*tr) return Train(train_file, val_file, train, model_out, threads);
+  if (*ens) return Ensemble(member_files, ensemble_out);
   auto filter = NeuralFilter::Load(model_file);
   if (!filter.ok()) return Fail(filter.status());
-  char line[512];
-  if (*ev) {
-    auto test = ReadDataset(test_file);
-    if (!test.ok()) return Fail(test.status());
-    auto m = EvaluateFilter(**filter, *test, fo);
-    if (!m.ok()) return Fail(m.status());
-    std::snprintf(line, sizeof(line),
-                  "{\"test_set\": \"%s\", \"test_samples\": %zu, \"queries\": %d, \"efficient\": "
-                  "%d, \"accuracy\": %.4f, \"accuracy_ci95\": %.4f, \"accuracy_clear\": %.4f, "
-                  "\"specificity\": %.4f, \"kept_efficient\": %.4f, \"dropped_useless\": %.4f, "
-                  "\"mean_abs_error\": %.4f, \"within_2_sigma\": %.4f}",
-                  label.c_str(), test->samples.size(), m->queries, m->efficient, m->accuracy,
-                  m->accuracy_ci95, m->accuracy_clear, m->specificity, m->kept_efficient,
-                  m->dropped_useless, m->mean_abs_error, m->within_2_sigma);
-  } else {
-    // One core: the filter runs on the planning thread.
-    auto sc = sim::LoadScenario(bench_scenario);
-    if (!sc.ok()) return Fail(sc.status());
-    sim::Simulator simulator(*sc, 1);
-    auto world = simulator.InitialWorld();
-    if (!world.ok()) return Fail(world.status());
-    Rng rng(7);
-    // One real step so that objects and odds are in the scene.
-    const auto manual = world->ManualConfigurations();
-    if (!manual.empty()) simulator.ExecuteMove(manual[0], world->params, rng);
-    if (Status s = object_search::ApplyRealObservation(&*world, simulator.Observe(rng)); !s.ok()) {
-      return Fail(s);
-    }
-    object_search::ObjectSearchModel model(std::make_shared<const object_search::World>(*world));
-    std::vector<State> particles;
-    for (int i = 0; i < 200; ++i) particles.push_back(model.SampleInitialState(rng));
-    ParticleBelief<State> belief(particles);
-    const State& s = particles[0];
-    const auto placements = SamplePlacements(*world, fo.placements, rng);
-    const SceneFeatures scene = SceneOf(*world, rng);
-    const std::vector<Vec3> probe = SamplePlacements(*world, kProbePlacements, rng);
-    const ScoredConfigs context = ScoreConfigs(model, s, placements, probe, fo.context, rng);
-    const int candidate = object_search::TargetCandidate(*world);
-    std::vector<object_search::RobotConfig> configs;
-    object_search::ProposeMoves(model, TrainingProposals(), fo.candidates, rng, &configs, nullptr);
-    std::vector<float> q(configs.size() * kQueryDim);
-    for (size_t i = 0; i < configs.size(); ++i)
-      QueryOf(*world, configs[i], candidate, probe, &q[i * kQueryDim]);
-    std::vector<double> network, netsam, exact, scene_ms;
-    auto sampler = MakeNetSam(*filter, model, fo);
-    if (!sampler.ok()) return Fail(sampler.status());
-    for (int r = 0; r < runs + 3; ++r) {
-      double t0 = ThreadCpuMillis();  // CPU time: the figures hold on a loaded machine
-      const Prediction p = (*filter)->Predict(scene, context.queries, context.scores, q);
-      const double ms = ThreadCpuMillis() - t0;
-      const TerminationCondition unlimited(Budget::Time(60'000.0));  // a fresh one each run
-      t0 = ThreadCpuMillis();
-      std::vector<ActionVec> out;
-      CandidateStats stats;
-      if (Status st = (*sampler)->Sample(belief, object_search::kMoveKind,
-                                         model.KindSpace(object_search::kMoveKind), 256, unlimited,
-                                         rng, &out, &stats);
-          !st.ok()) {
-        return Fail(st);
-      }
-      const double ns = ThreadCpuMillis() - t0;
-      t0 = ThreadCpuMillis();
-      const SceneFeatures encoded = SceneOf(*world, rng);
-      const double sc_ms = ThreadCpuMillis() - t0;
-      if (encoded.points.empty()) return Fail(InternalError("no scene features"));
-      if (r < 3) continue;  // warm-up
-      network.push_back(ms);
-      netsam.push_back(ns);
-      scene_ms.push_back(sc_ms);
-      if (r < 3 + 5) {
-        t0 = ThreadCpuMillis();
-        for (const auto& c : configs) TargetScore(model, s, candidate, c, placements);
-        exact.push_back(ThreadCpuMillis() - t0);
-      }
-    }
-    std::snprintf(
-        line, sizeof(line),
-        "{\"scenario\": \"%s\", \"networks\": %d, \"candidates\": %d, \"runs\": %d, "
-        "\"threads\": 1, "
-        "\"clock\": \"thread CPU\", \"median_network_ms\": %.3f, \"median_net_sam_ms\": %.3f, "
-        "\"median_scene_features_ms\": %.3f, \"median_exact_score_ms\": %.3f}",
-        sc->name.c_str(), (*filter)->members(), fo.candidates, runs, Median(network),
-        Median(netsam), Median(scene_ms), Median(exact));
-  }
-  std::printf("%s\n", line);
+  std::string line;
+  const Status made = *ev ? Evaluate(**filter, test_file, fo, label, &line)
+                          : Bench(*filter, bench_scenario, fo, runs, &line);
+  if (!made.ok()) return Fail(made);
+  std::printf("%s\n", line.c_str());
   if (!json_out.empty()) {
     std::ofstream f(json_out, std::ios::app);
     f << line << "\n";
