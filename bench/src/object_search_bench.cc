@@ -140,6 +140,69 @@ std::string RootSummary(const std::vector<RootActionStat<HybridAction>>& root, c
   return out;
 }
 
+// One line on stderr for a step: the action, its outcome, the search statistics, the root entries
+// the search weighed most and, per known object, the face grids confirmed as the target's (+)
+// and as an obstacle's (-) after the step, marked * while the object can be declared.
+void TraceStep(const TrialContext& ctx, const ObjectSearchModel& model, const World& world, int t,
+               const Decision<HybridAction>& d, const std::string& detail) {
+  std::string known;
+  for (size_t i = 1; i < world.objects.size(); ++i) {
+    const auto& o = world.objects[i];
+    if (o.status == object_search::kRemoved) continue;
+    const int plus = model.CountPast(o.odds, true);
+    const int minus = model.CountPast(o.odds, false);
+    const bool declarable =
+        o.status == object_search::kUpdating && std::max(plus, minus) >= world.params.n_odds;
+    known += " " + o.key + ":" + std::to_string(plus) + "/" + std::to_string(minus) +
+             (declarable ? "*" : "");
+  }
+  const std::string root = RootSummary(d.root, world);
+  std::fprintf(stderr, "%s %s trial %llu step %2d: %-62s %-30s sims %7lld value %9.1f%s%s |%s\n",
+               ctx.scenario->name.c_str(), ctx.planner.c_str(),
+               static_cast<unsigned long long>(ctx.seed % 1000003ULL), t + 1,
+               Describe(d.action, world).c_str(), detail.c_str(),
+               static_cast<long long>(d.stats.simulations), d.value,
+               root.empty() ? "" : " root:", root.c_str(), known.c_str());
+}
+
+// Takes an observation after step `action`, gives it to the world, the model and the planner:
+// a fresh belief of `particles` (drawn from `rng`), the tree kept unless new objects appeared.
+Status TakeObservation(const object_search::RealObservation& obs, const HybridAction& action,
+                       int particles, World* world, ObjectSearchModel* model,
+                       object_search::SearchPlanner* planner, Rng& rng) {
+  std::vector<int> detected;
+  bool new_objects = false;
+  for (const auto& det : obs.objects) {
+    const int index = world->FindObject(det.key);
+    if (index < 0) new_objects = true;
+    detected.push_back(index);
+  }
+  const object_search::Observation key = model->RealObservationKey(detected);
+  if (Status s = object_search::ApplyRealObservation(world, obs); !s.ok()) return s;
+  model->SetWorld(std::make_shared<World>(*world));
+  planner->OnWorldChanged();
+  auto belief = ParticleBelief<object_search::State>::FromInitial(*model, particles, rng);
+  if (new_objects) {
+    planner->SetBelief(std::move(belief));
+  } else {
+    planner->AdvanceTo(action, key, std::move(belief));
+  }
+  return OkStatus();
+}
+
+// Writes the picture of step t (the belief beside the camera's view) under ctx.render_prefix.
+void RenderStepPicture(const TrialContext& ctx, const World& world, const sim::Simulator& simulator,
+                       int t, const HybridAction& action, const std::string& detail) {
+  char name[32];
+  std::snprintf(name, sizeof name, "-step%02d.png", t + 1);
+  const std::string caption =
+      "step " + std::to_string(t + 1) + ": " + Describe(action, world) + " (" + detail + ")";
+  (void)sim::WritePng(ctx.render_prefix + name,
+                      sim::RenderStep(world, simulator.Render(), caption));
+}
+
+// One trial: the robot looks once, then plans, acts and observes until the target is removed,
+// an error, or ctx.max_steps.
 EpisodeResult RunTrial(const TrialContext& ctx) {
   EpisodeResult result;
   sim::Simulator simulator(*ctx.scenario, ctx.seed);
@@ -176,29 +239,6 @@ EpisodeResult RunTrial(const TrialContext& ctx) {
   std::unique_ptr<object_search::SearchPlanner> planner = std::move(made).value();
   const int particles = 300;
   planner->SetBelief(ParticleBelief<object_search::State>::FromInitial(model, particles, rng));
-  // One line per step on stderr: the action, its outcome, the search statistics, the root entries
-  // the search weighed most and, per known object, the face grids confirmed as the target's (+)
-  // and as an obstacle's (-) after the step, marked * while the object can be declared.
-  const auto trace_step = [&](int t, const Decision<HybridAction>& d, const std::string& detail) {
-    std::string known;
-    for (size_t i = 1; i < world.objects.size(); ++i) {
-      const auto& o = world.objects[i];
-      if (o.status == object_search::kRemoved) continue;
-      const int plus = model.CountPast(o.odds, true);
-      const int minus = model.CountPast(o.odds, false);
-      const bool declarable =
-          o.status == object_search::kUpdating && std::max(plus, minus) >= world.params.n_odds;
-      known += " " + o.key + ":" + std::to_string(plus) + "/" + std::to_string(minus) +
-               (declarable ? "*" : "");
-    }
-    const std::string root = RootSummary(d.root, world);
-    std::fprintf(stderr, "%s %s trial %llu step %2d: %-62s %-30s sims %7lld value %9.1f%s%s |%s\n",
-                 ctx.scenario->name.c_str(), ctx.planner.c_str(),
-                 static_cast<unsigned long long>(ctx.seed % 1000003ULL), t + 1,
-                 Describe(d.action, world).c_str(), detail.c_str(),
-                 static_cast<long long>(d.stats.simulations), d.value,
-                 root.empty() ? "" : " root:", root.c_str(), known.c_str());
-  };
   double discount = 1.0;
   for (int t = 0; t < ctx.max_steps; ++t) {
     TerminationCondition stop(ctx.budget);
@@ -222,44 +262,21 @@ EpisodeResult RunTrial(const TrialContext& ctx) {
       (void)object_search::ApplyDiscreteOutcome(&world, object, offset, true);
     }
     if (outcome.terminal) {
-      if (ctx.trace) trace_step(t, d, outcome.detail);
+      if (ctx.trace) TraceStep(ctx, model, world, t, d, outcome.detail);
       result.success = true;
       break;
     }
     auto observed = observe();
-    if (!observed.ok()) {
-      result.error = observed.status().ToString();
-      break;
-    }
-    const object_search::RealObservation& obs = *observed;
-    std::vector<int> detected;
-    bool new_objects = false;
-    for (const auto& det : obs.objects) {
-      const int index = world.FindObject(det.key);
-      if (index < 0) new_objects = true;
-      detected.push_back(index);
-    }
-    const object_search::Observation key = model.RealObservationKey(detected);
-    if (Status s = object_search::ApplyRealObservation(&world, obs); !s.ok()) {
+    Status s = observed.ok() ? TakeObservation(*observed, d.action, particles, &world, &model,
+                                               planner.get(), rng)
+                             : observed.status();
+    if (!s.ok()) {
       result.error = s.ToString();
       break;
     }
-    model.SetWorld(std::make_shared<World>(world));
-    planner->OnWorldChanged();
-    auto belief = ParticleBelief<object_search::State>::FromInitial(model, particles, rng);
-    if (new_objects) {
-      planner->SetBelief(std::move(belief));
-    } else {
-      planner->AdvanceTo(d.action, key, std::move(belief));
-    }
-    if (ctx.trace) trace_step(t, d, outcome.detail);
+    if (ctx.trace) TraceStep(ctx, model, world, t, d, outcome.detail);
     if (!ctx.render_prefix.empty()) {
-      char name[32];
-      std::snprintf(name, sizeof name, "-step%02d.png", t + 1);
-      const std::string caption = "step " + std::to_string(t + 1) + ": " +
-                                  Describe(d.action, world) + " (" + outcome.detail + ")";
-      (void)sim::WritePng(ctx.render_prefix + name,
-                          sim::RenderStep(world, simulator.Render(), caption));
+      RenderStepPicture(ctx, world, simulator, t, d.action, outcome.detail);
     }
   }
   if (eyes) result.extra_ms = eyes->frame_ms();
@@ -273,11 +290,23 @@ std::string Cell(const RunSummary& s) {
   return buf;
 }
 
-}  // namespace
-
-int RunObjectSearchBench(const SearchBenchConfig& config) {
-  std::vector<std::pair<std::string, double>> options;
+// What the checks before any trial give every trial.
+struct BenchSetup {
+  std::vector<std::pair<std::string, double>> options;  // planner options
   filter::FilterOptions filter_options;
+  Budget budget;
+  object_search::PlannerRegistry registry;
+  std::vector<std::string> planners;                // compared, "all" expanded
+  std::shared_ptr<const filter::NeuralFilter> net;  // null: no planner takes it, or "none"
+  object_search::SearchRollout rollout = object_search::SearchRollout::kAimed;
+};
+
+// The stages before any trial each take the config and fill their part of `setup`; on an
+// error they print it and give false (the bench then exits with 2).
+
+// Parse options: --opt key=number into the planner options and filter.* into the filter's;
+// the budget.
+bool ParseOptions(const SearchBenchConfig& config, BenchSetup* setup) {
   for (const std::string& a : config.options) {
     const size_t eq = a.find('=');
     char* end = nullptr;
@@ -285,45 +314,56 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
     const double v = std::strtod(value.c_str(), &end);
     if (eq == std::string::npos || value.empty() || end != value.c_str() + value.size()) {
       std::cerr << "npfkct-bench: option '" << a << "' is not key=number\n";
-      return 2;
+      return false;
     }
     const std::string key = a.substr(0, eq);
     if (key.rfind("filter.", 0) == 0) {
-      if (Status s = filter::SetOption(&filter_options, key.substr(7), v); !s.ok()) {
+      if (Status s = filter::SetOption(&setup->filter_options, key.substr(7), v); !s.ok()) {
         std::cerr << "npfkct-bench: " << s.message() << "\n";
-        return 2;
+        return false;
       }
       continue;
     }
-    options.emplace_back(key, v);
+    setup->options.emplace_back(key, v);
   }
-  if (Status s = filter_options.Validate(); !s.ok()) {
+  if (Status s = setup->filter_options.Validate(); !s.ok()) {
     std::cerr << "npfkct-bench: filter." << s.message() << "\n";
-    return 2;
+    return false;
   }
-  const Budget budget{config.time_ms, config.sims, config.cpu_ms};
-  if (Status s = budget.Validate(); !s.ok()) {
+  setup->budget = Budget{config.time_ms, config.sims, config.cpu_ms};
+  if (Status s = setup->budget.Validate(); !s.ok()) {
     std::cerr << "npfkct-bench: " << s.message() << " (--time-ms, --cpu-ms, --sims)\n";
-    return 2;
+    return false;
   }
-  object_search::PlannerRegistry registry =
-      config.registry ? *config.registry : object_search::PlannerRegistry::BuiltIn();
-  if (Status s = sim::AddOracleFactories(&registry); !s.ok()) {
+  return true;
+}
+
+// Check planners: the registry with the oracles, and every planner named known to it.
+bool CheckPlanners(const SearchBenchConfig& config, BenchSetup* setup) {
+  setup->registry = config.registry ? *config.registry : object_search::PlannerRegistry::BuiltIn();
+  if (Status s = sim::AddOracleFactories(&setup->registry); !s.ok()) {
     std::cerr << "npfkct-bench: " << s.message() << "\n";
-    return 2;
+    return false;
   }
-  std::vector<std::string> planners = config.planners;
-  if (planners.size() == 1 && planners[0] == "all") planners = registry.Names();
-  for (const std::string& p : planners) {
-    if (registry.Find(p) == nullptr) {
+  setup->planners = config.planners;
+  if (setup->planners.size() == 1 && setup->planners[0] == "all") {
+    setup->planners = setup->registry.Names();
+  }
+  for (const std::string& p : setup->planners) {
+    if (setup->registry.Find(p) == nullptr) {
       std::string known;
-      for (const auto& n : registry.Names()) known += " " + n;
+      for (const auto& n : setup->registry.Names()) known += " " + n;
       std::cerr << "npfkct-bench: unknown planner '" << p << "' (known:" << known << ")\n";
-      return 2;
+      return false;
     }
   }
-  std::shared_ptr<const filter::NeuralFilter> net;
-  if (std::any_of(planners.begin(), planners.end(),
+  return true;
+}
+
+// Load the filter: the neural filter, when a planner takes its candidates and it is not "none".
+bool LoadFilter(const SearchBenchConfig& config, BenchSetup* setup) {
+  const object_search::PlannerRegistry& registry = setup->registry;
+  if (std::any_of(setup->planners.begin(), setup->planners.end(),
                   [&](const std::string& p) { return registry.Find(p)->takes_sampler; }) &&
       config.filter_model != "none") {
     const std::string path =
@@ -331,40 +371,49 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
     auto loaded = filter::NeuralFilter::Load(path);
     if (!loaded.ok()) {
       std::cerr << "npfkct-bench: --model: " << loaded.status().message() << "\n";
-      return 2;
+      return false;
     }
-    net = *loaded;
+    setup->net = *loaded;
   }
+  return true;
+}
+
+// Check the observation modes (the oracles observe geometrically only) and parse the rollout.
+bool CheckModesAndRollout(const SearchBenchConfig& config, BenchSetup* setup) {
+  const object_search::PlannerRegistry& registry = setup->registry;
   for (const std::string& mode : config.observe) {
     if (mode != "geometric" && mode != "perception") {
       std::cerr << "npfkct-bench: --observe: expected geometric or perception, got '" << mode
                 << "'\n";
-      return 2;
+      return false;
     }
     if (mode == "perception" &&
-        std::any_of(planners.begin(), planners.end(),
+        std::any_of(setup->planners.begin(), setup->planners.end(),
                     [&](const std::string& p) { return registry.Find(p)->needs_truth; })) {
       std::cerr << "npfkct-bench: the oracle observes geometrically only\n";
-      return 2;
+      return false;
     }
   }
-  object_search::SearchRollout rollout = object_search::SearchRollout::kAimed;
   if (config.rollout == "greedy") {
-    rollout = object_search::SearchRollout::kGreedy;
+    setup->rollout = object_search::SearchRollout::kGreedy;
   } else if (config.rollout == "random") {
-    rollout = object_search::SearchRollout::kRandom;
+    setup->rollout = object_search::SearchRollout::kRandom;
   } else if (config.rollout != "aimed") {
     std::cerr << "npfkct-bench: scenario rollouts are aimed (default), greedy or random\n";
-    return 2;
+    return false;
   }
-  std::map<std::string, std::map<std::string, RunSummary>> table;
-  std::vector<std::string> scenario_names;
-  std::vector<sim::Scenario> scenarios;
+  return true;
+}
+
+// Load and validate the scenarios: each file (with --robot applied), its map, and every planner
+// made once on it with the options, before spending time on trials.
+bool LoadScenarios(const SearchBenchConfig& config, const BenchSetup& setup,
+                   std::vector<sim::Scenario>* scenarios) {
   for (const std::string& path : config.scenarios) {
     auto loaded = sim::LoadScenario(path);
     if (!loaded.ok()) {
       std::cerr << "npfkct-bench: " << loaded.status().message() << "\n";
-      return 2;
+      return false;
     }
     sim::Scenario scenario = *loaded;
     if (!config.robot.empty()) scenario.robot = config.robot;
@@ -372,157 +421,224 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
     auto world = sim::InitialWorld(scenario);
     if (!world.ok()) {
       std::cerr << "npfkct-bench: " << world.status().message() << "\n";
-      return 2;
+      return false;
     }
     ObjectSearchModel probe(std::make_shared<World>(*world));
-    for (const std::string& planner : planners) {
-      if (registry.Find(planner)->needs_truth) continue;
-      auto made = MakePlanner(registry, planner, probe, options, filter_options, net);
+    for (const std::string& planner : setup.planners) {
+      if (setup.registry.Find(planner)->needs_truth) continue;
+      auto made = MakePlanner(setup.registry, planner, probe, setup.options, setup.filter_options,
+                              setup.net);
       if (!made.ok()) {
         std::cerr << "npfkct-bench: " << made.status().message() << "\n";
-        return 2;
+        return false;
       }
     }
-    scenario_names.push_back(scenario.name);
-    scenarios.push_back(std::move(scenario));
+    scenarios->push_back(std::move(scenario));
   }
-  if (!config.render_dir.empty()) std::filesystem::create_directories(config.render_dir);
-  // Trials run trial-major (trial 0 of every scenario and planner, then trial 1, ...), so that
-  // whatever else the machine does spreads evenly over the planners compared.
-  const std::vector<std::string>& modes = config.observe;
-  const int variants = static_cast<int>(planners.size() * modes.size());  // planner x mode
-  const int per_trial = static_cast<int>(scenarios.size()) * variants;
-  const int jobs = config.trials * per_trial;
-  auto job = [&](int j, int* scenario, int* variant, int* trial) {
-    *trial = j / per_trial;
-    *scenario = (j % per_trial) / variants;
-    *variant = j % variants;
-  };
-  auto planner_of = [&](int variant) { return variant / static_cast<int>(modes.size()); };
-  auto mode_of = [&](int variant) { return variant % static_cast<int>(modes.size()); };
+  return true;
+}
+
+// The jobs, one trial each: trial-major (trial 0 of every scenario and planner, then trial 1,
+// ...), so that whatever else the machine does spreads evenly over the planners compared; within
+// a trial, scenario-major over the variants (planner x observation mode).
+class JobGrid {
+ public:
+  JobGrid(const std::vector<std::string>& planners, const std::vector<std::string>& modes,
+          int scenarios, int trials)
+      : planners_(planners),
+        modes_(modes),
+        variants_(static_cast<int>(planners.size() * modes.size())),
+        per_trial_(scenarios * variants_),
+        jobs_(trials * per_trial_) {}
+  int jobs() const { return jobs_; }
+  int variants() const { return variants_; }
+  void Split(int j, int* scenario, int* variant, int* trial) const {
+    *trial = j / per_trial_;
+    *scenario = (j % per_trial_) / variants_;
+    *variant = j % variants_;
+  }
+  const std::string& planner(int variant) const {
+    return planners_[variant / static_cast<int>(modes_.size())];
+  }
+  const std::string& mode(int variant) const {
+    return modes_[variant % static_cast<int>(modes_.size())];
+  }
   // A row of the table: the planner, with the observation mode when several are compared.
-  auto row_name = [&](int variant) {
-    return modes.size() == 1 ? planners[planner_of(variant)]
-                             : planners[planner_of(variant)] + " (" + modes[mode_of(variant)] + ")";
-  };
-  const auto start = Clock::now();
-  const std::vector<EpisodeResult> results = RunJobs(
-      jobs, config.threads,
+  std::string RowName(int variant) const {
+    return modes_.size() == 1 ? planner(variant) : planner(variant) + " (" + mode(variant) + ")";
+  }
+  bool several_modes() const { return modes_.size() > 1; }
+
+ private:
+  const std::vector<std::string> planners_, modes_;
+  const int variants_, per_trial_, jobs_;
+};
+
+// Run the jobs: takes the setup and the scenarios, gives every trial's result by job index.
+std::vector<EpisodeResult> RunAllTrials(const SearchBenchConfig& config, const BenchSetup& setup,
+                                        const std::vector<sim::Scenario>& scenarios,
+                                        const JobGrid& grid) {
+  return RunJobs(
+      grid.jobs(), config.threads,
       [&](int j) {
         int sc, variant, trial;
-        job(j, &sc, &variant, &trial);
+        grid.Split(j, &sc, &variant, &trial);
         const sim::Scenario& scenario = scenarios[sc];
         const int max_steps = config.max_steps > 0 ? config.max_steps : scenario.params.max_steps;
-        const std::string& planner = planners[planner_of(variant)];
-        const std::string& mode = modes[mode_of(variant)];
+        const std::string& planner = grid.planner(variant);
+        const std::string& mode = grid.mode(variant);
         std::string render_prefix;
         if (!config.render_dir.empty() && trial == 0) {
           render_prefix = config.render_dir + "/" + scenario.name + "-" + planner +
-                          (modes.size() > 1 ? "-" + mode : "");
+                          (grid.several_modes() ? "-" + mode : "");
         }
         TrialContext ctx{&scenario,
-                         &registry,
+                         &setup.registry,
                          planner,
-                         options,
-                         filter_options,
-                         budget,
+                         setup.options,
+                         setup.filter_options,
+                         setup.budget,
                          max_steps,
                          config.seed * 1000003ULL + static_cast<uint64_t>(trial),
                          render_prefix,
                          config.trace,
                          mode == "perception",
-                         net,
-                         rollout};
+                         setup.net,
+                         setup.rollout};
         return RunTrial(ctx);
       },
       "object search");
-  const double wall = MillisSince(start) / 1000.0;
-  int failures = 0;
+}
+
+// Print one cell's JSON line: takes its summary, its trials and their perception frame times.
+void PrintCell(const SearchBenchConfig& config, const BenchSetup& setup,
+               const sim::Scenario& scenario, const std::string& planner, const std::string& mode,
+               const RunSummary& s, const std::vector<EpisodeResult>& mine,
+               const std::vector<double>& frame_ms) {
   std::string option_list;
   for (size_t i = 0; i < config.options.size(); ++i) {
     if (i > 0) option_list.append(", ");
     option_list.append("\"").append(JsonEscape(config.options[i])).append("\"");
   }
+  std::string perception_ms;
+  if (!frame_ms.empty()) {
+    perception_ms = ", \"median_perception_ms_per_frame\": " + std::to_string(Median(frame_ms));
+  }
+  // Every trial's outcome, so that tables and comparisons can be recomputed from the file.
+  std::string rewards, steps, successes;
+  for (size_t k = 0; k < mine.size(); ++k) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%s%.1f", k ? ", " : "", mine[k].discounted_return);
+    rewards += buf;
+    if (k > 0) {
+      steps.append(", ");
+      successes.append(", ");
+    }
+    steps.append(std::to_string(mine[k].steps));
+    successes.append(mine[k].success ? "1" : "0");
+  }
+  const std::string model_name = setup.registry.Find(planner)->takes_sampler && setup.net
+                                     ? std::filesystem::path(setup.net->path()).filename().string()
+                                     : std::string();
+  std::printf(
+      "{\"scenario\": \"%s\", \"planner\": \"%s\", \"observe\": \"%s\", \"trials\": %d, "
+      "\"time_ms\": %g, \"cpu_ms\": %g, \"sims\": %lld, \"robot\": \"%s\", \"seed\": %llu, "
+      "\"threads\": %d, \"options\": [%s], \"model\": \"%s\", \"rollout\": \"%s\", "
+      "\"mean_discounted_reward\": %.1f, \"ci95\": %.1f, \"mean_steps\": %.2f, "
+      "\"ci95_steps\": %.2f, \"success_rate\": %.3f, \"median_sims_per_step\": %.1f, "
+      "\"median_sims_per_second\": %.1f, \"median_sims_per_cpu_second\": %.1f, "
+      "\"median_cpu_ms_per_step\": %.1f, \"median_first_step_sims_per_second\": %.1f, "
+      "\"wall_seconds\": %.1f, \"failed_trials\": %d, \"rewards\": [%s], \"steps\": [%s], "
+      "\"successes\": [%s]%s%s%s%s}\n",
+      JsonEscape(scenario.name).c_str(), planner.c_str(), mode.c_str(), config.trials,
+      config.time_ms, config.cpu_ms, static_cast<long long>(config.sims), scenario.robot.c_str(),
+      static_cast<unsigned long long>(config.seed), config.threads, option_list.c_str(),
+      JsonEscape(model_name).c_str(), config.rollout.c_str(), s.mean_return, s.ci95_return,
+      s.mean_steps, s.ci95_steps, s.success_rate.value_or(0.0), s.median_sims_per_step,
+      s.median_sims_per_second, s.median_sims_per_cpu_second, s.median_cpu_ms_per_step,
+      s.median_first_step_sims_per_second, s.wall_seconds, s.failed_episodes, rewards.c_str(),
+      steps.c_str(), successes.c_str(), perception_ms.c_str(),
+      s.first_error.empty() ? "" : ", \"error\": \"", JsonEscape(s.first_error).c_str(),
+      s.first_error.empty() ? "" : "\"");
+}
+
+// Summarise and print: takes every trial's result, gives each (scenario, variant) cell's
+// summary in `table` (by row and scenario) after printing its JSON line; returns the failed
+// trials.
+int SummariseCells(const SearchBenchConfig& config, const BenchSetup& setup,
+                   const std::vector<sim::Scenario>& scenarios, const JobGrid& grid,
+                   const std::vector<EpisodeResult>& results, double wall,
+                   std::map<std::string, std::map<std::string, RunSummary>>* table) {
+  int failures = 0;
   for (size_t sc = 0; sc < scenarios.size(); ++sc) {
-    for (int variant = 0; variant < variants; ++variant) {
+    for (int variant = 0; variant < grid.variants(); ++variant) {
       std::vector<EpisodeResult> mine;
       std::vector<double> frame_ms;
-      for (int j = 0; j < jobs; ++j) {
+      for (int j = 0; j < grid.jobs(); ++j) {
         int s_idx, v_idx, trial;
-        job(j, &s_idx, &v_idx, &trial);
+        grid.Split(j, &s_idx, &v_idx, &trial);
         if (s_idx == static_cast<int>(sc) && v_idx == variant) {
           mine.push_back(results[j]);
           frame_ms.insert(frame_ms.end(), results[j].extra_ms.begin(), results[j].extra_ms.end());
         }
       }
       const RunSummary s = Summarize(mine, true, wall);
-      const std::string& planner = planners[planner_of(variant)];
-      const std::string& mode = modes[mode_of(variant)];
-      const sim::Scenario& scenario = scenarios[sc];
-      table[row_name(variant)][scenario.name] = s;
+      (*table)[grid.RowName(variant)][scenarios[sc].name] = s;
       failures += s.failed_episodes;
-      std::string perception_ms;
-      if (!frame_ms.empty()) {
-        perception_ms = ", \"median_perception_ms_per_frame\": " + std::to_string(Median(frame_ms));
-      }
-      // Every trial's outcome, so that tables and comparisons can be recomputed from the file.
-      std::string rewards, steps, successes;
-      for (size_t k = 0; k < mine.size(); ++k) {
-        char buf[64];
-        std::snprintf(buf, sizeof buf, "%s%.1f", k ? ", " : "", mine[k].discounted_return);
-        rewards += buf;
-        if (k > 0) {
-          steps.append(", ");
-          successes.append(", ");
-        }
-        steps.append(std::to_string(mine[k].steps));
-        successes.append(mine[k].success ? "1" : "0");
-      }
-      const std::string model_name = registry.Find(planner)->takes_sampler && net
-                                         ? std::filesystem::path(net->path()).filename().string()
-                                         : std::string();
-      std::printf(
-          "{\"scenario\": \"%s\", \"planner\": \"%s\", \"observe\": \"%s\", \"trials\": %d, "
-          "\"time_ms\": %g, \"cpu_ms\": %g, \"sims\": %lld, \"robot\": \"%s\", \"seed\": %llu, "
-          "\"threads\": %d, \"options\": [%s], \"model\": \"%s\", \"rollout\": \"%s\", "
-          "\"mean_discounted_reward\": %.1f, \"ci95\": %.1f, \"mean_steps\": %.2f, "
-          "\"ci95_steps\": %.2f, \"success_rate\": %.3f, \"median_sims_per_step\": %.1f, "
-          "\"median_sims_per_second\": %.1f, \"median_sims_per_cpu_second\": %.1f, "
-          "\"median_cpu_ms_per_step\": %.1f, \"median_first_step_sims_per_second\": %.1f, "
-          "\"wall_seconds\": %.1f, \"failed_trials\": %d, \"rewards\": [%s], \"steps\": [%s], "
-          "\"successes\": [%s]%s%s%s%s}\n",
-          JsonEscape(scenario.name).c_str(), planner.c_str(), mode.c_str(), config.trials,
-          config.time_ms, config.cpu_ms, static_cast<long long>(config.sims),
-          scenario.robot.c_str(), static_cast<unsigned long long>(config.seed), config.threads,
-          option_list.c_str(), JsonEscape(model_name).c_str(), config.rollout.c_str(),
-          s.mean_return, s.ci95_return, s.mean_steps, s.ci95_steps, s.success_rate.value_or(0.0),
-          s.median_sims_per_step, s.median_sims_per_second, s.median_sims_per_cpu_second,
-          s.median_cpu_ms_per_step, s.median_first_step_sims_per_second, s.wall_seconds,
-          s.failed_episodes, rewards.c_str(), steps.c_str(), successes.c_str(),
-          perception_ms.c_str(), s.first_error.empty() ? "" : ", \"error\": \"",
-          JsonEscape(s.first_error).c_str(), s.first_error.empty() ? "" : "\"");
+      PrintCell(config, setup, scenarios[sc], grid.planner(variant), grid.mode(variant), s, mine,
+                frame_ms);
     }
   }
-  std::fflush(stdout);
-  if (!config.table_path.empty()) {
-    std::ostringstream md;
-    md << "| Planner |";
-    for (const auto& sc : scenario_names) md << " " << sc << " |";
-    md << "\n|---|";
-    for (size_t i = 0; i < scenario_names.size(); ++i) md << "---|";
+  return failures;
+}
+
+// Write the table: a Markdown row per variant, a column per scenario; false (and a message)
+// when the file cannot be written.
+bool WriteTable(const std::string& path, const std::vector<sim::Scenario>& scenarios,
+                const JobGrid& grid,
+                std::map<std::string, std::map<std::string, RunSummary>>* table) {
+  std::ostringstream md;
+  md << "| Planner |";
+  for (const auto& sc : scenarios) md << " " << sc.name << " |";
+  md << "\n|---|";
+  for (size_t i = 0; i < scenarios.size(); ++i) md << "---|";
+  md << "\n";
+  for (int variant = 0; variant < grid.variants(); ++variant) {
+    const std::string row = grid.RowName(variant);
+    md << "| " << row << " |";
+    for (const auto& sc : scenarios) md << " " << Cell((*table)[row][sc.name]) << " |";
     md << "\n";
-    for (int variant = 0; variant < variants; ++variant) {
-      const std::string row = row_name(variant);
-      md << "| " << row << " |";
-      for (const auto& sc : scenario_names) md << " " << Cell(table[row][sc]) << " |";
-      md << "\n";
-    }
-    std::ofstream out(config.table_path);
-    out << md.str();
-    if (!out) {
-      std::cerr << "npfkct-bench: cannot write " << config.table_path << "\n";
-      return 2;
-    }
+  }
+  std::ofstream out(path);
+  out << md.str();
+  if (!out) {
+    std::cerr << "npfkct-bench: cannot write " << path << "\n";
+    return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+int RunObjectSearchBench(const SearchBenchConfig& config) {
+  BenchSetup setup;
+  if (!ParseOptions(config, &setup) || !CheckPlanners(config, &setup) ||
+      !LoadFilter(config, &setup) || !CheckModesAndRollout(config, &setup)) {
+    return 2;
+  }
+  std::vector<sim::Scenario> scenarios;
+  if (!LoadScenarios(config, setup, &scenarios)) return 2;
+  if (!config.render_dir.empty()) std::filesystem::create_directories(config.render_dir);
+  const JobGrid grid(setup.planners, config.observe, static_cast<int>(scenarios.size()),
+                     config.trials);
+  const auto start = Clock::now();
+  const std::vector<EpisodeResult> results = RunAllTrials(config, setup, scenarios, grid);
+  const double wall = MillisSince(start) / 1000.0;
+  std::map<std::string, std::map<std::string, RunSummary>> table;
+  const int failures = SummariseCells(config, setup, scenarios, grid, results, wall, &table);
+  std::fflush(stdout);
+  if (!config.table_path.empty() && !WriteTable(config.table_path, scenarios, grid, &table)) {
+    return 2;
   }
   return failures == 0 ? 0 : 1;
 }

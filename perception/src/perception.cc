@@ -322,6 +322,22 @@ double DistanceToBox(const Box& b, const PointXYZ& p) {
   return outside.norm();
 }
 
+// What registration (stage 1) gives the later stages.
+struct Registration {
+  CloudXYZ::Ptr in_map;  // the frame's points in the map frame, at the reported pose
+  Eigen::Matrix4d correction = Eigen::Matrix4d::Identity();     // of the reported pose
+  Eigen::Matrix4d camera_to_map = Eigen::Matrix4d::Identity();  // the corrected camera pose
+};
+
+// What segmentation (stage 2) gives association and detection: the object points (map frame,
+// corrected, voxelised), the workspace each stands on, and their Euclidean clusters (indices
+// into the object points).
+struct Segments {
+  CloudXYZ::Ptr objects = pcl::make_shared<CloudXYZ>();
+  std::vector<int> surface_of;
+  std::vector<pcl::PointIndices> clusters;
+};
+
 }  // namespace
 
 Status CameraIntrinsics::Validate() const {
@@ -433,6 +449,63 @@ struct Perception::Impl {
     *down = kept;
     *features = kept_features;
   }
+
+  // The stages of Process, in pipeline order (defined with it, below).
+
+  // Stage 1, registration: takes the checked frame, gives its points in the map frame and the
+  // corrected pose; sets `result`'s correction, fitness, used_ransac and achieved pose.
+  Registration Register(const SensorFrame& frame, PerceptionResult* result) const;
+  // Takes a map-frame point, gives whether it stands on a workspace (within `margin` of it in
+  // x-y, below max_object_height above it) and which one in *which (when not null).
+  bool OnWorkspace(const PointXYZ& p, double margin, int* which) const;
+  // Takes the frame's map-frame points, gives those to register with: the static structure.
+  CloudXYZ::Ptr StaticStructure(const CloudXYZ::Ptr& in_map) const;
+  // Takes the structure and the camera position, gives the x-y box of the map to align with.
+  Eigen::AlignedBox2d RegistrationReach(const CloudXYZ& structure,
+                                        const Eigen::Vector3d& camera) const;
+  // Takes the structure and the reach, gives ICP's correction (RANSAC-initialised when ICP from
+  // the reported pose fits poorly), its fitness in *fitness, and *used_ransac when RANSAC's
+  // alignment was kept.
+  Eigen::Matrix4d Align(const CloudXYZ::Ptr& structure, const Eigen::AlignedBox2d& reach,
+                        double* fitness, bool* used_ransac) const;
+  // Takes the structure and the reach, gives RANSAC's global alignment on FPFH features in
+  // *guess; false when it has none worth refining.
+  bool RansacGuess(const CloudXYZ::Ptr& structure, const Eigen::AlignedBox2d& reach,
+                   Eigen::Matrix4f* guess) const;
+
+  // Stage 2, map-point removal: takes the frame's map-frame points and the correction, gives
+  // the object points (without clusters).
+  Segments ObjectPoints(const CloudXYZ& in_map, const Eigen::Matrix4d& correction) const;
+  // Stage 2, segmentation: takes the object points, gives their Euclidean clusters.
+  std::vector<pcl::PointIndices> EuclideanClusters(const CloudXYZ::Ptr& objects) const;
+
+  // Stage 3, association: takes the clusters, gives the track of each (new tracks for the
+  // unmatched); the tracks take the clusters' points.
+  std::vector<int> Associate(const Segments& segments);
+  // Takes a cluster's points and the tracks already taken this frame, gives the track it
+  // continues, or -1.
+  int MatchingTrack(const CloudXYZ& cluster, const std::vector<bool>& taken) const;
+
+  // Stage 4, detection: takes the clusters and their tracks, gives one detection per cluster
+  // (target score, visible faces, moveability). `perception` scores the image regions.
+  std::vector<object_search::ObjectDetection> Detect(const Perception& perception,
+                                                     const SensorFrame& frame,
+                                                     const Eigen::Matrix4d& camera_to_map,
+                                                     const Segments& segments,
+                                                     const std::vector<int>& track_of) const;
+  // Takes one cluster, gives the probability that it is the target (the frame's SIFT budgets
+  // spent from *sift_pixels and *sift_pairs).
+  double ClusterScore(const Perception& perception, const SensorFrame& frame,
+                      const Eigen::Matrix4d& map_to_camera, const CloudXYZ& objects,
+                      const pcl::PointIndices& cluster, int64_t* sift_pixels,
+                      int64_t* sift_pairs) const;
+  // Takes one cluster, gives the masked sub-image it covers in *region and *mask; false when
+  // that is less than 4 x 4 pixels.
+  bool ClusterRegion(const SensorFrame& frame, const Eigen::Matrix4d& map_to_camera,
+                     const CloudXYZ& objects, const pcl::PointIndices& cluster, cv::Mat* region,
+                     cv::Mat* mask) const;
+  // Takes an object's box, gives its moveability.
+  double Moveability(const Box& box) const;
 };
 
 // Thins `tracks` to at most options.max_total_track_points together: the largest cap c with
@@ -668,21 +741,22 @@ double Perception::ScoreRegion(const cv::Mat& region, const cv::Mat& mask, int64
   return std::clamp(1.0 / (1.0 + std::exp(-(sift + colour))), 0.05, 0.95);
 }
 
-StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
-  Impl& im = *impl_;
-  const PerceptionOptions& o = im.options;
-  const auto start = Clock::now();
-  // ---- input checks: nothing changes on error ----
-  if (Status s = frame.intrinsics.Validate(); !s.ok()) return s;
-  if (!frame.cloud || frame.cloud->empty()) {
+namespace {
+
+// ---- input checks: nothing changes on error ----
+
+// Takes the frame's cloud, gives an error unless it has points, at most options.max_points, all
+// finite and within options.max_coordinate.
+Status CheckCloud(const Cloud::ConstPtr& cloud, const PerceptionOptions& o) {
+  if (!cloud || cloud->empty()) {
     return InvalidFieldError("pointCloud.data", "the cloud is empty");
   }
-  if (static_cast<int64_t>(frame.cloud->size()) > o.max_points) {
+  if (static_cast<int64_t>(cloud->size()) > o.max_points) {
     return InvalidFieldError("pointCloud.data",
                              "more than " + std::to_string(o.max_points) + " points");
   }
-  for (size_t i = 0; i < frame.cloud->size(); ++i) {
-    const auto& p = (*frame.cloud)[i];
+  for (size_t i = 0; i < cloud->size(); ++i) {
+    const auto& p = (*cloud)[i];
     if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
       return InvalidFieldError(
           "pointCloud.data",
@@ -695,33 +769,46 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
                                    std::to_string(static_cast<int64_t>(o.max_coordinate)) + " m");
     }
   }
+  return OkStatus();
+}
+
+// Takes a cloud said to be in the camera's optical frame, gives an error unless it lies in
+// front of the camera and inside its field of view, as a camera's cloud does.
+Status CheckOpticalFrame(const Cloud& cloud, const CameraIntrinsics& in) {
+  size_t behind = 0, outside = 0;
+  for (const auto& p : cloud) {
+    if (p.z <= 0.0f) {
+      ++behind;
+      continue;
+    }
+    const double u = in.fx * p.x / p.z + in.cx, v = in.fy * p.y / p.z + in.cy;
+    outside +=
+        u < -0.1 * in.width || u > 1.1 * in.width || v < -0.1 * in.height || v > 1.1 * in.height;
+  }
+  const size_t n = cloud.size();
+  if (behind * 20 > n) {
+    return InvalidFieldError(
+        "pointCloud.frame",
+        std::to_string(100 * behind / n) +
+            "% of the points are behind the camera; is the cloud really in the camera frame?");
+  }
+  if (outside * 20 > n) {
+    return InvalidFieldError(
+        "pointCloud.frame",
+        std::to_string(100 * outside / n) +
+            "% of the points fall outside the camera's field of view; is the cloud really in the "
+            "camera's optical frame, and are the camera intrinsics right?");
+  }
+  return OkStatus();
+}
+
+// Takes the frame, gives an error unless every check above passes and the image, when given,
+// is 3-channel of the camera's size.
+Status CheckFrame(const SensorFrame& frame, const PerceptionOptions& o) {
+  if (Status s = frame.intrinsics.Validate(); !s.ok()) return s;
+  if (Status s = CheckCloud(frame.cloud, o); !s.ok()) return s;
   if (!frame.cloud_in_map_frame) {
-    // A camera's cloud lies in front of it and inside its field of view.
-    const CameraIntrinsics& in = frame.intrinsics;
-    size_t behind = 0, outside = 0;
-    for (const auto& p : *frame.cloud) {
-      if (p.z <= 0.0f) {
-        ++behind;
-        continue;
-      }
-      const double u = in.fx * p.x / p.z + in.cx, v = in.fy * p.y / p.z + in.cy;
-      outside +=
-          u < -0.1 * in.width || u > 1.1 * in.width || v < -0.1 * in.height || v > 1.1 * in.height;
-    }
-    const size_t n = frame.cloud->size();
-    if (behind * 20 > n) {
-      return InvalidFieldError(
-          "pointCloud.frame",
-          std::to_string(100 * behind / n) +
-              "% of the points are behind the camera; is the cloud really in the camera frame?");
-    }
-    if (outside * 20 > n) {
-      return InvalidFieldError(
-          "pointCloud.frame",
-          std::to_string(100 * outside / n) +
-              "% of the points fall outside the camera's field of view; is the cloud really in the "
-              "camera's optical frame, and are the camera intrinsics right?");
-    }
+    if (Status s = CheckOpticalFrame(*frame.cloud, frame.intrinsics); !s.ok()) return s;
   }
   if (!frame.image.empty() &&
       (frame.image.cols != frame.intrinsics.width || frame.image.rows != frame.intrinsics.height ||
@@ -732,67 +819,19 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
                                                std::to_string(frame.intrinsics.width) + "x" +
                                                std::to_string(frame.intrinsics.height));
   }
-  PerceptionResult result;
+  return OkStatus();
+}
 
-  // ---- 1. registration ----
-  auto t0 = Clock::now();
-  const Eigen::Matrix4d reported = CameraToMap(im.world.robot, frame.reported);
-  CloudXYZ::Ptr xyz = ToXYZ(*frame.cloud);
-  CloudXYZ::Ptr in_map = pcl::make_shared<CloudXYZ>();
-  if (frame.cloud_in_map_frame) {
-    *in_map = *xyz;
-  } else {
-    pcl::transformPointCloud(*xyz, *in_map, reported.cast<float>());
-  }
-  // Register with the static structure only: points standing on a workspace are probably the
-  // unknown objects, which the map lacks and which would drag the alignment.
-  const auto& workspaces = im.world.grid.workspaces();
-  auto on_workspace = [&](const PointXYZ& p, double margin, int* which) {
-    for (size_t w = 0; w < workspaces.size(); ++w) {
-      const auto& ws = workspaces[w];
-      if (p.z > ws.height + 0.005 && p.z < ws.height + o.max_object_height &&
-          ws.ContainsXY(object_search::Vec2(p.x, p.y), margin)) {
-        if (which != nullptr) *which = static_cast<int>(w);
-        return true;
-      }
-    }
-    return false;
-  };
-  // Points outside the mapped area have nothing to match and would drag it too.
-  const auto& bounds = im.world.occupancy;
-  CloudXYZ::Ptr structure = pcl::make_shared<CloudXYZ>();
-  for (const auto& p : *in_map) {
-    if (p.x < bounds.min().x() + 0.2 || p.y < bounds.min().y() + 0.2 ||
-        p.x > bounds.max().x() - 0.2 || p.y > bounds.max().y() - 0.2) {
-      continue;
-    }
-    if (!on_workspace(p, 0.05, nullptr)) structure->push_back(p);
-  }
-  if (structure->size() < 100) structure = in_map;
-  // The part of the map a correction could align the frame with: where the frame's structure
-  // lies within registration_range of the camera, widened by the largest correction and ICP's
-  // reach. Registration then costs what the view covers, not the size of the room (a 39 m room
-  // made a frame's first registration 60 s and every later one 20 s).
-  const Eigen::Vector3d camera = reported.block<3, 1>(0, 3);
-  Eigen::AlignedBox2d view;  // empty (Eigen's default for a fixed size)
-  for (const auto& p : *structure) view.extend(Eigen::Vector2d(p.x, p.y));
-  view = view.intersection(
-      Widened(Eigen::AlignedBox2d(camera.head<2>(), camera.head<2>()), o.registration_range));
-  const Eigen::AlignedBox2d reach = Widened(view, o.max_correction + o.icp_max_distance);
-  const NormalCloud::Ptr target = CropXY<PointNormal>(im.map_normals, reach);
-  // Point-to-plane ICP: the scene is mostly planes (floor, table tops, sides), along which
-  // point-to-point ICP slides.
-  // Thinned to max_icp_points: each ICP iteration searches the map for every source point.
-  auto source = Thin<PointNormal>(WithNormals(Downsample(structure, 2.0 * o.voxel), 3.0 * o.voxel),
-                                  o.max_icp_points);
-  // The point-to-plane step solves a 6x6 least-squares system in (rotation, translation); when
-  // the visible surfaces leave a direction free (only a floor and table tops, say) the system is
-  // singular and the step degenerates, so the reported pose is kept.
+// Takes ICP's source points (with normals), gives whether their surfaces constrain the pose.
+// The point-to-plane step solves a 6x6 least-squares system in (rotation, translation); when the
+// visible surfaces leave a direction free (only a floor and table tops, say) the system is
+// singular and the step degenerates, so the reported pose is kept.
+bool ConstrainsPose(const NormalCloud& source, double min_structure) {
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  for (const auto& p : *source) mean += Eigen::Vector3d(p.x, p.y, p.z);
-  mean /= std::max<size_t>(source->size(), 1);
+  for (const auto& p : source) mean += Eigen::Vector3d(p.x, p.y, p.z);
+  mean /= std::max<size_t>(source.size(), 1);
   Eigen::Matrix<double, 6, 6> system = Eigen::Matrix<double, 6, 6>::Zero();
-  for (const auto& p : *source) {
+  for (const auto& p : source) {
     const Eigen::Vector3d n(p.normal_x, p.normal_y, p.normal_z);
     Eigen::Matrix<double, 6, 1> row;
     row << (Eigen::Vector3d(p.x, p.y, p.z) - mean).cross(n), n;
@@ -800,8 +839,137 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
   }
   const Eigen::Matrix<double, 6, 1> directions =
       Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>>(system).eigenvalues();
-  const bool observable = source->size() >= 200 && target->size() >= 3 &&
-                          directions[0] > o.min_structure * directions[5];
+  return directions[0] > min_structure * directions[5];
+}
+
+// Takes the reported base pose and the map-frame correction, gives the corrected base pose: the
+// correction applied to the base's position and heading.
+object_search::RobotConfig CorrectedPose(const object_search::RobotConfig& reported,
+                                         const Eigen::Matrix4d& correction) {
+  object_search::RobotConfig corrected = reported;
+  const Eigen::Vector4d base = correction * Eigen::Vector4d(reported.x, reported.y, 0, 1);
+  corrected.x = base.x();
+  corrected.y = base.y();
+  corrected.yaw =
+      object_search::WrapAngle(reported.yaw + std::atan2(correction(1, 0), correction(0, 0)));
+  return corrected;
+}
+
+// Visible faces: takes the boxes of the frame's detections, one of them (`c`) and its target
+// score, gives the face grids that get the detection: of its corners, the four nearest the
+// camera that project into the image and that no other object hides.
+std::vector<object_search::FaceDetection> VisibleFaces(const std::vector<Box>& boxes, size_t c,
+                                                       double score,
+                                                       const Eigen::Matrix4d& map_to_camera,
+                                                       const Vec3& camera_position,
+                                                       const CameraIntrinsics& intrinsics) {
+  std::vector<object_search::FaceDetection> faces;
+  const Box& box = boxes[c];
+  const auto corners = box.Corners();
+  std::array<std::pair<double, int>, 8> by_distance;
+  for (int k = 0; k < 8; ++k) by_distance[k] = {(corners[k] - camera_position).squaredNorm(), k};
+  std::partial_sort(by_distance.begin(), by_distance.begin() + 4, by_distance.end());
+  for (int n = 0; n < 4; ++n) {
+    const int k = by_distance[n].second;
+    const Vec3 p = corners[k] + 0.05 * (box.center - corners[k]);
+    const Eigen::Vector4d q = map_to_camera * Eigen::Vector4d(p.x(), p.y(), p.z(), 1);
+    if (q.z() <= 0) continue;
+    const double u = intrinsics.fx * q.x() / q.z() + intrinsics.cx;
+    const double v = intrinsics.fy * q.y() / q.z() + intrinsics.cy;
+    if (u < 0 || v < 0 || u >= intrinsics.width || v >= intrinsics.height) continue;
+    bool hidden = false;
+    for (size_t other = 0; other < boxes.size() && !hidden; ++other) {
+      if (other != c) hidden = boxes[other].BlocksSegment(camera_position, p);
+    }
+    if (!hidden) faces.push_back({k, score});
+  }
+  return faces;
+}
+
+}  // namespace
+
+// ---- 1. registration ----
+
+Registration Perception::Impl::Register(const SensorFrame& frame, PerceptionResult* result) const {
+  const Eigen::Matrix4d reported = CameraToMap(world.robot, frame.reported);
+  Registration reg;
+  CloudXYZ::Ptr xyz = ToXYZ(*frame.cloud);
+  reg.in_map = pcl::make_shared<CloudXYZ>();
+  if (frame.cloud_in_map_frame) {
+    *reg.in_map = *xyz;
+  } else {
+    pcl::transformPointCloud(*xyz, *reg.in_map, reported.cast<float>());
+  }
+  const CloudXYZ::Ptr structure = StaticStructure(reg.in_map);
+  const Eigen::AlignedBox2d reach = RegistrationReach(*structure, reported.block<3, 1>(0, 3));
+  double fitness = std::numeric_limits<double>::quiet_NaN();
+  Eigen::Matrix4d correction = Align(structure, reach, &fitness, &result->used_ransac);
+  if (correction.block<3, 1>(0, 3).norm() > options.max_correction || !correction.allFinite()) {
+    correction.setIdentity();  // implausible: keep the reported pose
+  }
+  result->correction = correction;
+  result->fitness = fitness;
+  reg.correction = correction;
+  reg.camera_to_map = frame.cloud_in_map_frame ? reported : Eigen::Matrix4d(correction * reported);
+  result->observation.achieved = CorrectedPose(frame.reported, correction);
+  return reg;
+}
+
+bool Perception::Impl::OnWorkspace(const PointXYZ& p, double margin, int* which) const {
+  const auto& workspaces = world.grid.workspaces();
+  for (size_t w = 0; w < workspaces.size(); ++w) {
+    const auto& ws = workspaces[w];
+    if (p.z > ws.height + 0.005 && p.z < ws.height + options.max_object_height &&
+        ws.ContainsXY(object_search::Vec2(p.x, p.y), margin)) {
+      if (which != nullptr) *which = static_cast<int>(w);
+      return true;
+    }
+  }
+  return false;
+}
+
+CloudXYZ::Ptr Perception::Impl::StaticStructure(const CloudXYZ::Ptr& in_map) const {
+  // Register with the static structure only: points standing on a workspace are probably the
+  // unknown objects, which the map lacks and which would drag the alignment. Points outside the
+  // mapped area have nothing to match and would drag it too.
+  const auto& bounds = world.occupancy;
+  CloudXYZ::Ptr structure = pcl::make_shared<CloudXYZ>();
+  for (const auto& p : *in_map) {
+    if (p.x < bounds.min().x() + 0.2 || p.y < bounds.min().y() + 0.2 ||
+        p.x > bounds.max().x() - 0.2 || p.y > bounds.max().y() - 0.2) {
+      continue;
+    }
+    if (!OnWorkspace(p, 0.05, nullptr)) structure->push_back(p);
+  }
+  if (structure->size() < 100) structure = in_map;
+  return structure;
+}
+
+Eigen::AlignedBox2d Perception::Impl::RegistrationReach(const CloudXYZ& structure,
+                                                        const Eigen::Vector3d& camera) const {
+  // The part of the map a correction could align the frame with: where the frame's structure
+  // lies within registration_range of the camera, widened by the largest correction and ICP's
+  // reach. Registration then costs what the view covers, not the size of the room (a 39 m room
+  // made a frame's first registration 60 s and every later one 20 s).
+  Eigen::AlignedBox2d view;  // empty (Eigen's default for a fixed size)
+  for (const auto& p : structure) view.extend(Eigen::Vector2d(p.x, p.y));
+  view = view.intersection(
+      Widened(Eigen::AlignedBox2d(camera.head<2>(), camera.head<2>()), options.registration_range));
+  return Widened(view, options.max_correction + options.icp_max_distance);
+}
+
+Eigen::Matrix4d Perception::Impl::Align(const CloudXYZ::Ptr& structure,
+                                        const Eigen::AlignedBox2d& reach, double* fitness_out,
+                                        bool* used_ransac) const {
+  const PerceptionOptions& o = options;
+  const NormalCloud::Ptr target = CropXY<PointNormal>(map_normals, reach);
+  // Point-to-plane ICP: the scene is mostly planes (floor, table tops, sides), along which
+  // point-to-point ICP slides.
+  // Thinned to max_icp_points: each ICP iteration searches the map for every source point.
+  auto source = Thin<PointNormal>(WithNormals(Downsample(structure, 2.0 * o.voxel), 3.0 * o.voxel),
+                                  o.max_icp_points);
+  const bool constrained = ConstrainsPose(*source, o.min_structure);
+  const bool observable = source->size() >= 200 && target->size() >= 3 && constrained;
   pcl::IterativeClosestPointWithNormals<PointNormal, PointNormal> icp;
   icp.setTransformationEstimation(pcl::make_shared<FiniteStepPointToPlane>());
   icp.setInputSource(source);
@@ -817,263 +985,314 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
     correction = icp.getFinalTransformation().cast<double>();
     fitness = icp.hasConverged() ? icp.getFitnessScore(o.icp_max_distance) : 1e9;
   }
-  if (observable && fitness > o.icp_good_fitness) {
-    // Poor fit from the reported pose: a global alignment first (RANSAC on FPFH features).
-    // The map's features within reach, each computed from all its neighbours (the crop is
-    // widened by the normals' and features' radii, then cut back).
-    CloudXYZ::Ptr around, map_ransac = pcl::make_shared<CloudXYZ>();
-    pcl::PointCloud<pcl::FPFHSignature33>::Ptr around_features;
-    auto map_features = pcl::make_shared<pcl::PointCloud<pcl::FPFHSignature33>>();
-    im.ComputeRansacFeatures(CropXY<PointXYZ>(im.map, Widened(reach, 8.0 * o.ransac_voxel)),
-                             o.max_ransac_map_points, &around, &around_features);
-    for (size_t i = 0; i < around->size(); ++i) {
-      if (reach.contains(Eigen::Vector2d((*around)[i].x, (*around)[i].y))) {
-        map_ransac->push_back((*around)[i]);
-        map_features->push_back((*around_features)[i]);
-      }
-    }
-    CloudXYZ::Ptr src_down;
-    pcl::PointCloud<pcl::FPFHSignature33>::Ptr src_features;
-    im.ComputeRansacFeatures(structure, o.max_ransac_points, &src_down, &src_features);
-    const bool enough = src_down->size() >= 3 && map_ransac->size() >= 3;
-    pcl::SampleConsensusPrerejective<PointXYZ, PointXYZ, pcl::FPFHSignature33> ransac;
-    ransac.setInputSource(src_down);
-    ransac.setSourceFeatures(src_features);
-    ransac.setInputTarget(map_ransac);
-    ransac.setTargetFeatures(map_features);
-    ransac.setMaximumIterations(20000);
-    ransac.setNumberOfSamples(3);
-    ransac.setCorrespondenceRandomness(5);
-    ransac.setSimilarityThreshold(0.9f);
-    ransac.setMaxCorrespondenceDistance(2.0f * static_cast<float>(o.ransac_voxel));
-    ransac.setInlierFraction(0.25f);
-    CloudXYZ ransac_aligned;
-    if (enough) ransac.align(ransac_aligned);
-    // ICP refines RANSAC's transform only where the result could be kept: one that moves the
-    // camera farther than max_correction (plus one correspondence distance ICP could take back)
-    // is rejected below anyway, and ICP from so far off searches long for every source point
-    // (6.5 of the 9 s an adversarial lattice of 20,000 points cost).
-    const bool plausible = ransac.getFinalTransformation().block<3, 1>(0, 3).norm() <=
-                           o.max_correction + o.icp_max_distance;
-    if (enough && ransac.hasConverged() && ransac.getFinalTransformation().allFinite() &&
-        plausible) {
-      icp.align(aligned, ransac.getFinalTransformation());
-      const double f2 = icp.hasConverged() ? icp.getFitnessScore(o.icp_max_distance) : 1e9;
-      const Eigen::Matrix4d refined = icp.getFinalTransformation().cast<double>();
-      // A refinement that moves the camera too far is not kept (the check below would throw
-      // away ICP's own correction with it), nor reported as used.
-      if (f2 < fitness && refined.allFinite() &&
-          refined.block<3, 1>(0, 3).norm() <= o.max_correction) {
-        fitness = f2;
-        correction = refined;
-        result.used_ransac = true;
-      }
+  // Poor fit from the reported pose: a global alignment first (RANSAC on FPFH features), which
+  // ICP refines.
+  Eigen::Matrix4f guess;
+  if (observable && fitness > o.icp_good_fitness && RansacGuess(structure, reach, &guess)) {
+    icp.align(aligned, guess);
+    const double f2 = icp.hasConverged() ? icp.getFitnessScore(o.icp_max_distance) : 1e9;
+    const Eigen::Matrix4d refined = icp.getFinalTransformation().cast<double>();
+    // A refinement that moves the camera too far is not kept (the check in Register would throw
+    // away ICP's own correction with it), nor reported as used.
+    if (f2 < fitness && refined.allFinite() &&
+        refined.block<3, 1>(0, 3).norm() <= o.max_correction) {
+      fitness = f2;
+      correction = refined;
+      *used_ransac = true;
     }
   }
-  if (correction.block<3, 1>(0, 3).norm() > o.max_correction || !correction.allFinite()) {
-    correction.setIdentity();  // implausible: keep the reported pose
-  }
-  result.correction = correction;
-  result.fitness = fitness;
-  const Eigen::Matrix4d camera_to_map =
-      frame.cloud_in_map_frame ? reported : Eigen::Matrix4d(correction * reported);
-  // The corrected base pose: the correction applied to the base's position and heading.
-  object_search::RobotConfig corrected = frame.reported;
-  const Eigen::Vector4d base =
-      correction * Eigen::Vector4d(frame.reported.x, frame.reported.y, 0, 1);
-  corrected.x = base.x();
-  corrected.y = base.y();
-  corrected.yaw =
-      object_search::WrapAngle(frame.reported.yaw + std::atan2(correction(1, 0), correction(0, 0)));
-  result.observation.achieved = corrected;
-  result.timings.registration = Ms(t0);
+  *fitness_out = fitness;
+  return correction;
+}
 
-  // ---- 2. segmentation ----
-  t0 = Clock::now();
+bool Perception::Impl::RansacGuess(const CloudXYZ::Ptr& structure, const Eigen::AlignedBox2d& reach,
+                                   Eigen::Matrix4f* guess) const {
+  const PerceptionOptions& o = options;
+  // The map's features within reach, each computed from all its neighbours (the crop is
+  // widened by the normals' and features' radii, then cut back).
+  CloudXYZ::Ptr around, map_ransac = pcl::make_shared<CloudXYZ>();
+  pcl::PointCloud<pcl::FPFHSignature33>::Ptr around_features;
+  auto map_features = pcl::make_shared<pcl::PointCloud<pcl::FPFHSignature33>>();
+  ComputeRansacFeatures(CropXY<PointXYZ>(map, Widened(reach, 8.0 * o.ransac_voxel)),
+                        o.max_ransac_map_points, &around, &around_features);
+  for (size_t i = 0; i < around->size(); ++i) {
+    if (reach.contains(Eigen::Vector2d((*around)[i].x, (*around)[i].y))) {
+      map_ransac->push_back((*around)[i]);
+      map_features->push_back((*around_features)[i]);
+    }
+  }
+  CloudXYZ::Ptr src_down;
+  pcl::PointCloud<pcl::FPFHSignature33>::Ptr src_features;
+  ComputeRansacFeatures(structure, o.max_ransac_points, &src_down, &src_features);
+  const bool enough = src_down->size() >= 3 && map_ransac->size() >= 3;
+  pcl::SampleConsensusPrerejective<PointXYZ, PointXYZ, pcl::FPFHSignature33> ransac;
+  ransac.setInputSource(src_down);
+  ransac.setSourceFeatures(src_features);
+  ransac.setInputTarget(map_ransac);
+  ransac.setTargetFeatures(map_features);
+  ransac.setMaximumIterations(20000);
+  ransac.setNumberOfSamples(3);
+  ransac.setCorrespondenceRandomness(5);
+  ransac.setSimilarityThreshold(0.9f);
+  ransac.setMaxCorrespondenceDistance(2.0f * static_cast<float>(o.ransac_voxel));
+  ransac.setInlierFraction(0.25f);
+  CloudXYZ ransac_aligned;
+  if (enough) ransac.align(ransac_aligned);
+  // ICP refines RANSAC's transform only where the result could be kept: one that moves the
+  // camera farther than max_correction (plus one correspondence distance ICP could take back)
+  // is rejected anyway, and ICP from so far off searches long for every source point
+  // (6.5 of the 9 s an adversarial lattice of 20,000 points cost).
+  const bool plausible = ransac.getFinalTransformation().block<3, 1>(0, 3).norm() <=
+                         o.max_correction + o.icp_max_distance;
+  if (!(enough && ransac.hasConverged() && ransac.getFinalTransformation().allFinite() &&
+        plausible)) {
+    return false;
+  }
+  *guess = ransac.getFinalTransformation();
+  return true;
+}
+
+// ---- 2. segmentation ----
+
+Segments Perception::Impl::ObjectPoints(const CloudXYZ& in_map,
+                                        const Eigen::Matrix4d& correction) const {
+  // The corrected frame's points that stand on a workspace and are not the map's.
+  Segments out;
   CloudXYZ::Ptr points = pcl::make_shared<CloudXYZ>();
-  pcl::transformPointCloud(*in_map, *points, correction.cast<float>());
-  points = Downsample(points, o.voxel);
-  auto objects = pcl::make_shared<CloudXYZ>();
+  pcl::transformPointCloud(in_map, *points, correction.cast<float>());
+  points = Downsample(points, options.voxel);
   std::vector<int> nearest(1);
   std::vector<float> distance(1);
-  std::vector<int> surface_of;
   for (const auto& p : *points) {
     int surface = -1;
-    if (!on_workspace(p, o.workspace_margin, &surface)) continue;
-    if (im.map_tree.getInputCloud() && im.map_tree.nearestKSearch(p, 1, nearest, distance) > 0 &&
-        distance[0] < o.map_distance * o.map_distance) {
+    if (!OnWorkspace(p, options.workspace_margin, &surface)) continue;
+    if (map_tree.getInputCloud() && map_tree.nearestKSearch(p, 1, nearest, distance) > 0 &&
+        distance[0] < options.map_distance * options.map_distance) {
       continue;
     }
-    objects->push_back(p);
-    surface_of.push_back(surface);
+    out.objects->push_back(p);
+    out.surface_of.push_back(surface);
   }
+  return out;
+}
+
+std::vector<pcl::PointIndices> Perception::Impl::EuclideanClusters(
+    const CloudXYZ::Ptr& objects) const {
   std::vector<pcl::PointIndices> clusters;
   if (!objects->empty()) {
     auto tree = pcl::make_shared<pcl::search::KdTree<PointXYZ>>();
     tree->setInputCloud(objects);
     pcl::EuclideanClusterExtraction<PointXYZ> ec;
-    ec.setClusterTolerance(o.cluster_tolerance);
-    ec.setMinClusterSize(o.min_cluster_points);
-    ec.setMaxClusterSize(o.max_cluster_points);
+    ec.setClusterTolerance(options.cluster_tolerance);
+    ec.setMinClusterSize(options.min_cluster_points);
+    ec.setMaxClusterSize(options.max_cluster_points);
     ec.setSearchMethod(tree);
     ec.setInputCloud(objects);
     ec.extract(clusters);
   }
-  result.clusters = static_cast<int>(clusters.size());
-  if (result.clusters > o.max_clusters) {  // before any track changes
-    return InvalidFieldError("pointCloud.data", std::to_string(result.clusters) +
-                                                    " object clusters in one frame; at most " +
-                                                    std::to_string(o.max_clusters));
-  }
-  result.timings.segmentation = Ms(t0);
+  return clusters;
+}
 
-  // ---- 3. association ----
-  t0 = Clock::now();
+// ---- 3. association ----
+
+std::vector<int> Perception::Impl::Associate(const Segments& segments) {
+  const auto& workspaces = world.grid.workspaces();
+  const auto& clusters = segments.clusters;
   std::vector<int> track_of(clusters.size(), -1);
-  std::vector<bool> taken(im.tracks.size(), false);
+  std::vector<bool> taken(tracks.size(), false);
   for (size_t c = 0; c < clusters.size(); ++c) {
     CloudXYZ cluster;
-    for (int i : clusters[c].indices) cluster.push_back((*objects)[i]);
-    Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
-    for (const auto& p : cluster) centroid += p.getVector3fMap().cast<double>();
-    centroid /= static_cast<double>(cluster.size());
-    int best = -1;
-    double best_d = o.association_gate;
-    for (size_t t = 0; t < im.tracks.size(); ++t) {
-      if (taken[t]) continue;
-      Track& tr = im.tracks[t];
-      const Eigen::Vector3d d = centroid - tr.centroid;
-      const Eigen::Matrix3d cov = tr.covariance + 4e-4 * Eigen::Matrix3d::Identity();
-      const double mahalanobis = std::sqrt(d.dot(cov.ldlt().solve(d)));
-      if (mahalanobis >= best_d) continue;
-      // Mean distance of the cluster's points to the track's box: unlike point-to-point
-      // distances, it does not grow when a new viewpoint shows other faces of the object.
-      double mean = 0.0;
-      for (const auto& p : cluster) mean += DistanceToBox(tr.box, p);
-      mean /= static_cast<double>(cluster.size());
-      if (mean > o.association_distance) continue;
-      best = static_cast<int>(t);
-      best_d = mahalanobis;
-    }
+    for (int i : clusters[c].indices) cluster.push_back((*segments.objects)[i]);
+    int best = MatchingTrack(cluster, taken);
     if (best < 0) {
       Track fresh;
-      fresh.id = "obj-" + std::to_string(im.next_id++);
-      im.tracks.push_back(std::move(fresh));
+      fresh.id = "obj-" + std::to_string(next_id++);
+      tracks.push_back(std::move(fresh));
       taken.push_back(false);
-      best = static_cast<int>(im.tracks.size()) - 1;
+      best = static_cast<int>(tracks.size()) - 1;
     }
     taken[best] = true;
-    Track& tr = im.tracks[best];
+    Track& tr = tracks[best];
     *tr.points += cluster;
-    tr.surface = surface_of[clusters[c].indices.front()];
-    tr.Refresh(o.voxel, o.max_track_points);
+    tr.surface = segments.surface_of[clusters[c].indices.front()];
+    tr.Refresh(options.voxel, options.max_track_points);
     tr.box = FitBox(*tr.points, workspaces[tr.surface].height);
     track_of[c] = best;
   }
   // The session's tracks together (a session's snapshot holds them all, and 63 dense tracks made
   // a 190 MB one).
-  ThinToTotal(&im.tracks, o, workspaces);
-  result.timings.association = Ms(t0);
+  ThinToTotal(&tracks, options, workspaces);
+  return track_of;
+}
 
-  // ---- 4. detection, faces and moveability ----
-  t0 = Clock::now();
+int Perception::Impl::MatchingTrack(const CloudXYZ& cluster, const std::vector<bool>& taken) const {
+  // The nearest track by the Mahalanobis distance of the centroids, within association_gate,
+  // among those whose box lies within association_distance of the cluster's points.
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  for (const auto& p : cluster) centroid += p.getVector3fMap().cast<double>();
+  centroid /= static_cast<double>(cluster.size());
+  int best = -1;
+  double best_d = options.association_gate;
+  for (size_t t = 0; t < tracks.size(); ++t) {
+    if (taken[t]) continue;
+    const Track& tr = tracks[t];
+    const Eigen::Vector3d d = centroid - tr.centroid;
+    const Eigen::Matrix3d cov = tr.covariance + 4e-4 * Eigen::Matrix3d::Identity();
+    const double mahalanobis = std::sqrt(d.dot(cov.ldlt().solve(d)));
+    if (mahalanobis >= best_d) continue;
+    // Mean distance of the cluster's points to the track's box: unlike point-to-point
+    // distances, it does not grow when a new viewpoint shows other faces of the object.
+    double mean = 0.0;
+    for (const auto& p : cluster) mean += DistanceToBox(tr.box, p);
+    mean /= static_cast<double>(cluster.size());
+    if (mean > options.association_distance) continue;
+    best = static_cast<int>(t);
+    best_d = mahalanobis;
+  }
+  return best;
+}
+
+// ---- 4. detection, faces and moveability ----
+
+std::vector<object_search::ObjectDetection> Perception::Impl::Detect(
+    const Perception& perception, const SensorFrame& frame, const Eigen::Matrix4d& camera_to_map,
+    const Segments& segments, const std::vector<int>& track_of) const {
   const Eigen::Matrix4d map_to_camera = camera_to_map.inverse();
   const Vec3 camera_position = camera_to_map.block<3, 1>(0, 3);
   std::vector<Box> boxes;
-  for (int t : track_of) boxes.push_back(im.tracks[t].box);
-  int64_t sift_pixels = o.max_sift_frame_pixels, sift_pairs = o.max_sift_pairs;
-  for (size_t c = 0; c < clusters.size(); ++c) {
-    const Track& tr = im.tracks[track_of[c]];
+  for (int t : track_of) boxes.push_back(tracks[t].box);
+  int64_t sift_pixels = options.max_sift_frame_pixels, sift_pairs = options.max_sift_pairs;
+  std::vector<object_search::ObjectDetection> detections;
+  for (size_t c = 0; c < segments.clusters.size(); ++c) {
+    const Track& tr = tracks[track_of[c]];
     object_search::ObjectDetection det;
     det.key = tr.id;
     det.box = boxes[c];
-    // Sub-image: the cluster's points reprojected into the image, masked to the pixels they
-    // cover (the bounding rectangle alone also holds whatever stands beside or behind).
     double score = 0.5;
     if (!frame.image.empty()) {
-      const auto& in = frame.intrinsics;
-      std::vector<cv::Point3i> pixels;  // u, v, radius
-      int u0 = in.width, v0 = in.height, u1 = -1, v1 = -1;
-      for (int i : clusters[c].indices) {
-        const Eigen::Vector4d q =
-            map_to_camera * Eigen::Vector4d((*objects)[i].x, (*objects)[i].y, (*objects)[i].z, 1);
-        if (q.z() <= 0) continue;
-        // Clamped before the cast: a point just in front of the camera projects anywhere.
-        const int u = static_cast<int>(std::clamp(in.fx * q.x() / q.z() + in.cx, -1e6, 1e6));
-        const int v = static_cast<int>(std::clamp(in.fy * q.y() / q.z() + in.cy, -1e6, 1e6));
-        // The voxel's footprint in pixels: neighbouring points' disks overlap.
-        const int r = std::clamp(static_cast<int>(std::ceil(in.fx * o.voxel / q.z())), 1, 50);
-        pixels.emplace_back(u, v, r);
-        u0 = std::min(u0, u - r);
-        v0 = std::min(v0, v - r);
-        u1 = std::max(u1, u + r);
-        v1 = std::max(v1, v + r);
-      }
-      const cv::Rect rect = cv::Rect(u0, v0, u1 - u0 + 1, v1 - v0 + 1) &
-                            cv::Rect(0, 0, frame.image.cols, frame.image.rows);
-      if (rect.width >= 4 && rect.height >= 4) {
-        cv::Mat mask = cv::Mat::zeros(rect.size(), CV_8U);
-        for (const cv::Point3i& p : pixels) {
-          cv::circle(mask, cv::Point(p.x - rect.x, p.y - rect.y), p.z, cv::Scalar(255), cv::FILLED);
-        }
-        cv::Mat region = frame.image(rect);
-        const int64_t area = int64_t{rect.width} * rect.height;
-        if (area > o.max_sift_pixels) {
-          const double f = std::sqrt(static_cast<double>(o.max_sift_pixels) / area);
-          const cv::Size size(std::max(4, static_cast<int>(rect.width * f)),
-                              std::max(4, static_cast<int>(rect.height * f)));
-          cv::Mat small_region, small_mask;  // new buffers: `region` views the caller's image
-          cv::resize(region, small_region, size, 0, 0, cv::INTER_AREA);
-          cv::resize(mask, small_mask, size, 0, 0, cv::INTER_NEAREST);
-          region = small_region;
-          mask = small_mask;
-        }
-        const int64_t pixels = int64_t{region.cols} * region.rows;
-        const bool sift = pixels <= sift_pixels;
-        if (sift) sift_pixels -= pixels;
-        score = ScoreRegion(region, mask, sift ? &sift_pairs : nullptr, nullptr);
-      }
+      score = ClusterScore(perception, frame, map_to_camera, *segments.objects,
+                           segments.clusters[c], &sift_pixels, &sift_pairs);
     }
     const auto semantic = frame.semantic_scores.find(tr.id);
     if (semantic != frame.semantic_scores.end()) {
       score = 0.5 * (score + std::clamp(semantic->second, 0.0, 1.0));
     }
     // The face grids facing the camera and not hidden by other objects get the detection.
-    const auto corners = det.box.Corners();
-    std::array<std::pair<double, int>, 8> by_distance;
-    for (int k = 0; k < 8; ++k) by_distance[k] = {(corners[k] - camera_position).squaredNorm(), k};
-    std::partial_sort(by_distance.begin(), by_distance.begin() + 4, by_distance.end());
-    for (int n = 0; n < 4; ++n) {
-      const int k = by_distance[n].second;
-      const Vec3 p = corners[k] + 0.05 * (det.box.center - corners[k]);
-      const Eigen::Vector4d q = map_to_camera * Eigen::Vector4d(p.x(), p.y(), p.z(), 1);
-      if (q.z() <= 0) continue;
-      const double u = frame.intrinsics.fx * q.x() / q.z() + frame.intrinsics.cx;
-      const double v = frame.intrinsics.fy * q.y() / q.z() + frame.intrinsics.cy;
-      if (u < 0 || v < 0 || u >= frame.intrinsics.width || v >= frame.intrinsics.height) continue;
-      bool hidden = false;
-      for (size_t other = 0; other < boxes.size() && !hidden; ++other) {
-        if (other != c) hidden = boxes[other].BlocksSegment(camera_position, p);
-      }
-      if (!hidden) det.faces.push_back({k, score});
-    }
-    // Moveability: graspable size, and reachable from some base region.
-    const double extent = std::max(det.box.size.x(), det.box.size.y());
-    double reach = 1e9;
-    for (const auto& region : im.world.base_regions) {
-      const double dx =
-          std::max({region.min.x() - det.box.center.x(), 0.0, det.box.center.x() - region.max.x()});
-      const double dy =
-          std::max({region.min.y() - det.box.center.y(), 0.0, det.box.center.y() - region.max.y()});
-      reach = std::min(reach, std::hypot(dx, dy));
-    }
-    const bool reachable = reach <= im.world.robot.reach;
-    det.moveability = !reachable                      ? 0.05
-                      : extent <= o.gripper_max       ? 0.95
-                      : extent <= 1.5 * o.gripper_max ? 0.5
-                                                      : 0.05;
-    result.observation.objects.push_back(std::move(det));
+    det.faces = VisibleFaces(boxes, c, score, map_to_camera, camera_position, frame.intrinsics);
+    det.moveability = Moveability(det.box);
+    detections.push_back(std::move(det));
   }
+  return detections;
+}
+
+double Perception::Impl::ClusterScore(const Perception& perception, const SensorFrame& frame,
+                                      const Eigen::Matrix4d& map_to_camera, const CloudXYZ& objects,
+                                      const pcl::PointIndices& cluster, int64_t* sift_pixels,
+                                      int64_t* sift_pairs) const {
+  cv::Mat region, mask;
+  if (!ClusterRegion(frame, map_to_camera, objects, cluster, &region, &mask)) return 0.5;
+  // SIFT while the frame's budgets last; colour alone beyond.
+  const int64_t pixels = int64_t{region.cols} * region.rows;
+  const bool sift = pixels <= *sift_pixels;
+  if (sift) *sift_pixels -= pixels;
+  return perception.ScoreRegion(region, mask, sift ? sift_pairs : nullptr, nullptr);
+}
+
+bool Perception::Impl::ClusterRegion(const SensorFrame& frame, const Eigen::Matrix4d& map_to_camera,
+                                     const CloudXYZ& objects, const pcl::PointIndices& cluster,
+                                     cv::Mat* region, cv::Mat* mask) const {
+  // Sub-image: the cluster's points reprojected into the image, masked to the pixels they
+  // cover (the bounding rectangle alone also holds whatever stands beside or behind).
+  const auto& in = frame.intrinsics;
+  std::vector<cv::Point3i> pixels;  // u, v, radius
+  int u0 = in.width, v0 = in.height, u1 = -1, v1 = -1;
+  for (int i : cluster.indices) {
+    const Eigen::Vector4d q =
+        map_to_camera * Eigen::Vector4d(objects[i].x, objects[i].y, objects[i].z, 1);
+    if (q.z() <= 0) continue;
+    // Clamped before the cast: a point just in front of the camera projects anywhere.
+    const int u = static_cast<int>(std::clamp(in.fx * q.x() / q.z() + in.cx, -1e6, 1e6));
+    const int v = static_cast<int>(std::clamp(in.fy * q.y() / q.z() + in.cy, -1e6, 1e6));
+    // The voxel's footprint in pixels: neighbouring points' disks overlap.
+    const int r = std::clamp(static_cast<int>(std::ceil(in.fx * options.voxel / q.z())), 1, 50);
+    pixels.emplace_back(u, v, r);
+    u0 = std::min(u0, u - r);
+    v0 = std::min(v0, v - r);
+    u1 = std::max(u1, u + r);
+    v1 = std::max(v1, v + r);
+  }
+  const cv::Rect rect = cv::Rect(u0, v0, u1 - u0 + 1, v1 - v0 + 1) &
+                        cv::Rect(0, 0, frame.image.cols, frame.image.rows);
+  if (rect.width < 4 || rect.height < 4) return false;
+  *mask = cv::Mat::zeros(rect.size(), CV_8U);
+  for (const cv::Point3i& p : pixels) {
+    cv::circle(*mask, cv::Point(p.x - rect.x, p.y - rect.y), p.z, cv::Scalar(255), cv::FILLED);
+  }
+  *region = frame.image(rect);
+  const int64_t area = int64_t{rect.width} * rect.height;
+  if (area > options.max_sift_pixels) {
+    const double f = std::sqrt(static_cast<double>(options.max_sift_pixels) / area);
+    const cv::Size size(std::max(4, static_cast<int>(rect.width * f)),
+                        std::max(4, static_cast<int>(rect.height * f)));
+    cv::Mat small_region, small_mask;  // new buffers: `region` views the caller's image
+    cv::resize(*region, small_region, size, 0, 0, cv::INTER_AREA);
+    cv::resize(*mask, small_mask, size, 0, 0, cv::INTER_NEAREST);
+    *region = small_region;
+    *mask = small_mask;
+  }
+  return true;
+}
+
+double Perception::Impl::Moveability(const Box& box) const {
+  // Graspable size, and reachable from some base region.
+  const double extent = std::max(box.size.x(), box.size.y());
+  double reach = 1e9;
+  for (const auto& region : world.base_regions) {
+    const double dx =
+        std::max({region.min.x() - box.center.x(), 0.0, box.center.x() - region.max.x()});
+    const double dy =
+        std::max({region.min.y() - box.center.y(), 0.0, box.center.y() - region.max.y()});
+    reach = std::min(reach, std::hypot(dx, dy));
+  }
+  const bool reachable = reach <= world.robot.reach;
+  return !reachable                            ? 0.05
+         : extent <= options.gripper_max       ? 0.95
+         : extent <= 1.5 * options.gripper_max ? 0.5
+                                               : 0.05;
+}
+
+// The pipeline: each stage takes what the ones before gave.
+StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
+  Impl& im = *impl_;
+  const auto start = Clock::now();
+  if (Status s = CheckFrame(frame, im.options); !s.ok()) return s;  // nothing changes on error
+  PerceptionResult result;
+
+  // ---- 1. registration to the prior map (ICP, RANSAC-initialised when it fits poorly) ----
+  auto t0 = Clock::now();
+  const Registration reg = im.Register(frame, &result);
+  result.timings.registration = Ms(t0);
+
+  // ---- 2. segmentation: map-point removal, then Euclidean clusters ----
+  t0 = Clock::now();
+  Segments segments = im.ObjectPoints(*reg.in_map, reg.correction);
+  segments.clusters = im.EuclideanClusters(segments.objects);
+  result.clusters = static_cast<int>(segments.clusters.size());
+  if (result.clusters > im.options.max_clusters) {  // before any track changes
+    return InvalidFieldError("pointCloud.data", std::to_string(result.clusters) +
+                                                    " object clusters in one frame; at most " +
+                                                    std::to_string(im.options.max_clusters));
+  }
+  result.timings.segmentation = Ms(t0);
+
+  // ---- 3. association of the clusters to the tracks ----
+  t0 = Clock::now();
+  const std::vector<int> track_of = im.Associate(segments);
+  result.timings.association = Ms(t0);
+
+  // ---- 4. target detection (SIFT / colour), visible faces, moveability ----
+  t0 = Clock::now();
+  result.observation.objects = im.Detect(*this, frame, reg.camera_to_map, segments, track_of);
   result.timings.detection = Ms(t0);
   result.timings.total = Ms(start);
   return result;

@@ -339,31 +339,49 @@ std::pair<Vec2, Vec2> CropBounds(const World& world, const std::optional<RobotCo
   return {lo, hi};
 }
 
-cv::Mat RenderBelief(const World& world, const BeliefPictureOptions& options) {
+namespace {
+
+constexpr int kLegendWidth = 330;
+constexpr int kLegendHeight = 470;
+
+// Where everything goes: the crop, the map's scale, and the panels' sizes (pixels).
+struct Layout {
+  Vec2 lo, hi;  // the floor shown
+  double ppm = 100.0;
+  int title_height = 38;
+  int map_w = 1, map_h = 1;   // the map panel, below the title
+  int width = 1, height = 1;  // the whole picture
+};
+
+// Layout: takes the world and the options, gives the crop and a scale that fits: the longest
+// side at map_pixels, within max_pixels for the whole picture.
+Layout PlanLayout(const World& world, const BeliefPictureOptions& options) {
+  Layout l;
   const auto [lo, hi] = CropBounds(world, options.next_view, options.margin);
-  const double ex = std::max(1e-3, hi.x() - lo.x()), ey = std::max(1e-3, hi.y() - lo.y());
-  const int legend_width = 330, title_height = options.subtitle.empty() ? 38 : 60;
-  const int legend_height = 470;
-  // Map scale: the longest side at map_pixels, within max_pixels for the whole picture.
+  l.lo = lo;
+  l.hi = hi;
+  const double ex = std::max(1e-3, l.hi.x() - l.lo.x()), ey = std::max(1e-3, l.hi.y() - l.lo.y());
+  l.title_height = options.subtitle.empty() ? 38 : 60;
   double ppm = options.map_pixels / std::max(ex, ey);
   const double budget = std::max<double>(1.0, static_cast<double>(options.max_pixels));
   for (int i = 0; i < 40; ++i) {
-    const double w = ex * ppm + legend_width,
-                 h = std::max(ey * ppm, double{legend_height}) + title_height;
+    const double w = ex * ppm + kLegendWidth,
+                 h = std::max(ey * ppm, double{kLegendHeight}) + l.title_height;
     if (w * h <= budget || ppm < 1e-3) break;
     ppm *= 0.85;
   }
-  Frame f{lo, hi, ppm, cv::Point(0, title_height)};
-  const int map_w = std::min(8192, f.width()), map_h = std::min(8192, f.height());
-  const int width = map_w + legend_width;
-  const int height = std::max(map_h, legend_height) + title_height;
-  cv::Mat img(height, width, CV_8UC3, cv::Scalar(255, 255, 255));
+  l.ppm = ppm;
+  const Frame f{l.lo, l.hi, ppm, cv::Point(0, l.title_height)};
+  l.map_w = std::min(8192, f.width());
+  l.map_h = std::min(8192, f.height());
+  l.width = l.map_w + kLegendWidth;
+  l.height = std::max(l.map_h, kLegendHeight) + l.title_height;
+  return l;
+}
 
-  // ---- the map panel ----
-  cv::Mat map = img(cv::Rect(0, title_height, map_w, map_h));
-  map.setTo(cv::Scalar(250, 250, 250));
-  Frame local{lo, hi, ppm, cv::Point(0, 0)};
-  // Occupied cells of the map, then the furniture itself.
+// The room: takes the map panel, gives it the occupied cells of the map, the base regions
+// (dashed) and the furniture.
+void DrawRoom(cv::Mat& map, const Frame& local, const World& world) {
   const auto& occ = world.occupancy;
   if (occ.nx() > 0 && occ.ny() > 0) {
     cv::Mat cells(occ.ny(), occ.nx(), CV_8UC3, cv::Scalar(250, 250, 250));
@@ -384,12 +402,22 @@ cv::Mat RenderBelief(const World& world, const BeliefPictureOptions& options) {
     cv::fillPoly(map, std::vector<std::vector<cv::Point>>{poly}, kFurniture, cv::LINE_AA);
     cv::polylines(map, poly, true, kFurnitureEdge, 1, cv::LINE_AA);
   }
-  // The camera's views, lightly, under the heat map.
-  FillFrustum(map, local, world, world.robot_config, kRobot);
-  if (options.next_view) FillFrustum(map, local, world, *options.next_view, kNextView);
-  // The grid world's odds as a heat map, one affine-painted image per workspace.
-  const auto& grid = world.grid;
-  const auto mass = grid.WorkspaceMass();
+}
+
+// Takes a workspace, gives its corners in pixels, counter-clockwise from (-x, -y).
+std::vector<cv::Point> WorkspaceOutline(const Frame& local, const object_search::Workspace& ws) {
+  const double c = std::cos(ws.yaw), s = std::sin(ws.yaw);
+  std::vector<cv::Point> outline;
+  for (auto [sx, sy] : {std::pair{-0.5, -0.5}, {0.5, -0.5}, {0.5, 0.5}, {-0.5, 0.5}}) {
+    const double px = sx * ws.length, py = sy * ws.width;
+    outline.push_back(local.Px(ws.center.x() + c * px - s * py, ws.center.y() + s * px + c * py));
+  }
+  return outline;
+}
+
+// The heat map: takes the map panel, gives it the grid world's odds, one affine-painted image
+// per workspace, each outlined.
+void DrawOdds(cv::Mat& map, const Frame& local, const object_search::GridWorld& grid) {
   for (size_t wi = 0; wi < grid.workspaces().size(); ++wi) {
     const int w = static_cast<int>(wi), nx = grid.cells_x(w), ny = grid.cells_y(w);
     const auto& ws = grid.workspaces()[wi];
@@ -406,32 +434,31 @@ cv::Mat RenderBelief(const World& world, const BeliefPictureOptions& options) {
     PaintCells(map, local, colors,
                Vec2(ws.center.x() + c * lx - s * ly, ws.center.y() + s * lx + c * ly),
                Vec2(c * cx, s * cx), Vec2(-s * cy, c * cy));
-    std::vector<cv::Point> outline;
-    for (auto [sx, sy] : {std::pair{-0.5, -0.5}, {0.5, -0.5}, {0.5, 0.5}, {-0.5, 0.5}}) {
-      const double px = sx * ws.length, py = sy * ws.width;
-      outline.push_back(local.Px(ws.center.x() + c * px - s * py, ws.center.y() + s * px + c * py));
-    }
-    cv::polylines(map, outline, true, kMuted, 1, cv::LINE_AA);
+    cv::polylines(map, WorkspaceOutline(local, ws), true, kMuted, 1, cv::LINE_AA);
   }
-  // The robot, its camera's view, and the planned next view.
-  DrawRobot(map, local, world, world.robot_config, kRobot, false);
-  if (options.next_view) DrawRobot(map, local, world, *options.next_view, kNextView, true);
-  // Objects: footprints by status, face odds at the corners; then their labels (ids and
-  // P(target)) and the workspaces' names, placed so that they do not cover each other.
-  const int dot = std::clamp(cvRound(0.018 * ppm), 3, 7);
-  LabelPlacer placer(map.size());
+}
+
+// Takes an object, gives the colour of its status.
+cv::Scalar StatusColor(const object_search::ObjectKnowledge& o) {
+  return o.status == object_search::kDeclaredTarget     ? kTarget
+         : o.status == object_search::kDeclaredObstacle ? kObstacle
+                                                        : kObject;
+}
+
+// The objects: takes the map panel, gives it each known object's footprint by status and its
+// face odds at the corners (`dot` pixels); reserves their rectangles in `placer` and gives them
+// as the anchors of the labels (with the object's index).
+std::vector<std::pair<cv::Rect, size_t>> DrawObjects(cv::Mat& map, const Frame& local,
+                                                     const World& world, int dot,
+                                                     LabelPlacer* placer) {
   std::vector<std::pair<cv::Rect, size_t>> anchors;
   for (size_t i = 1; i < world.objects.size(); ++i) {
     const auto& o = world.objects[i];
     const auto poly = Footprint(local, o.box);
-    const bool removed = o.status == object_search::kRemoved;
-    const cv::Scalar color = o.status == object_search::kDeclaredTarget     ? kTarget
-                             : o.status == object_search::kDeclaredObstacle ? kObstacle
-                                                                            : kObject;
-    if (removed) {
+    if (o.status == object_search::kRemoved) {
       DashedPolygon(map, poly, cv::Scalar(160, 160, 160), 1);
     } else {
-      cv::polylines(map, poly, true, color, 2, cv::LINE_AA);
+      cv::polylines(map, poly, true, StatusColor(o), 2, cv::LINE_AA);
       const auto k = o.box.Corners();
       for (int corner = 0; corner < 4; ++corner) {
         const cv::Point at = local.Px(k[corner].x(), k[corner].y());
@@ -447,82 +474,113 @@ cv::Mat RenderBelief(const World& world, const BeliefPictureOptions& options) {
     const cv::Rect box = cv::boundingRect(poly);
     const cv::Rect with_dots(box.x - dot - 2, box.y - dot - 2, box.width + 2 * dot + 4,
                              box.height + 2 * dot + 4);
-    placer.Reserve(with_dots);
+    placer->Reserve(with_dots);
     anchors.emplace_back(with_dots, i);
   }
+  return anchors;
+}
+
+// The labels: takes the map panel and the objects' anchors, gives it each object's label (id,
+// P(target), status), then each workspace's name with its share of the target mass, placed so
+// that they do not cover each other.
+void DrawLabels(cv::Mat& map, const Frame& local, const World& world,
+                const std::vector<std::pair<cv::Rect, size_t>>& anchors, LabelPlacer* placer) {
   for (const auto& [anchor, i] : anchors) {
     const auto& o = world.objects[i];
     const bool removed = o.status == object_search::kRemoved;
-    const cv::Scalar color = o.status == object_search::kDeclaredTarget     ? kTarget
-                             : o.status == object_search::kDeclaredObstacle ? kObstacle
-                                                                            : kObject;
     const std::string status = o.status == object_search::kDeclaredTarget     ? " TARGET"
                                : o.status == object_search::kDeclaredObstacle ? " obstacle"
                                : removed                                      ? " removed"
                                                                               : "";
     const std::string text = o.key + Format(" P%.2f", Sigmoid(MeanOdds(o))) + status;
-    Label(map, text, placer.Place(text, 0.42, anchor), 0.42, removed ? kMuted : color);
+    Label(map, text, placer->Place(text, 0.42, anchor), 0.42, removed ? kMuted : StatusColor(o));
   }
-  // Workspace names with their share of the target mass.
+  const auto& grid = world.grid;
+  const auto mass = grid.WorkspaceMass();
   for (size_t wi = 0; wi < grid.workspaces().size(); ++wi) {
     const auto& ws = grid.workspaces()[wi];
-    const double c = std::cos(ws.yaw), s = std::sin(ws.yaw);
-    std::vector<cv::Point> corners;
-    for (auto [sx, sy] : {std::pair{-0.5, -0.5}, {0.5, -0.5}, {0.5, 0.5}, {-0.5, 0.5}}) {
-      const double px = sx * ws.length, py = sy * ws.width;
-      corners.push_back(local.Px(ws.center.x() + c * px - s * py, ws.center.y() + s * px + c * py));
-    }
-    const cv::Rect r = cv::boundingRect(corners);
+    const cv::Rect r = cv::boundingRect(WorkspaceOutline(local, ws));
     const std::string text =
         ws.name + Format(" %.0f%%", 100.0 * (wi < mass.size() ? mass[wi] : 0.0));
-    Label(map, text, placer.Place(text, 0.42, cv::Rect(r.x, r.y + r.height, 1, 1)), 0.42, kMuted);
+    Label(map, text, placer->Place(text, 0.42, cv::Rect(r.x, r.y + r.height, 1, 1)), 0.42, kMuted);
   }
-  // Scale bar, bottom left.
-  {
-    const double meters = ScaleLength(ppm);
-    const int length = cvRound(meters * ppm);
-    const cv::Point a(12, map_h - 14), b(12 + length, map_h - 14);
-    cv::rectangle(map, cv::Point(a.x - 6, a.y - 22), cv::Point(b.x + 6, a.y + 8),
-                  cv::Scalar(255, 255, 255), cv::FILLED);
-    cv::line(map, a, b, kInk, 2);
-    cv::line(map, a + cv::Point(0, -5), a + cv::Point(0, 5), kInk, 2);
-    cv::line(map, b + cv::Point(0, -5), b + cv::Point(0, 5), kInk, 2);
-    Label(map, meters >= 1.0 ? Format("%.0f m", meters) : Format("%.0f cm", 100 * meters),
-          cv::Point(a.x, a.y - 8), 0.42, kInk, false);
-  }
-  cv::rectangle(map, cv::Point(0, 0), cv::Point(map_w - 1, map_h - 1), kFurnitureEdge, 1);
+}
 
-  // ---- title ----
+// The scale bar: takes the map panel, gives it a bar of a round length, bottom left.
+void DrawScaleBar(cv::Mat& map, double ppm) {
+  const double meters = ScaleLength(ppm);
+  const int length = cvRound(meters * ppm);
+  const cv::Point a(12, map.rows - 14), b(12 + length, map.rows - 14);
+  cv::rectangle(map, cv::Point(a.x - 6, a.y - 22), cv::Point(b.x + 6, a.y + 8),
+                cv::Scalar(255, 255, 255), cv::FILLED);
+  cv::line(map, a, b, kInk, 2);
+  cv::line(map, a + cv::Point(0, -5), a + cv::Point(0, 5), kInk, 2);
+  cv::line(map, b + cv::Point(0, -5), b + cv::Point(0, 5), kInk, 2);
+  Label(map, meters >= 1.0 ? Format("%.0f m", meters) : Format("%.0f cm", 100 * meters),
+        cv::Point(a.x, a.y - 8), 0.42, kInk, false);
+}
+
+// The map panel: takes it blank, gives it the room, the camera's views, the heat map, the robot
+// and the next view, the objects and the labels, the scale bar and a border, in that order
+// (each drawn over the ones before).
+void DrawMap(cv::Mat& map, const Frame& local, const World& world,
+             const BeliefPictureOptions& options) {
+  map.setTo(cv::Scalar(250, 250, 250));
+  DrawRoom(map, local, world);
+  // The camera's views, lightly, under the heat map.
+  FillFrustum(map, local, world, world.robot_config, kRobot);
+  if (options.next_view) FillFrustum(map, local, world, *options.next_view, kNextView);
+  DrawOdds(map, local, world.grid);
+  // The robot, its camera's view, and the planned next view.
+  DrawRobot(map, local, world, world.robot_config, kRobot, false);
+  if (options.next_view) DrawRobot(map, local, world, *options.next_view, kNextView, true);
+  const int dot = std::clamp(cvRound(0.018 * local.ppm), 3, 7);
+  LabelPlacer placer(map.size());
+  const auto anchors = DrawObjects(map, local, world, dot, &placer);
+  DrawLabels(map, local, world, anchors, &placer);
+  DrawScaleBar(map, local.ppm);
+  cv::rectangle(map, cv::Point(0, 0), cv::Point(map.cols - 1, map.rows - 1), kFurnitureEdge, 1);
+}
+
+// The title bar: takes the picture, gives it the title and the subtitle.
+void DrawTitle(cv::Mat& img, const BeliefPictureOptions& options) {
   Label(img, options.title.empty() ? std::string("belief") : options.title, cv::Point(10, 26), 0.7,
         kInk, false, 2);
   if (!options.subtitle.empty())
     Label(img, options.subtitle, cv::Point(10, 50), 0.5, kMuted, false);
+}
 
-  // ---- the legend ----
-  const int x0 = map_w + 16;
-  int y = title_height + 22;
-  Label(img, "P(target in cell)", cv::Point(x0, y), 0.5, kInk, false);
-  y += 10;
-  const int bar_w = legend_width - 40, bar_h = 16;
+// The colour bar: takes the picture and the legend's left edge and line *y, gives it the bar of
+// the odds' colours with its ticks and words; *y moves below it.
+void DrawColorBar(cv::Mat& img, int x0, int* y) {
+  Label(img, "P(target in cell)", cv::Point(x0, *y), 0.5, kInk, false);
+  *y += 10;
+  const int bar_w = kLegendWidth - 40, bar_h = 16;
   for (int i = 0; i < bar_w; ++i) {
     const cv::Vec3b c = ProbabilityColor(static_cast<double>(i) / (bar_w - 1));
-    cv::line(img, cv::Point(x0 + i, y), cv::Point(x0 + i, y + bar_h), cv::Scalar(c[0], c[1], c[2]));
+    cv::line(img, cv::Point(x0 + i, *y), cv::Point(x0 + i, *y + bar_h),
+             cv::Scalar(c[0], c[1], c[2]));
   }
-  cv::rectangle(img, cv::Point(x0, y), cv::Point(x0 + bar_w - 1, y + bar_h), kMuted, 1);
+  cv::rectangle(img, cv::Point(x0, *y), cv::Point(x0 + bar_w - 1, *y + bar_h), kMuted, 1);
   for (int t = 0; t <= 4; ++t) {
     const int x = x0 + (bar_w - 1) * t / 4;
-    cv::line(img, cv::Point(x, y + bar_h), cv::Point(x, y + bar_h + 4), kInk, 1);
-    Label(img, Format("%.2g", t / 4.0), cv::Point(x - 8, y + bar_h + 17), 0.4, kInk, false);
+    cv::line(img, cv::Point(x, *y + bar_h), cv::Point(x, *y + bar_h + 4), kInk, 1);
+    Label(img, Format("%.2g", t / 4.0), cv::Point(x - 8, *y + bar_h + 17), 0.4, kInk, false);
   }
-  y += bar_h + 34;
-  Label(img, "seen, empty", cv::Point(x0, y), 0.4, kMuted, false);
-  Label(img, "not seen", cv::Point(x0 + bar_w / 2 - 28, y), 0.4, kMuted, false);
-  Label(img, "likely", cv::Point(x0 + bar_w - 44, y), 0.4, kMuted, false);
-  y += 30;
+  *y += bar_h + 34;
+  Label(img, "seen, empty", cv::Point(x0, *y), 0.4, kMuted, false);
+  Label(img, "not seen", cv::Point(x0 + bar_w / 2 - 28, *y), 0.4, kMuted, false);
+  Label(img, "likely", cv::Point(x0 + bar_w - 44, *y), 0.4, kMuted, false);
+  *y += 30;
+}
+
+// The legend's symbols: takes the picture and the legend's left edge and line *y, gives it one
+// line per symbol of the map; *y moves below them.
+void DrawLegendEntries(cv::Mat& img, int x0, int* y) {
   auto entry = [&](const std::string& text, auto&& symbol) {
-    symbol(cv::Point(x0 + 12, y - 5));
-    Label(img, text, cv::Point(x0 + 34, y), 0.45, kInk, false);
-    y += 24;
+    symbol(cv::Point(x0 + 12, *y - 5));
+    Label(img, text, cv::Point(x0 + 34, *y), 0.45, kInk, false);
+    *y += 24;
   };
   auto box_symbol = [&](const cv::Scalar& color) {
     return [&img, color](cv::Point c) {
@@ -555,6 +613,12 @@ cv::Mat RenderBelief(const World& world, const BeliefPictureOptions& options) {
     cv::rectangle(img, c - cv::Point(9, 7), c + cv::Point(1, 7), kFurniture, cv::FILLED);
     DashedLine(img, c + cv::Point(4, -7), c + cv::Point(4, 7), kRegion, 1, 3.0);
   });
+}
+
+// The summary: takes the picture and the legend's left edge and line y, gives it the most
+// likely place of the target, the next action (when planned) and the step and object counts.
+void DrawSummary(cv::Mat& img, int x0, int y, const World& world,
+                 const BeliefPictureOptions& options) {
   y += 8;
   Label(img, "most likely:", cv::Point(x0, y), 0.45, kMuted, false);
   y += 22;
@@ -568,6 +632,22 @@ cv::Mat RenderBelief(const World& world, const BeliefPictureOptions& options) {
         Format("step %.0f", world.steps) +
             Format(", %.0f objects known", static_cast<double>(world.objects.size()) - 1),
         cv::Point(x0, y), 0.42, kMuted, false);
+}
+
+}  // namespace
+
+cv::Mat RenderBelief(const World& world, const BeliefPictureOptions& options) {
+  const Layout l = PlanLayout(world, options);
+  cv::Mat img(l.height, l.width, CV_8UC3, cv::Scalar(255, 255, 255));
+  // The map panel, below the title bar; the legend to its right.
+  cv::Mat map = img(cv::Rect(0, l.title_height, l.map_w, l.map_h));
+  DrawMap(map, Frame{l.lo, l.hi, l.ppm, cv::Point(0, 0)}, world, options);
+  DrawTitle(img, options);
+  const int x0 = l.map_w + 16;
+  int y = l.title_height + 22;
+  DrawColorBar(img, x0, &y);
+  DrawLegendEntries(img, x0, &y);
+  DrawSummary(img, x0, y, world, options);
   return img;
 }
 
