@@ -141,9 +141,26 @@ class NetSam final : public CandidateSampler<State> {
               [](const auto& a, const auto& b) { return a.first > b.first; });
     std::sort(known_good.begin(), known_good.end(),
               [](const auto& a, const auto& b) { return a.first > b.first; });
-    // Keep mu > beta* sigma, best first, with the exactly scored efficient context configurations;
-    // at least min_keep; the object views in their share of `count`; a share of uniform
-    // (explore) configurations the filter did not keep.
+    const int added = Keep(count, box, configs, sources, known_good, ranked, objects, out);
+    // The caller (kCT's EnsureSpheres) times the call into stats->elapsed_ms.
+    if (stats != nullptr) {
+      stats->sampled += proposed + static_cast<int>(context.scores.size());
+      stats->accepted += added;
+    }
+    return OkStatus();
+  }
+
+ private:
+  // Net_sam's choice (algorithm 5) among the proposals: mu > beta* sigma, best first, with the
+  // exactly scored efficient context configurations; at least min_keep; the object views in
+  // their share of `count`; a share of uniform (explore) configurations the filter did not keep.
+  // Appends them to `out` and returns how many.
+  int Keep(int count, const BoxSpace& box, const std::vector<RobotConfig>& configs,
+           const std::vector<object_search::ProposalSource>& sources,
+           const std::vector<std::pair<double, ActionVec>>& known_good,
+           const std::vector<std::pair<double, int>>& ranked, const std::vector<int>& objects,
+           std::vector<ActionVec>* out) const {
+    const int proposed = static_cast<int>(configs.size());
     const int object_keep = std::min(static_cast<int>(objects.size()),
                                      static_cast<int>(std::lround(options_.object_share * count)));
     const int explore = static_cast<int>(std::lround(options_.explore * count));
@@ -172,15 +189,9 @@ class NetSam final : public CandidateSampler<State> {
       out->push_back(box.Clamp(ObjectSearchModel::VecOf(configs[i])));
       ++added;
     }
-    // The caller (kCT's EnsureSpheres) times the call into stats->elapsed_ms.
-    if (stats != nullptr) {
-      stats->sampled += proposed + static_cast<int>(context.scores.size());
-      stats->accepted += added;
-    }
-    return OkStatus();
+    return added;
   }
 
- private:
   std::shared_ptr<const NeuralFilter> filter_;
   const ObjectSearchModel& model_;
   FilterOptions options_;

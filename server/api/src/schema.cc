@@ -209,155 +209,149 @@ std::optional<std::string> StringWithNul(const json& v, const std::string& path)
   return std::nullopt;
 }
 
-}  // namespace
+// Where a valijson error points: the instance's field path, the schema there (resolved) and the
+// depth of the path.
+struct Located {
+  std::string path;
+  Node schema;
+  Node here;
+  int depth = 0;
+};
 
-const json* SchemaDocument(std::string_view name) { return FileIn(Docs(), name); }
-
-Status ValidateAgainstSchema(std::string_view message, const json& doc, size_t max_violations,
-                             const std::vector<std::string>* planner_names) {
-  const Documents& d = Docs(planner_names);
-  auto it = d.schemas.find(std::string(message) + ".schema.json");
-  if (it == d.schemas.end()) return InternalError("no schema for " + std::string(message));
-  const std::string root_file = std::string(message) + ".schema.json";
-  if (auto field = StringWithNul(doc, "")) {
-    const std::string name = field->empty() ? "body" : Shortened(*field);
-    return Status(StatusCode::kInvalidArgument, name + ": must not contain U+0000")
-        .WithFieldViolation(name, "must not contain U+0000");
-  }
-  Adapter adapter(doc);
-  {
-    valijson::Validator fast;  // stops at the first failure
-    if (fast.validate(*it->second, adapter, nullptr)) return OkStatus();
-  }
-  valijson::Validator validator;
-  valijson::ValidationResults results;
-  validator.validate(*it->second, adapter, &results);
-
-  std::vector<Violation> out;
-  std::vector<Violation> alternatives;  // oneOf/anyOf that failed as a whole
-  // The deepest member that failed only as "a consequence": valijson reports a key that breaks
-  // `propertyNames` by nothing else, and such a failure would otherwise name only "body".
-  Violation consequence{"", "", -1};
-  valijson::ValidationResults::Error e;
-  while (results.popError(e)) {
-    // The instance path: "<root>", then "[key]" or "[index]" per level.
-    std::string path;
-    const json* at = &doc;
-    Node schema{FileIn(d, root_file), FileIn(d, root_file)};
-    int depth = 0;
-    for (size_t i = 1; i < e.context.size(); ++i) {
-      std::string token = e.context[i];
-      if (token.size() >= 2 && token.front() == '[' && token.back() == ']') {
-        token = token.substr(1, token.size() - 2);
-      }
-      const bool index = at && at->is_array();
-      if (index) {
-        const size_t k = std::strtoul(token.c_str(), nullptr, 10);
-        path = At(path, k);
-        at = k < at->size() ? &(*at)[k] : nullptr;
-      } else {
-        path = Join(path, token);
-        at = at && at->is_object() && at->contains(token) ? &at->at(token) : nullptr;
-      }
-      schema = Child(schema, token, index, d);
-      ++depth;
+Located Locate(const valijson::ValidationResults::Error& e, const json& doc, const Documents& d,
+               const std::string& root_file) {
+  // The instance path: "<root>", then "[key]" or "[index]" per level.
+  Located l;
+  const json* at = &doc;
+  l.schema = Node{FileIn(d, root_file), FileIn(d, root_file)};
+  for (size_t i = 1; i < e.context.size(); ++i) {
+    std::string token = e.context[i];
+    if (token.size() >= 2 && token.front() == '[' && token.back() == ']') {
+      token = token.substr(1, token.size() - 2);
     }
-    const Node here = Resolve(schema, d);
-    const std::string& m = e.description;
-    auto add = [&](std::string field, std::string description, int extra_depth = 0) {
-      out.push_back({std::move(field), std::move(description), depth + extra_depth});
-    };
-    if (StartsWith(m, "Failed to validate against schema associated with property") ||
-        StartsWith(m, "Failed to validate item #") ||
-        StartsWith(m, "Failed to validate against child schema") ||
-        StartsWith(m, "Failed to validate against a conditional schema") ||
-        StartsWith(m, "Failed to validate against additional properties schema") ||
-        StartsWith(m, "Failed to validate against schema associated with pattern")) {
-      // A consequence of a more specific error, kept in case valijson reported none.
-      if (StartsWith(m, "Failed to validate against schema associated with property") &&
-          depth + 1 > consequence.depth) {
-        const std::string key = Quoted(m);
-        const Node member = Resolve(Child(schema, key, false, d), d);
-        std::string why = "does not match its schema";
-        if (member.schema && member.schema->is_object()) {
-          const auto names = member.schema->find("propertyNames");
-          if (names != member.schema->end() && names->is_object() && names->contains("maxLength") &&
-              names->at("maxLength").is_number_unsigned()) {
-            why = "keys must be at most " + std::to_string(names->at("maxLength").get<uint64_t>()) +
-                  " characters";
-          }
-        }
-        consequence = {Join(path, key), why, depth + 1};
-      }
-      continue;
-    }
-    if (StartsWith(m, "Failed to validate against any") ||
-        StartsWith(m, "Failed to validate against exactly one")) {
-      const json* s = here.schema;
-      alternatives.push_back({path,
-                              s && s->contains("description") && s->at("description").is_string()
-                                  ? s->at("description").get<std::string>()
-                                  : "does not match any accepted form",
-                              depth});
-    } else if (StartsWith(m, "Object contains a property that could not be validated")) {
-      add(Join(path, Quoted(m)), "unknown field", 1);
-    } else if (StartsWith(m, "Missing required property")) {
-      add(Join(path, Quoted(m)), "missing", 1);
-    } else if (StartsWith(m, "Value type not permitted")) {
-      const std::string words =
-          here.schema && here.schema->contains("type") ? TypeWords(here.schema->at("type")) : "";
-      add(path, words.empty() ? "wrong type" : "expected " + words);
-    } else if (StartsWith(m, "Failed to match against any enum values")) {
-      std::string values;
-      if (here.schema && here.schema->contains("enum")) {
-        for (const json& v : here.schema->at("enum"))
-          values += (values.empty() ? "" : ", ") + Dump(v);
-      }
-      add(path, values.empty() ? "not an accepted value" : "expected one of " + values);
-    } else if (StartsWith(m, "Failed to match expected value set by 'const'")) {
-      add(path, here.schema && here.schema->contains("const")
-                    ? "expected " + Dump(here.schema->at("const"))
-                    : "not the expected value");
-    } else if (StartsWith(m, "Expected number greater than or equal to")) {
-      add(path, "must be >= " + TrailingNumber(m));
-    } else if (StartsWith(m, "Expected number greater than")) {
-      add(path, "must be > " + TrailingNumber(m));
-    } else if (StartsWith(m, "Expected number less than or equal to")) {
-      add(path, "must be <= " + TrailingNumber(m));
-    } else if (StartsWith(m, "Expected number less than")) {
-      add(path, "must be < " + TrailingNumber(m));
-    } else if (StartsWith(m, "Array should contain no fewer than ")) {
-      add(path,
-          "expected at least " + CountAfter(m, "Array should contain no fewer than ") + " items");
-    } else if (StartsWith(m, "Array should contain no more than ")) {
-      add(path,
-          "expected at most " + CountAfter(m, "Array should contain no more than ") + " items");
-    } else if (StartsWith(m, "String should be no more than ")) {
-      add(path,
-          "expected at most " + CountAfter(m, "String should be no more than ") + " characters");
-    } else if (StartsWith(m, "String should be no fewer than ")) {
-      add(path,
-          "expected at least " + CountAfter(m, "String should be no fewer than ") + " characters");
-    } else if (StartsWith(m, "Object should have no more than ")) {
-      add(path,
-          "expected at most " + CountAfter(m, "Object should have no more than ") + " entries");
-    } else if (StartsWith(m, "Target should not validate against schema specified in 'not'")) {
-      const json* s = here.schema;
-      const json* n = s && s->contains("not") ? &s->at("not") : nullptr;
-      std::string field = path;
-      if (n && n->contains("required") && n->at("required").is_array() &&
-          !n->at("required").empty() && n->at("required")[0].is_string()) {
-        field = Join(path, n->at("required")[0].get<std::string>());
-      }
-      add(field.empty() ? "body" : field,
-          n && n->contains("description") && n->at("description").is_string()
-              ? n->at("description").get<std::string>()
-              : "not allowed here",
-          1);
+    const bool index = at && at->is_array();
+    if (index) {
+      const size_t k = std::strtoul(token.c_str(), nullptr, 10);
+      l.path = At(l.path, k);
+      at = k < at->size() ? &(*at)[k] : nullptr;
     } else {
-      add(path.empty() ? "body" : path, m);
+      l.path = Join(l.path, token);
+      at = at && at->is_object() && at->contains(token) ? &at->at(token) : nullptr;
+    }
+    l.schema = Child(l.schema, token, index, d);
+    ++l.depth;
+  }
+  l.here = Resolve(l.schema, d);
+  return l;
+}
+
+// Whether valijson's message `m` is only the consequence of a more specific error.
+bool IsConsequence(const std::string& m) {
+  return StartsWith(m, "Failed to validate against schema associated with property") ||
+         StartsWith(m, "Failed to validate item #") ||
+         StartsWith(m, "Failed to validate against child schema") ||
+         StartsWith(m, "Failed to validate against a conditional schema") ||
+         StartsWith(m, "Failed to validate against additional properties schema") ||
+         StartsWith(m, "Failed to validate against schema associated with pattern");
+}
+
+// The member a consequence names, kept in case valijson reports nothing more specific: a key
+// that breaks `propertyNames` is reported by nothing else.
+Violation ConsequenceOf(const std::string& m, const Located& at, const Documents& d) {
+  const std::string key = Quoted(m);
+  const Node member = Resolve(Child(at.schema, key, false, d), d);
+  std::string why = "does not match its schema";
+  if (member.schema && member.schema->is_object()) {
+    const auto names = member.schema->find("propertyNames");
+    if (names != member.schema->end() && names->is_object() && names->contains("maxLength") &&
+        names->at("maxLength").is_number_unsigned()) {
+      why = "keys must be at most " + std::to_string(names->at("maxLength").get<uint64_t>()) +
+            " characters";
     }
   }
+  return {Join(at.path, key), why, at.depth + 1};
+}
+
+// valijson's message `m` about `at` in words a caller reads, into `out` (or, for an alternative
+// that failed as a whole, into `alternatives`).
+void Describe(const std::string& m, const Located& at, std::vector<Violation>* out,
+              std::vector<Violation>* alternatives) {
+  auto add = [&](std::string field, std::string description, int extra_depth = 0) {
+    out->push_back({std::move(field), std::move(description), at.depth + extra_depth});
+  };
+  if (StartsWith(m, "Failed to validate against any") ||
+      StartsWith(m, "Failed to validate against exactly one")) {
+    const json* s = at.here.schema;
+    alternatives->push_back({at.path,
+                             s && s->contains("description") && s->at("description").is_string()
+                                 ? s->at("description").get<std::string>()
+                                 : "does not match any accepted form",
+                             at.depth});
+  } else if (StartsWith(m, "Object contains a property that could not be validated")) {
+    add(Join(at.path, Quoted(m)), "unknown field", 1);
+  } else if (StartsWith(m, "Missing required property")) {
+    add(Join(at.path, Quoted(m)), "missing", 1);
+  } else if (StartsWith(m, "Value type not permitted")) {
+    const std::string words = at.here.schema && at.here.schema->contains("type")
+                                  ? TypeWords(at.here.schema->at("type"))
+                                  : "";
+    add(at.path, words.empty() ? "wrong type" : "expected " + words);
+  } else if (StartsWith(m, "Failed to match against any enum values")) {
+    std::string values;
+    if (at.here.schema && at.here.schema->contains("enum")) {
+      for (const json& v : at.here.schema->at("enum"))
+        values += (values.empty() ? "" : ", ") + Dump(v);
+    }
+    add(at.path, values.empty() ? "not an accepted value" : "expected one of " + values);
+  } else if (StartsWith(m, "Failed to match expected value set by 'const'")) {
+    add(at.path, at.here.schema && at.here.schema->contains("const")
+                     ? "expected " + Dump(at.here.schema->at("const"))
+                     : "not the expected value");
+  } else if (StartsWith(m, "Expected number greater than or equal to")) {
+    add(at.path, "must be >= " + TrailingNumber(m));
+  } else if (StartsWith(m, "Expected number greater than")) {
+    add(at.path, "must be > " + TrailingNumber(m));
+  } else if (StartsWith(m, "Expected number less than or equal to")) {
+    add(at.path, "must be <= " + TrailingNumber(m));
+  } else if (StartsWith(m, "Expected number less than")) {
+    add(at.path, "must be < " + TrailingNumber(m));
+  } else if (StartsWith(m, "Array should contain no fewer than ")) {
+    add(at.path,
+        "expected at least " + CountAfter(m, "Array should contain no fewer than ") + " items");
+  } else if (StartsWith(m, "Array should contain no more than ")) {
+    add(at.path,
+        "expected at most " + CountAfter(m, "Array should contain no more than ") + " items");
+  } else if (StartsWith(m, "String should be no more than ")) {
+    add(at.path,
+        "expected at most " + CountAfter(m, "String should be no more than ") + " characters");
+  } else if (StartsWith(m, "String should be no fewer than ")) {
+    add(at.path,
+        "expected at least " + CountAfter(m, "String should be no fewer than ") + " characters");
+  } else if (StartsWith(m, "Object should have no more than ")) {
+    add(at.path,
+        "expected at most " + CountAfter(m, "Object should have no more than ") + " entries");
+  } else if (StartsWith(m, "Target should not validate against schema specified in 'not'")) {
+    const json* s = at.here.schema;
+    const json* n = s && s->contains("not") ? &s->at("not") : nullptr;
+    std::string field = at.path;
+    if (n && n->contains("required") && n->at("required").is_array() &&
+        !n->at("required").empty() && n->at("required")[0].is_string()) {
+      field = Join(at.path, n->at("required")[0].get<std::string>());
+    }
+    add(field.empty() ? "body" : field,
+        n && n->contains("description") && n->at("description").is_string()
+            ? n->at("description").get<std::string>()
+            : "not allowed here",
+        1);
+  } else {
+    add(at.path.empty() ? "body" : at.path, m);
+  }
+}
+
+// The violations to report: those inside an alternative that failed as a whole dropped, the
+// deepest first, each once, at most `max_violations`.
+std::vector<Violation> Collapse(std::vector<Violation> out,
+                                const std::vector<Violation>& alternatives, size_t max_violations) {
   // Inside an alternative that failed as a whole, the per-alternative errors say little.
   for (const Violation& alt : alternatives) {
     const std::string& a = alt.field;
@@ -384,6 +378,48 @@ Status ValidateAgainstSchema(std::string_view message, const json& doc, size_t m
     if (!seen) unique.push_back(v);
     if (unique.size() >= max_violations) break;
   }
+  return unique;
+}
+
+}  // namespace
+
+const json* SchemaDocument(std::string_view name) { return FileIn(Docs(), name); }
+
+Status ValidateAgainstSchema(std::string_view message, const json& doc, size_t max_violations,
+                             const std::vector<std::string>* planner_names) {
+  const Documents& d = Docs(planner_names);
+  auto it = d.schemas.find(std::string(message) + ".schema.json");
+  if (it == d.schemas.end()) return InternalError("no schema for " + std::string(message));
+  const std::string root_file = std::string(message) + ".schema.json";
+  if (auto field = StringWithNul(doc, "")) {
+    const std::string name = field->empty() ? "body" : Shortened(*field);
+    return Status(StatusCode::kInvalidArgument, name + ": must not contain U+0000")
+        .WithFieldViolation(name, "must not contain U+0000");
+  }
+  Adapter adapter(doc);
+  {
+    valijson::Validator fast;  // stops at the first failure
+    if (fast.validate(*it->second, adapter, nullptr)) return OkStatus();
+  }
+  valijson::Validator validator;
+  valijson::ValidationResults results;
+  validator.validate(*it->second, adapter, &results);
+
+  std::vector<Violation> out;
+  std::vector<Violation> alternatives;  // oneOf/anyOf that failed as a whole
+  Violation consequence{"", "", -1};
+  valijson::ValidationResults::Error e;
+  while (results.popError(e)) {
+    const Located at = Locate(e, doc, d, root_file);
+    if (!IsConsequence(e.description)) {
+      Describe(e.description, at, &out, &alternatives);
+    } else if (StartsWith(e.description,
+                          "Failed to validate against schema associated with property") &&
+               at.depth + 1 > consequence.depth) {
+      consequence = ConsequenceOf(e.description, at, d);
+    }
+  }
+  std::vector<Violation> unique = Collapse(std::move(out), alternatives, max_violations);
   if (unique.empty() && consequence.depth >= 0) unique.push_back(consequence);
   if (unique.empty()) unique.push_back({"body", "does not match the request schema", 0});
   Status s(StatusCode::kInvalidArgument, Shortened(unique[0].field) + ": " + unique[0].description);
