@@ -185,6 +185,8 @@ bool Oracle::BestView(int object, const std::array<float, 8>& odds, double sign,
   return true;
 }
 
+// Kept in one piece (115 lines): its numbered parts are the four rules of the oracle's policy in
+// the class comment, read top to bottom in the order they apply.
 HybridAction Oracle::Next(const object_search::World& knowledge) const {
   const object_search::SearchParams& p = knowledge.params;
   const auto& scene = sim_.objects();
