@@ -67,31 +67,15 @@ struct AdvtOptions {
 template <HybridActionModel M>
 class Advt : public PlannerBase<Advt<M>, M, AdvtOptions> {
   using Base = PlannerBase<Advt<M>, M, AdvtOptions>;
-  friend Base;
-  using Base::belief_;
-  using Base::model_;
-  using Base::options_;
+  NPFKCT_PLANNER_INTERFACE(Base);
 
  public:
-  using typename Base::Action;
-  using typename Base::Observation;
-  using typename Base::State;
+  using Base::Base;
 
-  Advt(const M& model, AdvtOptions options) : Base(model, std::move(options)) {
-    c_ = this->ExplorationConstant(options_.exploration_c);
-  }
-
-  using Base::Plan;
   /// Searches from the current belief within `budget` and recommends an action.
   Decision<Action> Plan(const TerminationCondition& stop, Rng& rng) {
     Decision<Action> d;
-    d.stats.budget_exhausted = false;
-    if (Status s = this->CheckPlan(stop); !s.ok()) return Base::Fail(std::move(d), std::move(s));
-    if (!options_.search.reuse_tree && tree_.root >= 0) {
-      const auto t0 = Clock::now();
-      tree_.Clear();
-      d.stats.teardown_ms = MillisSince(t0);
-    }
+    if (Status s = this->Begin(stop, &d); !s.ok()) return Base::Fail(std::move(d), std::move(s));
     if (tree_.root < 0) tree_.root = tree_.NewObsNode();
     max_depth_ = 0;
     d.stats.reused_visits = tree_.obs[tree_.root].n;
@@ -104,7 +88,6 @@ class Advt : public PlannerBase<Advt<M>, M, AdvtOptions> {
     }
     stop_ = nullptr;
     d.stats.simulations = sims;
-    d.stats.budget_exhausted = true;
     if (tree_.obs[tree_.root].actions.empty()) InitCells(tree_.root, belief_.Sample(rng), rng);
     int best = -1;
     for (int ai : tree_.obs[tree_.root].actions) {
@@ -131,6 +114,8 @@ class Advt : public PlannerBase<Advt<M>, M, AdvtOptions> {
   using Tree = BeliefTree<M, Cell>;
 
   void ClearTree() { tree_.Clear(); }
+
+  bool HasTree() const { return tree_.root >= 0; }
 
   void KeepChild(const Action& a, const Observation& o) {
     int next = -1;
@@ -339,7 +324,6 @@ class Advt : public PlannerBase<Advt<M>, M, AdvtOptions> {
     return options_.backup == AdvtOptions::Backup::kMax ? BestLeafValue(node) : total;
   }
 
-  double c_ = 1.0;
   Tree tree_;
   int max_depth_ = 0;
   std::vector<int> scratch_;

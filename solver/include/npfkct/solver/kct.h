@@ -199,16 +199,9 @@ struct KctUsed {
 template <HybridActionModel M>
 class KCenterTree : public PlannerBase<KCenterTree<M>, M, KctOptions> {
   using Base = PlannerBase<KCenterTree<M>, M, KctOptions>;
-  friend Base;
-  using Base::belief_;
-  using Base::model_;
-  using Base::options_;
+  NPFKCT_PLANNER_INTERFACE(Base);
 
  public:
-  using typename Base::Action;
-  using typename Base::Observation;
-  using typename Base::State;
-
   /// A planner whose candidates come from `sampler` (uniform when null).
   KCenterTree(const M& model, KctOptions options,
               std::shared_ptr<CandidateSampler<State>> sampler = nullptr)
@@ -230,7 +223,6 @@ class KCenterTree : public PlannerBase<KCenterTree<M>, M, KctOptions> {
   /// The parameters the last Plan() used.
   const KctUsed& used() const { return used_; }
 
-  using Base::Plan;
   /// Plans until `stop` says so (algorithm 1, lines 3-18) and recommends an executable action.
   /// Advance (filtering, algorithm 1, line 20) keeps every worker's subtree under the executed
   /// sphere and the real observation.
@@ -301,10 +293,12 @@ class KCenterTree : public PlannerBase<KCenterTree<M>, M, KctOptions> {
     for (Worker& w : workers_) KeepChild(w, a, o);
   }
 
+  bool HasTree() const { return workers_[0].tree.root >= 0; }
   void ClearTree();
 
-  // Plan's first stage: drops a tree that is not reused, builds the spheres of the kinds legal at
-  // the root (Net_sam + k-clustering), resolves the parameters and readies every worker's root.
+  // Plan's first stage (after Begin dropped a tree that is not reused): builds the spheres of the
+  // kinds legal at the root (Net_sam + k-clustering), resolves the parameters and readies every
+  // worker's root.
   Status PrepareWorkers(const TerminationCondition& stop, Rng& rng, Decision<Action>* d);
 
   // Plan's second stage: the episodes, on the calling thread or on one thread per worker.

@@ -5,19 +5,21 @@
 //   template <DiscreteActionModel M>
 //   class MyPlanner : public PlannerBase<MyPlanner<M>, M, MyOptions, int> {
 //     using Base = PlannerBase<MyPlanner<M>, M, MyOptions, int>;
-//     friend Base;
+//     NPFKCT_PLANNER_INTERFACE(Base);  // State, Action, Plan(Budget), model_, options_, ...
+//
 //    public:
-//     MyPlanner(const M& model, MyOptions options) : Base(model, std::move(options)) {}
-//     using Base::Plan;  // Plan(const Budget&, Rng&)
+//     using Base::Base;  // MyPlanner(const M& model, MyOptions options)
 //     Decision<int> Plan(const TerminationCondition& stop, Rng& rng) {
 //       Decision<int> d;
-//       if (Status s = this->CheckPlan(stop); !s.ok()) return Base::Fail(std::move(d), s);
+//       if (Status s = this->Begin(stop, &d); !s.ok()) return Base::Fail(std::move(d), s);
 //       ...  // search until stop.ShouldStop(simulations)
 //       return FinishSearch(std::move(d), stop);
 //     }
+//
 //    private:
-//     void ClearTree();                                  // drop the tree, give its memory back
-//     void KeepChild(int a, const Observation& o);       // keep the subtree under (a, o), or clear
+//     bool HasTree() const;                          // whether there is a tree to drop
+//     void ClearTree();                              // drop the tree, give its memory back
+//     void KeepChild(int a, const Observation& o);   // keep the subtree under (a, o), or clear
 //   };
 //   static_assert(Planner<MyPlanner<models::Tiger>>);
 #pragma once
@@ -31,6 +33,25 @@
 #include "npfkct/solver/belief.h"
 #include "npfkct/solver/model.h"
 #include "npfkct/solver/planner.h"
+
+/// Brings PlannerBase's names into a planner derived from it (a dependent base's names are not
+/// found by unqualified lookup), as Eigen's EIGEN_DENSE_PUBLIC_INTERFACE does for its CRTP
+/// bases: the types and Plan(Budget) as public members, and the model, options, belief and
+/// exploration constant for the search code. Leaves the access at private. A planner whose
+/// constructor is PlannerBase's (model, options) adds `using Base::Base;`.
+#define NPFKCT_PLANNER_INTERFACE(BaseType) \
+ public:                                   \
+  using typename BaseType::Action;         \
+  using typename BaseType::Observation;    \
+  using typename BaseType::State;          \
+  using BaseType::Plan;                    \
+                                           \
+ private:                                  \
+  friend BaseType;                         \
+  using BaseType::belief_;                 \
+  using BaseType::c_;                      \
+  using BaseType::model_;                  \
+  using BaseType::options_
 
 namespace npfkct {
 
@@ -58,8 +79,8 @@ concept Planner = requires(P p, const P cp, Rng& rng, const TerminationCondition
 
 /// The shared part of a planner over model `M` with options `Options` (which have a `search`
 /// member of SearchOptions and Validate()), recommending actions of type `ActionT`. `Derived`
-/// provides Plan(const TerminationCondition&, Rng&), ClearTree() and KeepChild(action,
-/// observation); see the example at the top of this header.
+/// provides Plan(const TerminationCondition&, Rng&), HasTree(), ClearTree() and
+/// KeepChild(action, observation); see the example at the top of this header.
 template <class Derived, GenerativeModel M, class Options, class ActionT = typename M::Action>
 class PlannerBase {
  public:
@@ -105,7 +126,30 @@ class PlannerBase {
   }
 
  protected:
-  PlannerBase(const M& model, Options options) : model_(model), options_(std::move(options)) {}
+  /// Options with an exploration_c give c_ (NaN: the model's reward range). Public to the
+  /// planners' inherited constructors (`using Base::Base;`).
+ public:
+  PlannerBase(const M& model, Options options) : model_(model), options_(std::move(options)) {
+    if constexpr (requires { options_.exploration_c; }) {
+      c_ = ExplorationConstant(options_.exploration_c);
+    }
+  }
+
+ protected:
+  /// The start of every Plan: CheckPlan, then the tree dropped when it is not reused.
+  Status Begin(const TerminationCondition& stop, Decision<Action>* d) {
+    if (Status s = CheckPlan(stop); !s.ok()) return s;
+    ClearUnlessReused(d);
+    return OkStatus();
+  }
+
+  /// Drops the tree before a search that does not reuse it, timed into d's teardown_ms.
+  void ClearUnlessReused(Decision<Action>* d) {
+    if (options_.search.reuse_tree || !self().HasTree()) return;
+    const auto t0 = Clock::now();
+    self().ClearTree();
+    d->stats.teardown_ms = MillisSince(t0);
+  }
 
   /// The checks before any search: the options, the budget, a belief to sample, and exact
   /// observation matching for a model without an observation likelihood.
@@ -145,6 +189,8 @@ class PlannerBase {
   const M& model_;
   Options options_;
   ParticleBelief<State> belief_;
+  /// The UCB exploration constant (options' exploration_c resolved; 1 when it has none).
+  double c_ = 1.0;
 
  private:
   Derived& self() { return static_cast<Derived&>(*this); }

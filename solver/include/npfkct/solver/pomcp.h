@@ -46,30 +46,15 @@ struct PomcpOptions {
 template <DiscreteActionModel M>
 class Pomcp : public PlannerBase<Pomcp<M>, M, PomcpOptions, int> {
   using Base = PlannerBase<Pomcp<M>, M, PomcpOptions, int>;
-  friend Base;
-  using Base::belief_;
-  using Base::model_;
-  using Base::options_;
+  NPFKCT_PLANNER_INTERFACE(Base);
 
  public:
-  using typename Base::Action;
-  using typename Base::Observation;
-  using typename Base::State;
+  using Base::Base;
 
-  Pomcp(const M& model, PomcpOptions options) : Base(model, std::move(options)) {
-    c_ = this->ExplorationConstant(options_.exploration_c);
-  }
-
-  using Base::Plan;
   /// Searches from the current belief within `budget` and recommends an action.
   Decision<Action> Plan(const TerminationCondition& stop, Rng& rng) {
     Decision<Action> d;
-    if (Status s = this->CheckPlan(stop); !s.ok()) return Base::Fail(std::move(d), std::move(s));
-    if (!options_.search.reuse_tree && root_ >= 0) {
-      const auto t0 = Clock::now();
-      ClearTree();
-      d.stats.teardown_ms = MillisSince(t0);
-    }
+    if (Status s = this->Begin(stop, &d); !s.ok()) return Base::Fail(std::move(d), std::move(s));
     if (root_ >= 0 && obs_[root_].num_actions > 0 &&
         !RootMatchesLegalActions(belief_.Sample(rng))) {
       const auto t0 = Clock::now();
@@ -107,6 +92,8 @@ class Pomcp : public PlannerBase<Pomcp<M>, M, PomcpOptions, int> {
     double q = 0.0;
     ObservationChildren<Observation> children;
   };
+
+  bool HasTree() const { return root_ >= 0; }
 
   void KeepChild(Action a, const Observation& o) {
     int next = -1;
@@ -262,7 +249,6 @@ class Pomcp : public PlannerBase<Pomcp<M>, M, PomcpOptions, int> {
     root_ = 0;
   }
 
-  double c_ = 1.0;
   NodeArray<ObsNode> obs_;
   NodeArray<ActNode> act_;
   int root_ = -1;

@@ -65,31 +65,15 @@ template <GenerativeModel M>
 requires HasObservationLikelihood<M> &&(DiscreteActionModel<M> || HybridActionModel<M>)class Pomcpow
     : public PlannerBase<Pomcpow<M>, M, PomcpowOptions> {
   using Base = PlannerBase<Pomcpow<M>, M, PomcpowOptions>;
-  friend Base;
-  using Base::belief_;
-  using Base::model_;
-  using Base::options_;
+  NPFKCT_PLANNER_INTERFACE(Base);
 
  public:
-  using typename Base::Action;
-  using typename Base::Observation;
-  using typename Base::State;
+  using Base::Base;
 
-  Pomcpow(const M& model, PomcpowOptions options) : Base(model, std::move(options)) {
-    c_ = this->ExplorationConstant(options_.exploration_c);
-  }
-
-  using Base::Plan;
   /// Searches from the current belief within `budget` and recommends an action.
   Decision<Action> Plan(const TerminationCondition& stop, Rng& rng) {
     Decision<Action> d;
-    d.stats.budget_exhausted = false;
-    if (Status s = this->CheckPlan(stop); !s.ok()) return Base::Fail(std::move(d), std::move(s));
-    if (!options_.search.reuse_tree && tree_.root >= 0) {
-      const auto t0 = Clock::now();
-      tree_.Clear();
-      d.stats.teardown_ms = MillisSince(t0);
-    }
+    if (Status s = this->Begin(stop, &d); !s.ok()) return Base::Fail(std::move(d), std::move(s));
     if (tree_.root < 0) tree_.root = tree_.NewObsNode();
     max_depth_ = 0;
     d.stats.reused_visits = tree_.obs[tree_.root].n;
@@ -101,7 +85,6 @@ requires HasObservationLikelihood<M> &&(DiscreteActionModel<M> || HybridActionMo
       ++sims;
     }
     d.stats.simulations = sims;
-    d.stats.budget_exhausted = true;
     if (tree_.obs[tree_.root].actions.empty()) AddActions(tree_.root, belief_.Sample(rng), rng);
     if (tree_.obs[tree_.root].actions.empty()) {
       return Base::Fail(std::move(d), FailedPreconditionError("no legal action at the root"));
@@ -123,6 +106,8 @@ requires HasObservationLikelihood<M> &&(DiscreteActionModel<M> || HybridActionMo
   using Tree = BeliefTree<M>;
 
   void ClearTree() { tree_.Clear(); }
+
+  bool HasTree() const { return tree_.root >= 0; }
 
   void KeepChild(const Action& a, const Observation& o) {
     int next = -1;
@@ -234,7 +219,6 @@ requires HasObservationLikelihood<M> &&(DiscreteActionModel<M> || HybridActionMo
     return total;
   }
 
-  double c_ = 1.0;
   Tree tree_;
   int max_depth_ = 0;
   std::vector<int> scratch_;

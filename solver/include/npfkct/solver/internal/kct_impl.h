@@ -22,8 +22,7 @@ namespace npfkct {
 template <HybridActionModel M>
 auto KCenterTree<M>::Plan(const TerminationCondition& stop, Rng& rng) -> Decision<Action> {
   Decision<Action> d;
-  d.stats.budget_exhausted = false;
-  if (Status s = this->CheckPlan(stop); !s.ok()) return Base::Fail(std::move(d), std::move(s));
+  if (Status s = this->Begin(stop, &d); !s.ok()) return Base::Fail(std::move(d), std::move(s));
   if (Status s = PrepareWorkers(stop, rng, &d); !s.ok()) {
     return Base::Fail(std::move(d), std::move(s));
   }
@@ -34,7 +33,6 @@ auto KCenterTree<M>::Plan(const TerminationCondition& stop, Rng& rng) -> Decisio
     d.stats.refinements += w.refinements;
     d.stats.max_depth = std::max(d.stats.max_depth, w.max_depth);
   }
-  d.stats.budget_exhausted = true;
 
   if (Status s = Decide(stop, rng, &d); !s.ok()) return Base::Fail(std::move(d), std::move(s));
   d = FinishSearch(std::move(d), stop);
@@ -79,11 +77,6 @@ void KCenterTree<M>::ClearTree() {
 template <HybridActionModel M>
 Status KCenterTree<M>::PrepareWorkers(const TerminationCondition& stop, Rng& rng,
                                       Decision<Action>* d) {
-  if (!options_.search.reuse_tree && workers_[0].tree.root >= 0) {
-    const auto t0 = Clock::now();
-    ClearTree();
-    d->stats.teardown_ms = MillisSince(t0);
-  }
   candidate_stats_ = {};
   spheres_.clear();
   // Net_sam + k-clustering for the kinds legal at the root, then Update(T, C_a, R_a).
