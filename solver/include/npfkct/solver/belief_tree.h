@@ -252,6 +252,18 @@ class BeliefTree {
   }
 };
 
+/// The root action of the highest Qhat among those tried, else the first (the root must have
+/// actions).
+template <class Tree>
+int BestTriedRootAction(const Tree& tree) {
+  int best = -1;
+  for (int ai : tree.obs[tree.root].actions) {
+    const auto& an = tree.act[ai];
+    if (an.n > 0 && (best < 0 || an.q > tree.act[best].q)) best = ai;
+  }
+  return best < 0 ? tree.obs[tree.root].actions.front() : best;
+}
+
 /// Fills the statistics every planner reports from a tree's root.
 template <class Tree, class Decision>
 void FillRootStats(const Tree& tree, int best, int max_depth, Decision* d) {

@@ -143,6 +143,19 @@ class PlannerBase {
     return OkStatus();
   }
 
+  /// Simulations from the root until `stop` says so: a state drawn from the belief each, passed to
+  /// `simulate` unless it is terminal. Returns how many were run.
+  template <class Simulate>
+  int64_t SimulateUntil(const TerminationCondition& stop, Rng& rng, Simulate&& simulate) {
+    int64_t sims = 0;
+    while (!stop.ShouldStop(sims)) {
+      const State& s = belief_.Sample(rng);
+      if (!IsTerminalState(model_, s)) simulate(s);
+      ++sims;
+    }
+    return sims;
+  }
+
   /// Drops the tree before a search that does not reuse it, timed into d's teardown_ms.
   void ClearUnlessReused(Decision<Action>* d) {
     if (options_.search.reuse_tree || !self().HasTree()) return;

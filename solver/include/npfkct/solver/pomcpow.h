@@ -78,24 +78,13 @@ requires HasObservationLikelihood<M> &&(DiscreteActionModel<M> || HybridActionMo
     max_depth_ = 0;
     d.stats.reused_visits = tree_.obs[tree_.root].n;
 
-    int64_t sims = 0;
-    while (!stop.ShouldStop(sims)) {
-      const State& s = belief_.Sample(rng);
-      if (!IsTerminalState(model_, s)) Simulate(s, tree_.root, 0, rng);
-      ++sims;
-    }
-    d.stats.simulations = sims;
+    d.stats.simulations =
+        this->SimulateUntil(stop, rng, [&](const State& s) { Simulate(s, tree_.root, 0, rng); });
     if (tree_.obs[tree_.root].actions.empty()) AddActions(tree_.root, belief_.Sample(rng), rng);
     if (tree_.obs[tree_.root].actions.empty()) {
       return Base::Fail(std::move(d), FailedPreconditionError("no legal action at the root"));
     }
-    int best = -1;
-    for (int ai : tree_.obs[tree_.root].actions) {
-      const auto& an = tree_.act[ai];
-      if (an.n > 0 && (best < 0 || an.q > tree_.act[best].q)) best = ai;
-    }
-    if (best < 0) best = tree_.obs[tree_.root].actions.front();
-    FillRootStats(tree_, best, max_depth_, &d);
+    FillRootStats(tree_, BestTriedRootAction(tree_), max_depth_, &d);
     return FinishSearch(std::move(d), stop);
   }
 
