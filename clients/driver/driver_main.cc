@@ -4,14 +4,12 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <fstream>
 #include <iostream>
-#include <map>
 #include <nlohmann/json.hpp>
 #include <optional>
-#include <sstream>
 #include <string>
 
+#include "npfkct/api/client_codec.h"
 #include "npfkct/client/client.h"
 #include "npfkct/sim/api_robot.h"
 #include "npfkct/sim/scenario.h"
@@ -77,13 +75,18 @@ int Drive(const Options& o, const npfkct::sim::Scenario& scenario, npfkct::sim::
     if (!planned.ok()) return Fail("planning", planned.status());
     const json& plan = *planned;
     const json& action = plan.at("action");
-    const npfkct::sim::ExecutionOutcome outcome = robot.Execute(action);
+    const auto typed = npfkct::api::ParseAction(action.dump());
+    if (!typed.ok()) return Fail("planning", typed.status());
+    const npfkct::sim::ExecutionOutcome outcome = robot.Execute(*typed);
     discounted += discount * outcome.reward;
     discount *= scenario.params.discount;
     ++steps;
-    json observation = o.raw ? robot.ObserveRaw(!outcome.illegal) : robot.Observe(!outcome.illegal);
-    observation["actionId"] = plan.at("actionId");
-    auto observed = api.Observe(id, observation);
+    npfkct::api::ObserveRequest request =
+        o.raw ? robot.ObserveRaw(!outcome.illegal) : robot.Observe(!outcome.illegal);
+    request.action_id = plan.at("actionId").get<std::string>();
+    const auto body = npfkct::api::EncodeObserve(request);
+    if (!body.ok()) return Fail("observing", body.status());
+    auto observed = api.Observe(id, json::parse(*body));
     if (!observed.ok()) return Fail("observing", observed.status());
     if (!o.quiet) {
       std::printf("step %2d: %-62s %-38s sims %8lld  value %9.1f\n", t + 1,
@@ -143,21 +146,21 @@ int main(int argc, char** argv) {
     std::cerr << "npfkct-drive: " << scenario.status().message() << "\n";
     return 2;
   }
-  std::ifstream in(o.scenario);
-  std::stringstream text;
-  text << in.rdbuf();
-  const json scenario_json = json::parse(text.str());
   npfkct::sim::ApiRobot robot(*scenario, o.seed);
   const int max_steps = o.max_steps > 0 ? o.max_steps : scenario->params.max_steps;
 
   npfkct::client::Client api(o.server, o.api_key, o.timeout_s);
-  json create = {{"displayName", "npfkct-drive " + scenario->name},
-                 {"world", npfkct::sim::WorldJsonOf(scenario_json)},
-                 {"planner", {{"name", o.planner}}},
-                 {"seed", o.seed}};
-  if (o.model) create["planner"]["model"] = *o.model;
-  if (o.raw) create["target"] = {{"photos", robot.TargetPhotosJson()}};
-  auto session = api.CreateSession(create);
+  npfkct::api::CreateSessionRequest create;
+  create.display_name = "npfkct-drive " + scenario->name;
+  create.world = scenario->Prior();
+  create.planner.name = o.planner;
+  if (o.model) {
+    create.planner.model = *o.model;
+    create.planner.model_given = true;
+  }
+  create.seed = o.seed;
+  if (o.raw) create.target.photos = robot.TargetPhotos();
+  auto session = api.CreateSession(json::parse(npfkct::api::EncodeCreateSession(create)));
   if (!session.ok()) return Fail("creating the session", session.status());
   // The server's replies are read with checked access: a reply that is not what the API
   // describes ends the run with an error naming it, not an abort.
