@@ -6,16 +6,33 @@
 // only observes. Each output line is {"outcome": {"reward", "terminal", "illegal", "detail"},
 // "observation": {...}} where "observation" is an :observe body without its actionId: geometric
 // detections, or with --raw the rendered RGB-D frame (point cloud + PNG) for the server's
-// perception. --target-photos prints the target's photos (a JSON array of base64 PNGs) and exits.
+// perception. A line that is no such action is an illegal action whose detail says why.
+// --target-photos prints the target's photos (a JSON array of base64 PNGs) and exits.
 #include <CLI/CLI.hpp>
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "npfkct/api/client_codec.h"
+#include "npfkct/api/wire.h"
 #include "npfkct/sim/api_robot.h"
 
+namespace {
+
+using nlohmann::json;
+
+// Whether `line` is {"type": "LOOK"}, the one action of these lines the API does not have.
+bool IsLook(const std::string& line) {
+  const json j = json::parse(line, nullptr, /*allow_exceptions=*/false);
+  if (!j.is_object() || j.size() != 1) return false;
+  const auto type = j.find("type");
+  return type != j.end() && type->is_string() && type->get<std::string>() == "LOOK";
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
-  using nlohmann::json;
+  namespace api = npfkct::api;
   std::string scenario_path;
   uint64_t seed = 1;
   CLI::App app{"npfkct-sim-robot: the simulated robot of a scenario, as JSON lines on stdio"};
@@ -32,21 +49,33 @@ int main(int argc, char** argv) {
   }
   npfkct::sim::ApiRobot robot(*scenario, seed);
   if (photos) {
-    std::cout << robot.TargetPhotosJson().dump() << std::endl;
+    json out = json::array();
+    for (const std::string& png : robot.TargetPhotos()) out.push_back(api::Base64Encode(png));
+    std::cout << out.dump() << std::endl;
     return 0;
   }
   std::string line;
   while (std::getline(std::cin, line)) {
     if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
-    const json action = json::parse(line, nullptr, false);
-    const npfkct::sim::ExecutionOutcome outcome = robot.Execute(action);
-    json out;
-    out["outcome"] = {{"reward", outcome.reward},
-                      {"terminal", outcome.terminal},
-                      {"illegal", outcome.illegal},
-                      {"detail", outcome.detail}};
-    out["observation"] = raw ? robot.ObserveRaw(!outcome.illegal) : robot.Observe(!outcome.illegal);
-    std::cout << out.dump() << std::endl;
+    const npfkct::StatusOr<api::ActionView> action = api::ParseAction(line);
+    const npfkct::sim::ExecutionOutcome outcome =
+        action.ok()    ? robot.Execute(*action)
+        : IsLook(line) ? robot.Look()
+                       : robot.Refuse("malformed action (" + action.status().message() + ")");
+    const api::ObserveRequest observation =
+        raw ? robot.ObserveRaw(!outcome.illegal) : robot.Observe(!outcome.illegal);
+    const npfkct::StatusOr<std::string> body = api::EncodeObserve(observation);
+    if (!body.ok()) {
+      std::cerr << "npfkct-sim-robot: " << body.status().ToString() << "\n";
+      return 1;
+    }
+    const json result = {{"reward", outcome.reward},
+                         {"terminal", outcome.terminal},
+                         {"illegal", outcome.illegal},
+                         {"detail", outcome.detail}};
+    // The members in the order a JSON object keeps them, as before: observation, outcome.
+    std::cout << R"({"observation":)" << *body << R"(,"outcome":)"
+              << result.dump(-1, ' ', false, json::error_handler_t::replace) << "}" << std::endl;
   }
   return 0;
 }

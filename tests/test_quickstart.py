@@ -91,3 +91,4 @@ def test_a_project_embeds_the_installed_package(home, tmp_path):
     assert "solver: tiger listens first" in out.stdout
     assert "client: server SERVING" in out.stdout
     assert "plans with model 'filter.pt'" in out.stdout
+    assert "client: planned " in out.stdout

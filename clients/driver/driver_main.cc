@@ -4,21 +4,18 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <fstream>
 #include <iostream>
-#include <map>
-#include <nlohmann/json.hpp>
 #include <optional>
-#include <sstream>
 #include <string>
 
+#include "npfkct/api/client_codec.h"
 #include "npfkct/client/client.h"
 #include "npfkct/sim/api_robot.h"
 #include "npfkct/sim/scenario.h"
 
 namespace {
 
-using nlohmann::json;
+namespace api = npfkct::api;
 
 struct Options {
   std::string server = "http://127.0.0.1:8080";
@@ -36,16 +33,14 @@ struct Options {
   double timeout_s = 120;
 };
 
-std::string Describe(const json& action) {
-  const std::string type = action.value("type", "?");
-  if (type != "MOVE") return type + " " + action.value("objectId", "?");
-  const auto it = action.find("configuration");
-  if (it == action.end() || !it->is_object()) return "MOVE ?";
-  const json& c = *it;
+std::string Describe(const api::ActionView& action) {
+  if (action.type != api::ActionView::Type::kMove) {
+    return std::string(api::ActionTypeName(action.type)) + " " + action.object_id;
+  }
+  const npfkct::object_search::RobotConfig& c = action.configuration;
   char buf[160];
-  std::snprintf(buf, sizeof buf, "MOVE x=%.2f y=%.2f yaw=%.2f lift=%.2f pan=%.2f tilt=%.2f",
-                c.value("x", 0.0), c.value("y", 0.0), c.value("yaw", 0.0), c.value("lift", 0.0),
-                c.value("pan", 0.0), c.value("tilt", 0.0));
+  std::snprintf(buf, sizeof buf, "MOVE x=%.2f y=%.2f yaw=%.2f lift=%.2f pan=%.2f tilt=%.2f", c.x,
+                c.y, c.yaw, c.lift, c.pan, c.tilt);
   return buf;
 }
 
@@ -56,12 +51,12 @@ int Fail(const std::string& what, const npfkct::Status& status) {
 
 // Plays the scenario in session `created` (the create call's reply); the exit status.
 int Drive(const Options& o, const npfkct::sim::Scenario& scenario, npfkct::sim::ApiRobot* robot_ptr,
-          npfkct::client::Client* api_ptr, const json& created, int max_steps) {
+          npfkct::client::Client* api_ptr, const api::SessionView& created, int max_steps) {
   npfkct::sim::ApiRobot& robot = *robot_ptr;
-  npfkct::client::Client& api = *api_ptr;
-  const std::string id = created.at("id").get<std::string>();
+  npfkct::client::Client& client = *api_ptr;
+  const std::string& id = created.id;
   if (!o.quiet) {
-    const std::string model = created.at("planner").value("model", "");
+    const std::string& model = created.planner.model;
     std::printf("session %s (%s%s) on %s\n", id.c_str(), o.planner.c_str(),
                 o.planner != "npfkct" ? ""
                 : model.empty()       ? ", uniform candidates"
@@ -69,30 +64,28 @@ int Drive(const Options& o, const npfkct::sim::Scenario& scenario, npfkct::sim::
                 scenario.name.c_str());
   }
 
+  api::PlanRequest budget;
+  if (o.budget_ms > 0) budget.time_ms = o.budget_ms;
+  if (o.simulations > 0) budget.simulations = o.simulations;
   double discounted = 0.0, discount = 1.0;
   bool success = false;
   int steps = 0;
   for (int t = 0; t < max_steps; ++t) {
-    auto planned = api.Plan(id, o.budget_ms, o.simulations);
-    if (!planned.ok()) return Fail("planning", planned.status());
-    const json& plan = *planned;
-    const json& action = plan.at("action");
-    const npfkct::sim::ExecutionOutcome outcome = robot.Execute(action);
+    auto plan = client.Plan(id, budget);
+    if (!plan.ok()) return Fail("planning", plan.status());
+    const npfkct::sim::ExecutionOutcome outcome = robot.Execute(plan->action);
     discounted += discount * outcome.reward;
     discount *= scenario.params.discount;
     ++steps;
-    json observation = o.raw ? robot.ObserveRaw(!outcome.illegal) : robot.Observe(!outcome.illegal);
-    observation["actionId"] = plan.at("actionId");
-    auto observed = api.Observe(id, observation);
+    api::ObserveRequest observation =
+        o.raw ? robot.ObserveRaw(!outcome.illegal) : robot.Observe(!outcome.illegal);
+    observation.action_id = plan->action_id;
+    auto observed = client.Observe(id, observation);
     if (!observed.ok()) return Fail("observing", observed.status());
     if (!o.quiet) {
       std::printf("step %2d: %-62s %-38s sims %8lld  value %9.1f\n", t + 1,
-                  Describe(action).c_str(), outcome.detail.c_str(),
-                  // An integer, else 0 (get<int64_t> of a float past its range is undefined).
-                  static_cast<long long>(plan.at("stats").at("simulations").is_number_integer()
-                                             ? plan.at("stats").at("simulations").get<int64_t>()
-                                             : 0),
-                  plan.at("expectedValue").get<double>());
+                  Describe(plan->action).c_str(), outcome.detail.c_str(),
+                  static_cast<long long>(plan->stats.simulations), plan->expected_value);
       std::fflush(stdout);
     }
     if (outcome.terminal) {
@@ -102,7 +95,7 @@ int Drive(const Options& o, const npfkct::sim::Scenario& scenario, npfkct::sim::
   }
   std::printf("outcome: %s after %d steps, discounted reward %.1f\n",
               success ? "target removed" : "target not removed", steps, discounted);
-  if (!o.keep) (void)api.DeleteSession(id);
+  if (!o.keep) (void)client.DeleteSession(id);
   return success ? 0 : 3;
 }
 
@@ -143,29 +136,22 @@ int main(int argc, char** argv) {
     std::cerr << "npfkct-drive: " << scenario.status().message() << "\n";
     return 2;
   }
-  std::ifstream in(o.scenario);
-  std::stringstream text;
-  text << in.rdbuf();
-  const json scenario_json = json::parse(text.str());
   npfkct::sim::ApiRobot robot(*scenario, o.seed);
   const int max_steps = o.max_steps > 0 ? o.max_steps : scenario->params.max_steps;
 
-  npfkct::client::Client api(o.server, o.api_key, o.timeout_s);
-  json create = {{"displayName", "npfkct-drive " + scenario->name},
-                 {"world", npfkct::sim::WorldJsonOf(scenario_json)},
-                 {"planner", {{"name", o.planner}}},
-                 {"seed", o.seed}};
-  if (o.model) create["planner"]["model"] = *o.model;
-  if (o.raw) create["target"] = {{"photos", robot.TargetPhotosJson()}};
-  auto session = api.CreateSession(create);
-  if (!session.ok()) return Fail("creating the session", session.status());
-  // The server's replies are read with checked access: a reply that is not what the API
-  // describes ends the run with an error naming it, not an abort.
-  try {
-    return Drive(o, *scenario, &robot, &api, *session, max_steps);
-  } catch (const json::exception& e) {
-    std::cerr << "npfkct-drive: the server's reply is not what the API describes: " << e.what()
-              << "\n";
-    return 1;
+  npfkct::client::Client client(o.server, o.api_key, o.timeout_s);
+  api::CreateSessionRequest create;
+  create.display_name = "npfkct-drive " + scenario->name;
+  create.world = scenario->Prior();
+  create.planner.name = o.planner;
+  if (o.model) {
+    create.planner.model = *o.model;
+    create.planner.model_given = true;
   }
+  create.seed = o.seed;
+  if (o.raw) create.target.photos = robot.TargetPhotos();
+  // A reply that is not what the API describes ends the run with an error naming its field.
+  auto session = client.CreateSession(create);
+  if (!session.ok()) return Fail("creating the session", session.status());
+  return Drive(o, *scenario, &robot, &client, *session, max_steps);
 }

@@ -1,10 +1,13 @@
 // Embeds the installed npfkct: plans the Tiger POMDP with POMCP (npfkct::solver), and, given a
-// server URL, asks that server for its health and creates a session through the C++ client
+// server URL, asks that server for its health, creates a session on the world of a scenario file
+// (read by the API layer, npfkct::api) and plans a step through the typed C++ client
 // (npfkct::client). Prints one line per check; exits non-zero on the first failure.
 #include <cstdio>
 #include <fstream>
+#include <sstream>
 #include <string>
 
+#include "npfkct/api/client_codec.h"
 #include "npfkct/client/client.h"
 #include "npfkct/solver/models/tiger.h"
 #include "npfkct/solver/pomcp.h"
@@ -28,23 +31,39 @@ int main(int argc, char** argv) {
   client::Client c(argv[1]);
   auto health = c.Health();
   if (!health.ok()) {
-    std::fprintf(stderr, "health: %s\n", health.status().message().c_str());
+    std::fprintf(stderr, "health: %s\n", health.status().ToString().c_str());
     return 1;
   }
-  std::printf("client: server %s\n", health->value("status", "").c_str());
+  std::printf("client: server %s\n", health->store_ok ? "SERVING" : "NOT_SERVING");
+  // The world part of a scenario file, read as the server reads a create request's world.
   std::ifstream scenario(std::string(NPFKCT_DATA_DIR) + "/scenarios/loose1.json");
-  const auto s = client::json::parse(scenario);
-  client::json world;
-  for (const char* k : {"robot", "room", "mapResolution", "furniture", "baseRegions",
-                        "discretePoses", "start", "params"}) {
-    if (s.contains(k)) world[k] = s[k];
-  }
-  auto session = c.CreateSession({{"world", world}, {"planner", {{"name", "npfkct"}}}});
-  if (!session.ok()) {
-    std::fprintf(stderr, "create: %s\n", session.status().message().c_str());
+  std::stringstream text;
+  text << scenario.rdbuf();
+  auto world = api::ParseWorldSpec(text.str());
+  if (!world.ok()) {
+    std::fprintf(stderr, "world: %s\n", world.status().ToString().c_str());
     return 1;
   }
-  std::printf("client: session %s plans with model '%s'\n", session->value("id", "").c_str(),
-              (*session)["planner"].value("model", "").c_str());
+  api::CreateSessionRequest create;
+  create.world = *world;
+  create.planner.name = "npfkct";
+  auto session = c.CreateSession(create);
+  if (!session.ok()) {
+    std::fprintf(stderr, "create: %s\n", session.status().ToString().c_str());
+    return 1;
+  }
+  std::printf("client: session %s plans with model '%s'\n", session->id.c_str(),
+              session->planner.model.c_str());
+  auto plan = c.Plan(session->id, {.simulations = 200});
+  if (!plan.ok()) {
+    std::fprintf(stderr, "plan: %s\n", plan.status().ToString().c_str());
+    return 1;
+  }
+  std::printf("client: planned %s after %lld simulations\n", api::ActionTypeName(plan->action.type),
+              static_cast<long long>(plan->stats.simulations));
+  if (Status deleted = c.DeleteSession(session->id); !deleted.ok()) {
+    std::fprintf(stderr, "delete: %s\n", deleted.ToString().c_str());
+    return 1;
+  }
   return 0;
 }

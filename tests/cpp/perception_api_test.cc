@@ -11,6 +11,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <set>
 
+#include "npfkct/api/client_codec.h"
 #include "npfkct/api/wire.h"
 #include "npfkct/perception/perception.h"
 #include "npfkct/sim/api_robot.h"
@@ -34,16 +35,21 @@ class PerceptionApiTest : public ServerTest {
  protected:
   // A session on Loose1 whose target photos come from the simulated scene.
   std::string CreateWithPhotos(const sim::ApiRobot& robot) {
-    return Create(
-        {{"target", {{"description", "the patterned box"}, {"photos", robot.TargetPhotosJson()}}}});
+    json photos = json::array();
+    for (const std::string& png : robot.TargetPhotos()) photos.push_back(api::Base64Encode(png));
+    return Create({{"target", {{"description", "the patterned box"}, {"photos", photos}}}});
+  }
+  // The robot's raw observation as the body it sends.
+  static json Body(const api::ObserveRequest& observation) {
+    return json::parse(api::EncodeObserve(observation).value());
   }
   // Plans, executes in the simulator and returns the raw observation with its actionId.
   json PlanAndExecute(const std::string& base, sim::ApiRobot* robot, bool* terminal = nullptr) {
     Reply plan = Post(base + ":plan", {{"budget", {{"simulations", 300}}}});
     EXPECT_EQ(plan.status, 200) << plan.raw;
-    const auto outcome = robot->Execute(plan.body["action"]);
+    const auto outcome = robot->Execute(api::ParseAction(plan.body["action"].dump()).value());
     if (terminal != nullptr) *terminal = outcome.terminal;
-    json observation = robot->ObserveRaw(!outcome.illegal);
+    json observation = Body(robot->ObserveRaw(!outcome.illegal));
     observation["actionId"] = plan.body["actionId"];
     return observation;
   }
@@ -220,7 +226,7 @@ TEST_F(PerceptionApiTest, TracksSurviveARestart) {
   Reply plan = Post(base + ":plan", {{"budget", {{"simulations", 100}}}});
   ASSERT_EQ(plan.status, 200);
   // Whatever the plan was, the robot did not do it (succeeded: false) and looked again.
-  json look = robot.ObserveRaw(false);
+  json look = Body(robot.ObserveRaw(false));
   look["actionId"] = plan.body["actionId"];
   Reply r = Post(base + ":observe", look);
   ASSERT_EQ(r.status, 200) << r.raw.substr(0, 300);

@@ -5,49 +5,9 @@
 #include <algorithm>
 #include <cmath>
 
+#include "npfkct/api/wire.h"
+
 namespace npfkct::client {
-namespace {
-
-constexpr int kMaxDepth = 64;
-
-StatusCode CodeOf(const std::string& name) {
-  for (int c = 0; c <= 16; ++c) {
-    if (StatusCodeName(static_cast<StatusCode>(c)) == name) return static_cast<StatusCode>(c);
-  }
-  return StatusCode::kUnknown;
-}
-
-// The string member `key` of `o`, or `fallback` where `o` is no object or the member no string.
-std::string StringOf(const json& o, const char* key, const std::string& fallback) {
-  if (!o.is_object()) return fallback;
-  const auto it = o.find(key);
-  return it != o.end() && it->is_string() ? it->get<std::string>() : fallback;
-}
-
-// Whether JSON text nests arrays and objects deeper than `limit` (strings skipped).
-bool NestsDeeper(const std::string& text, int limit) {
-  int depth = 0;
-  bool in_string = false;
-  for (size_t i = 0; i < text.size(); ++i) {
-    const char ch = text[i];
-    if (in_string) {
-      if (ch == '\\') {
-        ++i;
-      } else if (ch == '"') {
-        in_string = false;
-      }
-    } else if (ch == '"') {
-      in_string = true;
-    } else if (ch == '[' || ch == '{') {
-      if (++depth > limit) return true;
-    } else if (ch == ']' || ch == '}') {
-      --depth;
-    }
-  }
-  return false;
-}
-
-}  // namespace
 
 // libcurl, not httplib, on the client side: httplib 0.11 keeps any number of header lines of
 // any length, matches the status line with a recursive std::regex (60,000 characters overflowed
@@ -77,14 +37,15 @@ void InitCurl() {
   (void)once;
 }
 
-struct Reply {
+// The body as it arrives, up to `cap` bytes.
+struct Received {
   std::string body;
   size_t cap = 0;
   bool too_large = false;
 };
 
 size_t Append(char* data, size_t size, size_t count, void* user) {
-  auto* reply = static_cast<Reply*>(user);
+  auto* reply = static_cast<Received*>(user);
   const size_t n = size * count;
   if (n > reply->cap - reply->body.size()) {
     reply->too_large = true;
@@ -102,20 +63,22 @@ Client::Client(const std::string& url, const std::string& api_key, double timeou
 
 Client::~Client() = default;
 
-StatusOr<json> Client::Call(const std::string& method, const std::string& path, const json* body) {
+StatusOr<Client::Reply> Client::Call(const std::string& method, const std::string& path,
+                                     const std::string* body, long also_ok, const char* accept) {
   InitCurl();
   // What the handle points to is declared first, so that it outlives the handle.
   const std::string url = impl_->base + path;
-  const std::string payload = method == "POST" ? (body ? body->dump() : "{}") : "";
+  const std::string payload = method == "POST" ? (body ? *body : "{}") : "";
+  const std::string accept_header = std::string("Accept: ") + accept;
   curl_slist* headers = nullptr;
-  headers = curl_slist_append(headers, "Accept: application/json");
+  headers = curl_slist_append(headers, accept_header.c_str());
   if (method == "POST") headers = curl_slist_append(headers, "Content-Type: application/json");
   if (!impl_->authorization.empty()) {
     headers = curl_slist_append(headers, impl_->authorization.c_str());
   }
   std::unique_ptr<curl_slist, decltype(&curl_slist_free_all)> header_list(headers,
                                                                           curl_slist_free_all);
-  Reply reply;
+  Received reply;
   reply.cap = impl_->max_reply_bytes;
   char error[CURL_ERROR_SIZE] = {0};
   std::unique_ptr<CURL, decltype(&curl_easy_cleanup)> curl(curl_easy_init(), curl_easy_cleanup);
@@ -128,6 +91,8 @@ StatusOr<json> Client::Call(const std::string& method, const std::string& path, 
   curl_easy_setopt(c, CURLOPT_CONNECTTIMEOUT_MS, impl_->timeout_ms);
   curl_easy_setopt(c, CURLOPT_TCP_NODELAY, 1L);
   curl_easy_setopt(c, CURLOPT_PROTOCOLS_STR, "http,https");
+  // Never followed (libcurl's default, said here): a redirect is an error of the client's own.
+  curl_easy_setopt(c, CURLOPT_FOLLOWLOCATION, 0L);
   curl_easy_setopt(c, CURLOPT_WRITEFUNCTION, Append);
   curl_easy_setopt(c, CURLOPT_WRITEDATA, &reply);
   curl_easy_setopt(c, CURLOPT_ERRORBUFFER, error);
@@ -157,64 +122,65 @@ StatusOr<json> Client::Call(const std::string& method, const std::string& path, 
   }
   long status = 0;
   curl_easy_getinfo(c, CURLINFO_RESPONSE_CODE, &status);
-  const std::string& body_text = reply.body;
-  if (NestsDeeper(body_text, kMaxDepth)) {
-    return Status(StatusCode::kDataLoss,
-                  "the reply nests deeper than " + std::to_string(kMaxDepth) + " levels");
+  if (status >= 300 && status < 400) {
+    return Status(StatusCode::kUnknown, "HTTP " + std::to_string(status) + " for " + what +
+                                            ": a redirect, which the client does not follow");
   }
-  json parsed = json::parse(body_text, nullptr, false);
-  if (status >= 400) {
-    if (parsed.is_object() && parsed.contains("error") && parsed["error"].is_object()) {
-      const json& e = parsed["error"];
-      Status s(CodeOf(StringOf(e, "status", "UNKNOWN")),
-               StringOf(e, "message", body_text.substr(0, 4096)));
-      const auto details = e.find("details");
-      if (details != e.end() && details->is_array()) {
-        for (const json& d : *details) {
-          if (!d.is_object() || !d.contains("fieldViolations")) continue;
-          const json& violations = d["fieldViolations"];
-          if (!violations.is_array()) continue;
-          for (const json& v : violations) {
-            if (v.is_object())
-              s.WithFieldViolation(StringOf(v, "field", ""), StringOf(v, "description", ""));
-          }
-        }
-      }
-      return s;
-    }
-    return Status(StatusCode::kUnknown,
-                  "HTTP " + std::to_string(status) + ": " + body_text.substr(0, 4096));
+  if ((status < 200 || status >= 300) && status != also_ok) {
+    return api::ParseErrorReply(static_cast<int>(status), reply.body);
   }
-  if (parsed.is_discarded()) return Status(StatusCode::kDataLoss, "the reply is not JSON");
-  if (!parsed.is_object()) return Status(StatusCode::kDataLoss, "the reply is not a JSON object");
-  return parsed;
+  return Reply{status, std::move(reply.body)};
 }
 
-StatusOr<json> Client::Health() { return Call("GET", "/healthz", nullptr); }
-StatusOr<json> Client::CreateSession(const json& request) {
-  return Call("POST", "/v1/sessions", &request);
+StatusOr<api::HealthView> Client::Health() {
+  // 503 with the health of a server whose store is unavailable.
+  auto reply = Call("GET", "/healthz", nullptr, /*also_ok=*/503);
+  if (!reply.ok()) return reply.status();
+  return api::ParseHealthReply(reply->body);
 }
-StatusOr<json> Client::GetSession(const std::string& id) {
-  return Call("GET", "/v1/sessions/" + id, nullptr);
+
+StatusOr<api::SessionView> Client::CreateSession(const api::CreateSessionRequest& request) {
+  const std::string body = api::EncodeCreateSession(request);
+  auto reply = Call("POST", "/v1/sessions", &body);
+  if (!reply.ok()) return reply.status();
+  return api::ParseSessionReply(reply->body);
 }
-StatusOr<json> Client::ListSessions() { return Call("GET", "/v1/sessions", nullptr); }
+
+StatusOr<api::SessionView> Client::GetSession(const std::string& id) {
+  auto reply = Call("GET", "/v1/sessions/" + id, nullptr);
+  if (!reply.ok()) return reply.status();
+  return api::ParseSessionReply(reply->body);
+}
+
 Status Client::DeleteSession(const std::string& id) {
   return Call("DELETE", "/v1/sessions/" + id, nullptr).status();
 }
-StatusOr<json> Client::Plan(const std::string& id, double time_ms, int64_t simulations,
-                            double cpu_ms) {
-  json budget = json::object();
-  if (time_ms > 0) budget["timeMs"] = time_ms;
-  if (cpu_ms > 0) budget["cpuMs"] = cpu_ms;
-  if (simulations > 0) budget["simulations"] = simulations;
-  const json body = {{"budget", budget}};
-  return Call("POST", "/v1/sessions/" + id + ":plan", &body);
+
+StatusOr<api::PlanReply> Client::Plan(const std::string& id, const api::PlanRequest& request) {
+  const std::string body = api::EncodePlan(request);
+  auto reply = Call("POST", "/v1/sessions/" + id + ":plan", &body);
+  if (!reply.ok()) return reply.status();
+  return api::ParsePlanReply(reply->body);
 }
-StatusOr<json> Client::Observe(const std::string& id, const json& body) {
-  return Call("POST", "/v1/sessions/" + id + ":observe", &body);
+
+StatusOr<api::ObserveReply> Client::Observe(const std::string& id,
+                                            const api::ObserveRequest& request) {
+  const StatusOr<std::string> body = api::EncodeObserve(request);
+  if (!body.ok()) return body.status();
+  auto reply = Call("POST", "/v1/sessions/" + id + ":observe", &*body);
+  if (!reply.ok()) return reply.status();
+  return api::ParseObserveReply(reply->body);
 }
-StatusOr<json> Client::Belief(const std::string& id) {
-  return Call("GET", "/v1/sessions/" + id + "/belief", nullptr);
+
+StatusOr<std::string> Client::BeliefPng(const std::string& id) {
+  auto reply = Call("GET", "/v1/sessions/" + id + "/belief?format=png", nullptr, 0, "image/png");
+  if (!reply.ok()) return reply.status();
+  // The picture as the server sends it; only its header is read.
+  auto info = api::ProbeImage(reply->body, "body");
+  if (!info.ok() || info->format != api::ImageInfo::Format::kPng) {
+    return FieldError(StatusCode::kDataLoss, "body", "the belief picture is not a PNG");
+  }
+  return std::move(reply->body);
 }
 
 }  // namespace npfkct::client

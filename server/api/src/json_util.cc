@@ -83,6 +83,15 @@ StatusOr<json> ParseBody(std::string_view text, int max_depth, int64_t max_value
   return out;
 }
 
+void IntegralNumbersAsIntegers(json& v) {
+  if (v.is_number_float()) {
+    const double d = v.get<double>();
+    if (std::trunc(d) == d && std::abs(d) <= 9007199254740992.0) v = static_cast<int64_t>(d);
+  } else if (v.is_array() || v.is_object()) {
+    for (json& child : v) IntegralNumbersAsIntegers(child);
+  }
+}
+
 json Vec(const object_search::Vec2& v) { return json::array({v.x(), v.y()}); }
 json Vec(const object_search::Vec3& v) { return json::array({v.x(), v.y(), v.z()}); }
 

@@ -23,6 +23,11 @@ using nlohmann::json;
 StatusOr<json> ParseBody(std::string_view text, int max_depth, int64_t max_values,
                          bool allow_empty);
 
+/// Numbers with no fractional part written with one (300.0, 3e2) as integers, everywhere in `v`:
+/// JSON Schema counts them as integers, valijson does not (it asks the parser, which kept them as
+/// floats).
+void IntegralNumbersAsIntegers(json& v);
+
 /// Checks one planner option override as a request gives it (a lowerCamelCase key, a finite
 /// value within the bound of the options that size memory or work); the error names
 /// "planner.options.<key>". Requests and restored records both pass through it.

@@ -50,22 +50,6 @@ json OptionValuesJson(const std::vector<std::pair<std::string, double>>& values)
   return out;
 }
 
-json OptionsJson(const PlannerSpec& p) {
-  json options = json::object();
-  for (size_t i = 0; i < p.options.size(); ++i) {
-    const std::string key = CamelCase(p.options[i].first);
-    const double value = p.options[i].second;
-    if (i < p.option_is_bool.size() && p.option_is_bool[i]) {
-      options[key] = value != 0.0;
-    } else if (value == std::floor(value) && std::abs(value) < 9e15) {
-      options[key] = static_cast<int64_t>(value);
-    } else {
-      options[key] = value;
-    }
-  }
-  return options;
-}
-
 json SessionJson(const SessionView& s) {
   json j;
   j["name"] = "sessions/" + s.id;
@@ -77,7 +61,7 @@ json SessionJson(const SessionView& s) {
   j["ttlSeconds"] = s.ttl_seconds;
   j["planner"] = {{"name", s.planner.name},
                   {"particles", s.planner.particles},
-                  {"options", OptionsJson(s.planner)}};
+                  {"options", internal::PlannerOptionsJson(s.planner)}};
   // The model that plans: a planner that takes one always says (""), so that uniform candidates
   // are never silent.
   if (!s.planner.model.empty() || s.planner.takes_model) j["planner"]["model"] = s.planner.model;
@@ -219,14 +203,7 @@ std::string RenderObserve(const ObserveReply& r) {
   if (r.perception) {
     const perception::PerceptionResult& p = *r.perception;
     json objects = json::array();
-    for (const auto& d : p.observation.objects) {
-      json faces = json::array();
-      for (const auto& f : d.faces) faces.push_back({{"corner", f.corner}, {"score", f.score}});
-      objects.push_back({{"id", d.key},
-                         {"box", internal::BoxJson(d.box)},
-                         {"moveability", d.moveability},
-                         {"faces", faces}});
-    }
+    for (const auto& d : p.observation.objects) objects.push_back(internal::DetectionJson(d));
     const bool registered = std::isfinite(p.fitness);
     out["perception"] = {
         {"robotState", internal::ConfigJson(p.observation.achieved)},

@@ -24,23 +24,12 @@ using internal::json;
     if (!_s.ok()) return _s;             \
   } while (0)
 
-// Numbers with no fractional part written with one (300.0, 3e2) as integers: JSON Schema counts
-// them as integers, valijson does not (it asks the parser, which kept them as floats).
-void IntegralNumbersAsIntegers(json& v) {
-  if (v.is_number_float()) {
-    const double d = v.get<double>();
-    if (std::trunc(d) == d && std::abs(d) <= 9007199254740992.0) v = static_cast<int64_t>(d);
-  } else if (v.is_array() || v.is_object()) {
-    for (json& child : v) IntegralNumbersAsIntegers(child);
-  }
-}
-
 StatusOr<json> ParseAndValidate(std::string_view body, std::string_view message,
                                 const Limits& limits, bool allow_empty,
                                 const std::vector<std::string>* planner_names = nullptr) {
   auto j = internal::ParseBody(body, limits.max_json_depth, limits.max_json_values, allow_empty);
   if (!j.ok()) return j.status();
-  IntegralNumbersAsIntegers(*j);
+  internal::IntegralNumbersAsIntegers(*j);
   NPFKCT_API_RETURN_IF_ERROR(
       internal::ValidateAgainstSchema(message, *j, /*max_violations=*/8, planner_names));
   return j;

@@ -62,6 +62,10 @@ std::string CountAfter(const std::string& s, std::string_view prefix) {
   return s.substr(i, j - i);
 }
 
+// (message, definition of common.schema.json) validated as if it had a schema file.
+constexpr std::pair<const char*, const char*> kDefinitionSchemas[] = {{"action", "Action"},
+                                                                      {"world", "World"}};
+
 struct Documents {
   std::map<std::string, json, std::less<>> files;
   std::map<std::string, std::unique_ptr<valijson::Schema>, std::less<>> schemas;
@@ -88,6 +92,19 @@ const Documents& Docs(const std::vector<std::string>* planner_names = nullptr) {
   auto d = std::make_unique<Documents>();
   for (const auto& [name, text] : EmbeddedSchemaFiles()) {
     d->files[std::string(name)] = json::parse(text);
+  }
+  // Definitions of common.schema.json that decoders check on their own, as documents of their
+  // own: an action as the plan reply has it (npfkct-sim-robot's input lines) and a world spec
+  // (the world part of a scenario file).
+  for (const auto& [message, definition] : kDefinitionSchemas) {
+    const std::string name = std::string(message) + ".schema.json";
+    if (d->files.count(name) > 0) continue;
+    json ref = json::object();
+    ref["$ref"] = std::string("common.schema.json#/$defs/") + definition;
+    json doc = json::object();
+    doc["$id"] = name;
+    doc["allOf"] = json::array({ref});
+    d->files[name] = std::move(doc);
   }
   if (planner_names != nullptr) {
     json& names = d->files.at("common.schema.json")["$defs"]["PlannerSpec"]["properties"]["name"];

@@ -16,7 +16,8 @@ const std::vector<std::pair<std::string_view, std::string_view>>& EmbeddedSchema
 /// The parsed schema file `name` ("common.schema.json"), or null.
 const json* SchemaDocument(std::string_view name);
 
-/// Validates `doc` against schemas/`message`.schema.json. On failure: INVALID_ARGUMENT whose field
+/// Validates `doc` against schemas/`message`.schema.json (or, for "action" and "world", the
+/// Action and World definitions of common.schema.json). On failure: INVALID_ARGUMENT whose field
 /// violations name the offending fields by their paths in the request ("world.furniture[0].size",
 /// "planner.unknownKey"), at most `max_violations` of them, the most specific first. With
 /// `planner_names`, planner.name must be one of them (the schema file lists the built-in ones).

@@ -1,15 +1,15 @@
 #include "step_codec.h"
 
+#include <cmath>
 #include <ctime>
 
+#include "npfkct/api/api.h"
+#include "npfkct/api/client_codec.h"
 #include "npfkct/api/limits.h"
 
 namespace npfkct::api::internal {
-namespace {
 
 constexpr const char* kActionTypes[] = {"MOVE", "DECLARE_TARGET", "DECLARE_OBSTACLE", "REMOVE"};
-
-}  // namespace
 
 std::string Rfc3339(int64_t ms) {
   const std::time_t secs = static_cast<std::time_t>(ms / 1000);
@@ -52,6 +52,28 @@ bool ReadAction(const json& j, ActionView* a) {
     return true;
   }
   return false;
+}
+
+json PlannerOptionsJson(const PlannerSpec& p) {
+  json options = json::object();
+  for (size_t i = 0; i < p.options.size(); ++i) {
+    const std::string key = CamelCase(p.options[i].first);
+    const double value = p.options[i].second;
+    if (i < p.option_is_bool.size() && p.option_is_bool[i]) {
+      options[key] = value != 0.0;
+    } else if (value == std::floor(value) && std::abs(value) < 9e15) {
+      options[key] = static_cast<int64_t>(value);
+    } else {
+      options[key] = value;
+    }
+  }
+  return options;
+}
+
+json DetectionJson(const object_search::ObjectDetection& d) {
+  json faces = json::array();
+  for (const auto& f : d.faces) faces.push_back({{"corner", f.corner}, {"score", f.score}});
+  return {{"id", d.key}, {"box", BoxJson(d.box)}, {"moveability", d.moveability}, {"faces", faces}};
 }
 
 json StatsJson(const SearchStats& s, const CandidateStats& candidates) {
@@ -145,3 +167,11 @@ bool ReadStep(const json& j, StepRecord* s) {
 }
 
 }  // namespace npfkct::api::internal
+
+namespace npfkct::api {
+
+const char* ActionTypeName(ActionView::Type type) {
+  return internal::kActionTypes[static_cast<int>(type)];
+}
+
+}  // namespace npfkct::api

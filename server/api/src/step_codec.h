@@ -1,5 +1,5 @@
-// Actions, search statistics and history steps as JSON (private to the API layer): one form for
-// the :plan reply, the steps resource and the session record.
+// Actions, planner options, search statistics and history steps as JSON (private to the API
+// layer): one form for the requests and replies, the steps resource and the session record.
 #pragma once
 
 #include "json_util.h"
@@ -14,6 +14,14 @@ std::string Rfc3339(int64_t unix_ms);
 json ActionJson(const ActionView& a);
 /// Reads ActionJson's output; false when the shape is wrong.
 bool ReadAction(const json& j, ActionView* a);
+
+/// planner.options as the API spells them: lowerCamelCase keys, booleans as booleans (the
+/// options' option_is_bool), whole numbers as integers.
+json PlannerOptionsJson(const PlannerSpec& p);
+
+/// A detection as the :observe request and the perception of its reply have it: {"id", "box",
+/// "moveability", "faces": [{"corner", "score"}]}.
+json DetectionJson(const object_search::ObjectDetection& d);
 
 /// The :plan reply's "stats" (with "candidates" when candidates were drawn).
 json StatsJson(const SearchStats& s, const CandidateStats& candidates);

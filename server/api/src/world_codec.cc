@@ -33,6 +33,24 @@ int64_t SaturatingProduct(int64_t a, int64_t b) {
 
 Status Lost(const std::string& what) { return Status(StatusCode::kDataLoss, "snapshot: " + what); }
 
+// The real-valued params a world spec may set ("params" of common.schema.json#/$defs/World;
+// nOdds and maxSteps are its integers).
+constexpr std::pair<const char*, double object_search::SearchParams::*> kWorldParams[] = {
+    {"rMax", &object_search::SearchParams::r_max},
+    {"rCt", &object_search::SearchParams::r_ct},
+    {"rCo", &object_search::SearchParams::r_co},
+    {"rMin", &object_search::SearchParams::r_min},
+    {"rIll", &object_search::SearchParams::r_ill},
+    {"discount", &object_search::SearchParams::discount},
+    {"cO", &object_search::SearchParams::c_o},
+    {"etaStd", &object_search::SearchParams::eta_std},
+    {"nuP", &object_search::SearchParams::nu_p},
+    {"nuN", &object_search::SearchParams::nu_n},
+    {"declareThreshold", &object_search::SearchParams::declare_threshold},
+    {"guessOdds", &object_search::SearchParams::guess_odds},
+    {"guessSize", &object_search::SearchParams::guess_size},
+    {"gridFreeDelta", &object_search::SearchParams::grid_free_delta}};
+
 }  // namespace
 
 int64_t GridCells(const std::vector<object_search::Workspace>& workspaces, double resolution) {
@@ -138,27 +156,50 @@ StatusOr<WorldSpec> ReadWorldSpec(const json& j, const std::string& path, const 
   if (j.contains("params")) {
     const json& p = j.at("params");
     auto& q = spec.params;
-    const std::pair<const char*, double*> reals[] = {{"rMax", &q.r_max},
-                                                     {"rCt", &q.r_ct},
-                                                     {"rCo", &q.r_co},
-                                                     {"rMin", &q.r_min},
-                                                     {"rIll", &q.r_ill},
-                                                     {"discount", &q.discount},
-                                                     {"cO", &q.c_o},
-                                                     {"etaStd", &q.eta_std},
-                                                     {"nuP", &q.nu_p},
-                                                     {"nuN", &q.nu_n},
-                                                     {"declareThreshold", &q.declare_threshold},
-                                                     {"guessOdds", &q.guess_odds},
-                                                     {"guessSize", &q.guess_size},
-                                                     {"gridFreeDelta", &q.grid_free_delta}};
-    for (auto [key, field] : reals) *field = Number(p, key, *field);
+    for (auto [key, field] : kWorldParams) q.*field = Number(p, key, q.*field);
     q.n_odds = static_cast<int>(Integer(p, "nOdds", q.n_odds));
     q.max_steps = static_cast<int>(Integer(p, "maxSteps", q.max_steps));
     if (Status s = q.Validate(); !s.ok())
       return InvalidFieldError(Join(path, "params"), s.message());
   }
   return spec;
+}
+
+json WorldSpecJson(const WorldSpec& spec) {
+  json j;
+  j["robot"] = spec.robot;
+  j["room"] = {{"min", Vec(spec.room_min)}, {"max", Vec(spec.room_max)}};
+  j["mapResolution"] = spec.map_resolution;
+  j["furniture"] = json::array();
+  for (const WorldSpec::Furniture& f : spec.furniture) {
+    // Furniture stands on the floor: ReadWorldSpec puts its center at half its height.
+    j["furniture"].push_back({{"name", f.name},
+                              {"center", Vec(Vec2(f.box.center.x(), f.box.center.y()))},
+                              {"size", Vec(f.box.size)},
+                              {"yaw", f.box.yaw},
+                              {"workspace", f.workspace}});
+  }
+  j["baseRegions"] = json::array();
+  for (const object_search::BaseRegion& r : spec.base_regions) {
+    j["baseRegions"].push_back({{"min", Vec(r.min)}, {"max", Vec(r.max)}});
+  }
+  if (!spec.discrete_poses.empty()) {
+    j["discretePoses"] = json::array();
+    for (const object_search::RobotConfig& c : spec.discrete_poses) {
+      j["discretePoses"].push_back({{"x", c.x}, {"y", c.y}, {"yaw", c.yaw}});
+    }
+  }
+  j["start"] = ConfigJson(spec.start);
+  // The params that differ from the defaults, which the server takes for the others.
+  const object_search::SearchParams defaults;
+  json params = json::object();
+  for (auto [key, field] : kWorldParams) {
+    if (spec.params.*field != defaults.*field) params[key] = spec.params.*field;
+  }
+  if (spec.params.n_odds != defaults.n_odds) params["nOdds"] = spec.params.n_odds;
+  if (spec.params.max_steps != defaults.max_steps) params["maxSteps"] = spec.params.max_steps;
+  if (!params.empty()) j["params"] = params;
+  return j;
 }
 
 json WorldJson(const World& w) {

@@ -12,6 +12,11 @@ namespace npfkct::api::internal {
 /// fields are named under `path`.
 StatusOr<WorldSpec> ReadWorldSpec(const json& j, const std::string& path, const Limits& limits);
 
+/// A WorldSpec as ReadWorldSpec reads it (the create request's "world"): every field, the
+/// discrete poses' x, y and yaw, and the params that differ from SearchParams' defaults (those
+/// the schema has: base clearance, the grid bounds and the like are the server's own).
+json WorldSpecJson(const WorldSpec& spec);
+
 /// The complete World, for snapshots (lossless for everything the planner reads).
 json WorldJson(const World& w);
 /// A World from WorldJson's output; every size is checked against `limits` before allocation.

@@ -1,14 +1,14 @@
-// The simulated robot speaking the server API's JSON: it executes API actions and reports its
-// observations as :observe bodies. Shared by npfkct-drive and npfkct-sim-robot (library
-// npfkct_sim_robot: a client of the API, so it takes the API layer's wire formats; the
-// simulator library itself has none).
+// The simulated robot as a client of the server API: it executes the API's actions and reports
+// its observations as typed :observe requests (the API layer's encoders put them on the wire).
+// Shared by npfkct-drive and npfkct-sim-robot.
 #pragma once
 
 #include <cstdint>
 #include <map>
-#include <nlohmann/json.hpp>
 #include <string>
+#include <vector>
 
+#include "npfkct/api/types.h"
 #include "npfkct/sim/simulator.h"
 
 namespace npfkct::sim {
@@ -18,20 +18,23 @@ class ApiRobot {
  public:
   ApiRobot(Scenario scenario, uint64_t seed);
 
-  /// Executes an action in the API's form ({"type": "MOVE", "configuration": {...}} or
-  /// {"type": "DECLARE_TARGET" | "DECLARE_OBSTACLE" | "REMOVE", "objectId": "..."}; "LOOK" only
-  /// observes). A malformed action is reported as illegal.
-  ExecutionOutcome Execute(const nlohmann::json& action);
-  /// The observation after the last action, as an :observe body without the actionId: the
-  /// geometric detections (the simulator's shortcut).
-  nlohmann::json Observe(bool succeeded);
+  /// Executes an action of the API: a MOVE to its configuration, or a declaration or removal of
+  /// an object (where the server last saw it, when the action says).
+  ExecutionOutcome Execute(const api::ActionView& action);
+  /// Looks without acting (npfkct-sim-robot's LOOK): a success worth nothing.
+  ExecutionOutcome Look() const;
+  /// An action the robot could not read, reported as illegal with `why`.
+  ExecutionOutcome Refuse(const std::string& why) const;
+  /// The observation after the last action, as an :observe request without its actionId: the
+  /// achieved configuration and the geometric detections (the simulator's shortcut).
+  api::ObserveRequest Observe(bool succeeded);
   /// The same as raw sensor data for the server's perception: the rendered RGB-D frame as a
-  /// camera-frame point cloud (base64 float32 xyzrgb) and a PNG, the camera's intrinsics, and
-  /// the pose as the robot's localization reports it (the truth plus noise.localization*). When
-  /// the camera saw nothing within range, only the pose.
-  nlohmann::json ObserveRaw(bool succeeded, int width = 640, int height = 480);
-  /// Photos of the target (base64 PNGs), as the robot's operator would give them.
-  nlohmann::json TargetPhotosJson() const;
+  /// camera-frame point cloud with its colours and image, the camera's intrinsics, and the pose
+  /// as the robot's localization reports it (the truth plus noise.localization*). When the camera
+  /// saw nothing within range, only the pose.
+  api::ObserveRequest ObserveRaw(bool succeeded, int width = 640, int height = 480);
+  /// Photos of the target (PNG bytes), as the robot's operator would give them.
+  std::vector<std::string> TargetPhotos() const;
 
   const Simulator& simulator() const { return sim_; }
   const Scenario& scenario() const { return sim_.scenario(); }
@@ -41,12 +44,5 @@ class ApiRobot {
   Rng rng_;
   std::map<std::string, int8_t> declared_;
 };
-
-/// {"x", "y", "yaw", "lift", "pan", "tilt"}.
-nlohmann::json RobotConfigJson(const RobotConfig& c);
-/// The detections of a real observation in the API's form.
-nlohmann::json DetectionsJson(const object_search::RealObservation& obs);
-/// The prior-map part of a scenario file (what the robot is told at session creation).
-nlohmann::json WorldJsonOf(const nlohmann::json& scenario_file);
 
 }  // namespace npfkct::sim

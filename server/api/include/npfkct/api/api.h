@@ -2,7 +2,8 @@
 // bodies become typed requests (types.h), validated against the JSON Schemas of schemas/ (with
 // valijson) and then by the domain checks a schema cannot express, within the limits of
 // limits.h; typed replies and records become bodies. Every error is a Status whose field
-// violations name the offending fields as data.
+// violations name the offending fields as data. The clients' direction (typed requests to
+// bodies, reply bodies to typed replies) is client_codec.h's.
 //
 //   api::Limits limits;
 //   StatusOr<api::CreateSessionRequest> req = api::ParseCreateSession(body, limits);
