@@ -541,8 +541,8 @@ def test_plans_whose_save_failed_still_count_against_the_session(tmp_path):
     fail with EFBIG as on a full file system): a plan whose snapshot cannot be written answers
     503 and the session goes back to its last snapshot, which had not counted the plan's CPU,
     so plans on a failing store never used up --max-session-plan-seconds. Now the reloaded
-    session keeps what its copy spent, and a 0.4 s plan past a 1 s budget is refused (the third
-    or the fourth: the time counted is the plans' wall-clock time, longer on a loaded machine)."""
+    session keeps what its copy spent, and a 0.4 s plan past a 1 s budget is refused (the second,
+    third or fourth: the time counted is the plans' wall-clock time, longer on a loaded machine)."""
     def create_in(server):
         r = http("POST", server.url + "/v1/sessions", None,
                  json={"world": world_of("loose1"), "seed": 3, "planner": {"name": "kct"}})
@@ -567,7 +567,10 @@ def test_plans_whose_save_failed_still_count_against_the_session(tmp_path):
         codes.append(r.status_code)
         if r.status_code != 503:
             break
-    assert codes in ([503, 503, 429], [503, 503, 503, 429]), codes
+    # Without the fix every plan answered 503 (the budget never ran out). How many plans fit in
+    # the 1 s depends on the machine's load (the time counted is wall-clock time): at least one
+    # plan's save failed, and a later plan was refused for the spent budget.
+    assert len(codes) >= 2 and codes[-1] == 429 and set(codes[:-1]) == {503}, codes
     assert field_of(r) == "budget", r.text
     assert "Retry-After" not in r.headers, r.headers  # no retry clears a spent budget
     used = http("GET", f"{url}/v1/sessions/{sid}", rec).json()["planningSecondsUsed"]
