@@ -183,6 +183,58 @@ std::string EncodeRecord(const SessionRecord& r, std::string_view photos_digest)
   return internal::Dump(j);
 }
 
+namespace {
+
+// The pending action of a record whose state is ACTION_PENDING (its kind is checked against the
+// world once that is read).
+Status ReadPendingAction(const json& j, SessionRecord* r) {
+  r->pending_action_id = internal::String(j, "pendingActionId");
+  const json pa = j.value("pendingAction", json::object());
+  if (r->pending_action_id.empty() || !pa.contains("x") || !pa.at("x").is_array() ||
+      pa.at("x").size() > static_cast<size_t>(kMaxActionDim)) {
+    return Lost("pending action");
+  }
+  r->pending_action.kind = static_cast<int>(internal::Integer(pa, "kind", -1));
+  r->pending_action.x = ActionVec(static_cast<Eigen::Index>(pa.at("x").size()));
+  for (size_t i = 0; i < pa.at("x").size(); ++i) {
+    if (!pa.at("x")[i].is_number()) return Lost("pending action");
+    r->pending_action.x[static_cast<Eigen::Index>(i)] = pa.at("x")[i].get<double>();
+  }
+  return OkStatus();
+}
+
+// A session's perception tracks (its "perception" object), each within the limits.
+Status ReadTracks(const json& pj, const Limits& limits, SessionRecord* r) {
+  if (!pj.is_object() || !pj.contains("tracks") || !pj.at("tracks").is_array() ||
+      static_cast<int64_t>(pj.at("tracks").size()) > 4 * limits.max_objects) {
+    return Lost("perception");
+  }
+  std::vector<perception::TrackState> tracks;
+  for (const json& tj : pj.at("tracks")) {
+    if (!tj.is_object() || !tj.contains("points") || !tj.at("points").is_string()) {
+      return Lost("perception track");
+    }
+    perception::TrackState t;
+    t.id = internal::Utf8Prefix(internal::String(tj, "id"), limits.max_id_length);
+    t.surface = static_cast<int>(internal::Integer(tj, "surface", -1));
+    auto bytes = Base64Decode(tj.at("points").get<std::string>(), "points",
+                              static_cast<size_t>(limits.max_points) * 12);
+    if (!bytes.ok() || bytes->size() % (3 * sizeof(float)) != 0) return Lost("track points");
+    t.points.resize(bytes->size() / sizeof(float));
+    if (!t.points.empty()) std::memcpy(t.points.data(), bytes->data(), bytes->size());
+    for (float v : t.points) {
+      if (!std::isfinite(v) || std::abs(v) > limits.max_coordinate) return Lost("track points");
+    }
+    tracks.push_back(std::move(t));
+  }
+  const int64_t next_id = internal::Integer(pj, "nextId");
+  if (next_id < 0 || next_id > 1'000'000'000) return Lost("perception next id");
+  r->perception = std::make_pair(static_cast<int>(next_id), std::move(tracks));
+  return OkStatus();
+}
+
+}  // namespace
+
 StatusOr<SessionRecord> DecodeRecord(std::string_view bytes, const Limits& limits,
                                      std::string* photos_digest) {
   if (photos_digest != nullptr) photos_digest->clear();
@@ -218,18 +270,7 @@ StatusOr<SessionRecord> DecodeRecord(std::string_view bytes, const Limits& limit
   r.last_action_id =
       internal::Utf8Prefix(internal::String(j, "lastActionId"), limits.max_id_length);
   if (r.state == SessionState::kActionPending) {
-    r.pending_action_id = internal::String(j, "pendingActionId");
-    const json pa = j.value("pendingAction", json::object());
-    if (r.pending_action_id.empty() || !pa.contains("x") || !pa.at("x").is_array() ||
-        pa.at("x").size() > static_cast<size_t>(kMaxActionDim)) {
-      return Lost("pending action");
-    }
-    r.pending_action.kind = static_cast<int>(internal::Integer(pa, "kind", -1));
-    r.pending_action.x = ActionVec(static_cast<Eigen::Index>(pa.at("x").size()));
-    for (size_t i = 0; i < pa.at("x").size(); ++i) {
-      if (!pa.at("x")[i].is_number()) return Lost("pending action");
-      r.pending_action.x[static_cast<Eigen::Index>(i)] = pa.at("x")[i].get<double>();
-    }
+    if (Status s = ReadPendingAction(j, &r); !s.ok()) return s;
   }
   if (!j.contains("world")) return Lost("missing world");
   auto world = internal::WorldFromJson(j.at("world"), limits);
@@ -260,32 +301,7 @@ StatusOr<SessionRecord> DecodeRecord(std::string_view bytes, const Limits& limit
     }
   }
   if (j.contains("perception")) {
-    const json& pj = j.at("perception");
-    if (!pj.is_object() || !pj.contains("tracks") || !pj.at("tracks").is_array() ||
-        static_cast<int64_t>(pj.at("tracks").size()) > 4 * limits.max_objects) {
-      return Lost("perception");
-    }
-    std::vector<perception::TrackState> tracks;
-    for (const json& tj : pj.at("tracks")) {
-      if (!tj.is_object() || !tj.contains("points") || !tj.at("points").is_string()) {
-        return Lost("perception track");
-      }
-      perception::TrackState t;
-      t.id = internal::Utf8Prefix(internal::String(tj, "id"), limits.max_id_length);
-      t.surface = static_cast<int>(internal::Integer(tj, "surface", -1));
-      auto bytes = Base64Decode(tj.at("points").get<std::string>(), "points",
-                                static_cast<size_t>(limits.max_points) * 12);
-      if (!bytes.ok() || bytes->size() % (3 * sizeof(float)) != 0) return Lost("track points");
-      t.points.resize(bytes->size() / sizeof(float));
-      if (!t.points.empty()) std::memcpy(t.points.data(), bytes->data(), bytes->size());
-      for (float v : t.points) {
-        if (!std::isfinite(v) || std::abs(v) > limits.max_coordinate) return Lost("track points");
-      }
-      tracks.push_back(std::move(t));
-    }
-    const int64_t next_id = internal::Integer(pj, "nextId");
-    if (next_id < 0 || next_id > 1'000'000'000) return Lost("perception next id");
-    r.perception = std::make_pair(static_cast<int>(next_id), std::move(tracks));
+    if (Status s = ReadTracks(j.at("perception"), limits, &r); !s.ok()) return s;
   }
   if (j.contains("history")) {
     const json& h = j.at("history");

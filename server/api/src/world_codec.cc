@@ -50,6 +50,218 @@ constexpr std::pair<const char*, double object_search::SearchParams::*> kWorldPa
     {"guessOdds", &object_search::SearchParams::guess_odds},
     {"guessSize", &object_search::SearchParams::guess_size},
     {"gridFreeDelta", &object_search::SearchParams::grid_free_delta}};
+// The real-valued params a snapshot keeps besides those (they are the server's, not a request's).
+constexpr std::pair<const char*, double object_search::SearchParams::*> kSnapshotOnlyParams[] = {
+    {"guessMoveability", &object_search::SearchParams::guess_moveability},
+    {"gridMin", &object_search::SearchParams::grid_min},
+    {"gridMax", &object_search::SearchParams::grid_max},
+    {"detectionMaxStep", &object_search::SearchParams::detection_max_step},
+    {"faceOddsLimit", &object_search::SearchParams::face_odds_limit}};
+
+// ---- snapshot parts (WorldJson / WorldFromJson) ----
+
+json ParamsJson(const object_search::SearchParams& p) {
+  json j = {{"nOdds", p.n_odds}, {"maxSteps", p.max_steps}};
+  for (const auto& [key, field] : kWorldParams) j[key] = p.*field;
+  for (const auto& [key, field] : kSnapshotOnlyParams) j[key] = p.*field;
+  return j;
+}
+
+void ReadParams(const json& p, object_search::SearchParams* q) {
+  for (const auto& [key, field] : kWorldParams) q->*field = Number(p, key, q->*field);
+  for (const auto& [key, field] : kSnapshotOnlyParams) q->*field = Number(p, key, q->*field);
+  q->n_odds = static_cast<int>(Integer(p, "nOdds", q->n_odds));
+  q->max_steps =
+      static_cast<int>(std::clamp<int64_t>(Integer(p, "maxSteps", q->max_steps), 1, 1'000'000));
+}
+
+// Occupancy as run lengths of alternating free / occupied cells, starting with free.
+json OccupancyJson(const object_search::OccupancyMap& occupancy) {
+  json runs = json::array();
+  bool current = false;
+  int64_t count = 0;
+  for (uint8_t c : occupancy.cells()) {
+    if ((c != 0) != current) {
+      runs.push_back(count);
+      current = c != 0;
+      count = 0;
+    }
+    ++count;
+  }
+  runs.push_back(count);
+  return {{"min", Vec(occupancy.min())},
+          {"max", Vec(occupancy.max())},
+          {"resolution", occupancy.resolution()},
+          {"runs", runs}};
+}
+
+json GridJson(const object_search::GridWorld& grid) {
+  json g;
+  g["resolution"] = grid.resolution();
+  g["workspaces"] = json::array();
+  for (const auto& ws : grid.workspaces()) {
+    g["workspaces"].push_back({{"name", ws.name},
+                               {"center", Vec(ws.center)},
+                               {"yaw", ws.yaw},
+                               {"length", ws.length},
+                               {"width", ws.width},
+                               {"height", ws.height}});
+  }
+  g["logOdds"] = grid.all_log_odds();
+  return g;
+}
+
+Status ReadRobot(const json& r, object_search::RobotPreset* robot) {
+  if (!r.is_object() || !r.contains("cameraOffset") ||
+      !ReadVec(r.at("cameraOffset"), &robot->camera_offset)) {
+    return Lost("robot");
+  }
+  robot->name = String(r, "name", "custom").substr(0, 64);
+  robot->lift_moves_camera = Bool(r, "liftMovesCamera", true);
+  robot->lift_min = Number(r, "liftMin");
+  robot->lift_max = Number(r, "liftMax");
+  robot->pan_min = Number(r, "panMin");
+  robot->pan_max = Number(r, "panMax");
+  robot->tilt_min = Number(r, "tiltMin");
+  robot->tilt_max = Number(r, "tiltMax");
+  robot->footprint_radius = Number(r, "footprintRadius", 0.3);
+  robot->reach = Number(r, "reach", 1.0);
+  return OkStatus();
+}
+
+Status ReadFurniture(const json& furniture, const Limits& limits, World* w) {
+  if (!furniture.is_array() || static_cast<int64_t>(furniture.size()) > limits.max_furniture) {
+    return Lost("furniture");
+  }
+  for (const json& b : furniture) {
+    Box fb;
+    if (!ReadBox(b, &fb) || fb.center.cwiseAbs().maxCoeff() > limits.max_coordinate) {
+      return Lost("furniture box");
+    }
+    w->furniture.push_back(fb);
+  }
+  return OkStatus();
+}
+
+// The occupancy map, its cells counted against the limits before it is allocated.
+Status ReadOccupancy(const json& occ, const Limits& limits, World* w) {
+  Vec2 lo, hi;
+  const double res = Number(occ, "resolution", 0.0);
+  if (!occ.is_object() || !occ.contains("min") || !occ.contains("max") ||
+      !ReadVec(occ.at("min"), &lo) || !ReadVec(occ.at("max"), &hi) || !(res >= 0.005) ||
+      !((hi - lo).minCoeff() > 0) || lo.cwiseAbs().maxCoeff() > limits.max_coordinate ||
+      hi.cwiseAbs().maxCoeff() > limits.max_coordinate ||
+      MapCells(lo, hi, res) > limits.max_map_cells) {
+    return Lost("occupancy extent");
+  }
+  w->occupancy = object_search::OccupancyMap(lo, hi, res);
+  const size_t cell_count = w->occupancy.cells().size();
+  if (!occ.contains("runs") || !occ.at("runs").is_array()) return Lost("occupancy runs");
+  std::vector<uint8_t> cells;
+  cells.reserve(cell_count);
+  uint8_t value = 0;
+  for (const json& run : occ.at("runs")) {
+    if (!run.is_number_integer() || run.get<int64_t>() < 0 ||
+        static_cast<uint64_t>(run.get<int64_t>()) > cell_count - cells.size()) {
+      return Lost("occupancy run");
+    }
+    cells.insert(cells.end(), run.get<size_t>(), value);
+    value = !value;
+  }
+  if (Status s = w->occupancy.SetCells(cells); !s.ok()) return Lost("occupancy cells");
+  return OkStatus();
+}
+
+Status ReadRegionsAndPoses(const json& j, const Limits& limits, World* w) {
+  const json& regions = j.at("baseRegions");
+  if (!regions.is_array() || static_cast<int64_t>(regions.size()) > limits.max_base_regions) {
+    return Lost("baseRegions");
+  }
+  for (const json& br : regions) {
+    object_search::BaseRegion region;
+    if (!br.is_object() || !br.contains("min") || !br.contains("max") ||
+        !ReadVec(br.at("min"), &region.min) || !ReadVec(br.at("max"), &region.max)) {
+      return Lost("base region");
+    }
+    w->base_regions.push_back(region);
+  }
+  if (j.contains("discretePoses")) {
+    const json& poses = j.at("discretePoses");
+    if (!poses.is_array() || static_cast<int64_t>(poses.size()) > limits.max_discrete_poses) {
+      return Lost("discretePoses");
+    }
+    for (const json& pose : poses) w->discrete_poses.push_back(ReadConfig(pose));
+  }
+  return OkStatus();
+}
+
+// The grid world, its cells counted against the limits before it is allocated.
+Status ReadGrid(const json& g, const Limits& limits, World* w) {
+  if (!g.is_object() || !g.contains("workspaces") || !g.at("workspaces").is_array() ||
+      !g.contains("logOdds") || !g.at("logOdds").is_array() ||
+      static_cast<int64_t>(g.at("workspaces").size()) > limits.max_furniture) {
+    return Lost("grid");
+  }
+  std::vector<object_search::Workspace> workspaces;
+  for (const json& ws : g.at("workspaces")) {
+    object_search::Workspace s;
+    s.name = Utf8Prefix(String(ws, "name"), HardLimits().max_id_length);  // as furniture names
+    if (!ws.is_object() || !ws.contains("center") || !ReadVec(ws.at("center"), &s.center)) {
+      return Lost("grid workspace");
+    }
+    s.yaw = Number(ws, "yaw");
+    s.length = Number(ws, "length", 1.0);
+    s.width = Number(ws, "width", 1.0);
+    s.height = Number(ws, "height", 0.75);
+    if (!(s.length > 0 && s.width > 0 && s.length <= 100 && s.width <= 100)) {
+      return Lost("grid workspace size");
+    }
+    workspaces.push_back(s);
+  }
+  const double grid_resolution = Number(g, "resolution", kGridResolution);
+  if (!(grid_resolution >= 0.005 && grid_resolution <= 1.0) ||
+      GridCells(workspaces, grid_resolution) > limits.max_grid_cells ||
+      static_cast<int64_t>(g.at("logOdds").size()) != GridCells(workspaces, grid_resolution)) {
+    return Lost("grid size");
+  }
+  w->grid = object_search::GridWorld(workspaces, grid_resolution);
+  if (!w->grid.Validate().ok()) return Lost("grid");
+  std::vector<float> odds;
+  odds.reserve(g.at("logOdds").size());
+  for (const json& v : g.at("logOdds")) {
+    if (!v.is_number()) return Lost("grid log-odds");
+    odds.push_back(v.get<float>());
+  }
+  if (!w->grid.SetAllLogOdds(odds).ok()) return Lost("grid log-odds");
+  return OkStatus();
+}
+
+Status ReadObjects(const json& objects, const Limits& limits, World* w) {
+  if (!objects.is_array() || objects.empty() ||
+      static_cast<int64_t>(objects.size()) > limits.max_objects + 1) {
+    return Lost("objects");
+  }
+  for (const json& o : objects) {
+    object_search::ObjectKnowledge k;
+    if (!o.is_object() || !o.contains("odds") || !o.at("odds").is_array() ||
+        o.at("odds").size() != 8 || !o.contains("box") || !ReadBox(o.at("box"), &k.box)) {
+      return Lost("object");
+    }
+    k.key = Utf8Prefix(String(o, "id"), HardLimits().max_id_length);
+    k.moveability = Number(o, "moveability", 1.0);
+    for (int i = 0; i < 8; ++i) {
+      if (!o.at("odds")[i].is_number()) return Lost("object odds");
+      k.odds[i] = o.at("odds")[i].get<float>();
+    }
+    const int64_t status = Integer(o, "status", object_search::kUpdating);
+    if (status < object_search::kRemoved || status > object_search::kDeclaredTarget) {
+      return Lost("object status");
+    }
+    k.status = static_cast<int8_t>(status);
+    w->objects.push_back(k);
+  }
+  return OkStatus();
+}
 
 }  // namespace
 
@@ -220,64 +432,17 @@ json WorldJson(const World& w) {
                  {"aspect", w.camera.aspect},
                  {"near", w.camera.near},
                  {"far", w.camera.far}};
-  const auto& p = w.params;
-  j["params"] = {{"rMax", p.r_max},
-                 {"rCt", p.r_ct},
-                 {"rCo", p.r_co},
-                 {"rMin", p.r_min},
-                 {"rIll", p.r_ill},
-                 {"discount", p.discount},
-                 {"cO", p.c_o},
-                 {"etaStd", p.eta_std},
-                 {"nuP", p.nu_p},
-                 {"nuN", p.nu_n},
-                 {"nOdds", p.n_odds},
-                 {"declareThreshold", p.declare_threshold},
-                 {"guessOdds", p.guess_odds},
-                 {"guessSize", p.guess_size},
-                 {"guessMoveability", p.guess_moveability},
-                 {"gridFreeDelta", p.grid_free_delta},
-                 {"gridMin", p.grid_min},
-                 {"gridMax", p.grid_max},
-                 {"detectionMaxStep", p.detection_max_step},
-                 {"faceOddsLimit", p.face_odds_limit},
-                 {"maxSteps", p.max_steps}};
+  j["params"] = ParamsJson(w.params);
   j["furniture"] = json::array();
   for (const Box& b : w.furniture) j["furniture"].push_back(BoxJson(b));
-  // Occupancy as run lengths of alternating free / occupied cells, starting with free.
-  json runs = json::array();
-  bool current = false;
-  int64_t count = 0;
-  for (uint8_t c : w.occupancy.cells()) {
-    if ((c != 0) != current) {
-      runs.push_back(count);
-      current = c != 0;
-      count = 0;
-    }
-    ++count;
-  }
-  runs.push_back(count);
-  j["occupancy"] = {{"min", Vec(w.occupancy.min())},
-                    {"max", Vec(w.occupancy.max())},
-                    {"resolution", w.occupancy.resolution()},
-                    {"runs", runs}};
+  j["occupancy"] = OccupancyJson(w.occupancy);
   j["baseRegions"] = json::array();
   for (const auto& br : w.base_regions) {
     j["baseRegions"].push_back({{"min", Vec(br.min)}, {"max", Vec(br.max)}});
   }
   j["discretePoses"] = json::array();
   for (const auto& c : w.discrete_poses) j["discretePoses"].push_back(ConfigJson(c));
-  j["grid"]["resolution"] = w.grid.resolution();
-  j["grid"]["workspaces"] = json::array();
-  for (const auto& ws : w.grid.workspaces()) {
-    j["grid"]["workspaces"].push_back({{"name", ws.name},
-                                       {"center", Vec(ws.center)},
-                                       {"yaw", ws.yaw},
-                                       {"length", ws.length},
-                                       {"width", ws.width},
-                                       {"height", ws.height}});
-  }
-  j["grid"]["logOdds"] = w.grid.all_log_odds();
+  j["grid"] = GridJson(w.grid);
   j["objects"] = json::array();
   for (const auto& o : w.objects) {
     j["objects"].push_back({{"id", o.key},
@@ -298,166 +463,18 @@ StatusOr<World> WorldFromJson(const json& j, const Limits& limits) {
                           "grid", "objects", "robotConfig"}) {
     if (!j.contains(key)) return Lost(std::string("world: missing ") + key);
   }
-  const json& r = j.at("robot");
-  if (!r.is_object() || !r.contains("cameraOffset") ||
-      !ReadVec(r.at("cameraOffset"), &w.robot.camera_offset)) {
-    return Lost("robot");
-  }
-  w.robot.name = String(r, "name", "custom").substr(0, 64);
-  w.robot.lift_moves_camera = Bool(r, "liftMovesCamera", true);
-  w.robot.lift_min = Number(r, "liftMin");
-  w.robot.lift_max = Number(r, "liftMax");
-  w.robot.pan_min = Number(r, "panMin");
-  w.robot.pan_max = Number(r, "panMax");
-  w.robot.tilt_min = Number(r, "tiltMin");
-  w.robot.tilt_max = Number(r, "tiltMax");
-  w.robot.footprint_radius = Number(r, "footprintRadius", 0.3);
-  w.robot.reach = Number(r, "reach", 1.0);
+  if (Status s = ReadRobot(j.at("robot"), &w.robot); !s.ok()) return s;
   const json& c = j.at("camera");
   w.camera.horizontal_fov = Number(c, "horizontalFov", w.camera.horizontal_fov);
   w.camera.aspect = Number(c, "aspect", w.camera.aspect);
   w.camera.near = Number(c, "near", w.camera.near);
   w.camera.far = Number(c, "far", w.camera.far);
-  const json& p = j.at("params");
-  auto& q = w.params;
-  q.r_max = Number(p, "rMax", q.r_max);
-  q.r_ct = Number(p, "rCt", q.r_ct);
-  q.r_co = Number(p, "rCo", q.r_co);
-  q.r_min = Number(p, "rMin", q.r_min);
-  q.r_ill = Number(p, "rIll", q.r_ill);
-  q.discount = Number(p, "discount", q.discount);
-  q.c_o = Number(p, "cO", q.c_o);
-  q.eta_std = Number(p, "etaStd", q.eta_std);
-  q.nu_p = Number(p, "nuP", q.nu_p);
-  q.nu_n = Number(p, "nuN", q.nu_n);
-  q.n_odds = static_cast<int>(Integer(p, "nOdds", q.n_odds));
-  q.declare_threshold = Number(p, "declareThreshold", q.declare_threshold);
-  q.guess_odds = Number(p, "guessOdds", q.guess_odds);
-  q.guess_size = Number(p, "guessSize", q.guess_size);
-  q.guess_moveability = Number(p, "guessMoveability", q.guess_moveability);
-  q.grid_free_delta = Number(p, "gridFreeDelta", q.grid_free_delta);
-  q.grid_min = Number(p, "gridMin", q.grid_min);
-  q.grid_max = Number(p, "gridMax", q.grid_max);
-  q.detection_max_step = Number(p, "detectionMaxStep", q.detection_max_step);
-  q.face_odds_limit = Number(p, "faceOddsLimit", q.face_odds_limit);
-  q.max_steps =
-      static_cast<int>(std::clamp<int64_t>(Integer(p, "maxSteps", q.max_steps), 1, 1'000'000));
-  const json& furniture = j.at("furniture");
-  if (!furniture.is_array() || static_cast<int64_t>(furniture.size()) > limits.max_furniture) {
-    return Lost("furniture");
-  }
-  for (const json& b : furniture) {
-    Box fb;
-    if (!ReadBox(b, &fb) || fb.center.cwiseAbs().maxCoeff() > limits.max_coordinate) {
-      return Lost("furniture box");
-    }
-    w.furniture.push_back(fb);
-  }
-  const json& occ = j.at("occupancy");
-  Vec2 lo, hi;
-  const double res = Number(occ, "resolution", 0.0);
-  if (!occ.is_object() || !occ.contains("min") || !occ.contains("max") ||
-      !ReadVec(occ.at("min"), &lo) || !ReadVec(occ.at("max"), &hi) || !(res >= 0.005) ||
-      !((hi - lo).minCoeff() > 0) || lo.cwiseAbs().maxCoeff() > limits.max_coordinate ||
-      hi.cwiseAbs().maxCoeff() > limits.max_coordinate ||
-      MapCells(lo, hi, res) > limits.max_map_cells) {
-    return Lost("occupancy extent");
-  }
-  w.occupancy = object_search::OccupancyMap(lo, hi, res);
-  const size_t cell_count = w.occupancy.cells().size();
-  if (!occ.contains("runs") || !occ.at("runs").is_array()) return Lost("occupancy runs");
-  std::vector<uint8_t> cells;
-  cells.reserve(cell_count);
-  uint8_t value = 0;
-  for (const json& run : occ.at("runs")) {
-    if (!run.is_number_integer() || run.get<int64_t>() < 0 ||
-        static_cast<uint64_t>(run.get<int64_t>()) > cell_count - cells.size()) {
-      return Lost("occupancy run");
-    }
-    cells.insert(cells.end(), run.get<size_t>(), value);
-    value = !value;
-  }
-  if (Status s = w.occupancy.SetCells(cells); !s.ok()) return Lost("occupancy cells");
-  const json& regions = j.at("baseRegions");
-  if (!regions.is_array() || static_cast<int64_t>(regions.size()) > limits.max_base_regions) {
-    return Lost("baseRegions");
-  }
-  for (const json& br : regions) {
-    object_search::BaseRegion region;
-    if (!br.is_object() || !br.contains("min") || !br.contains("max") ||
-        !ReadVec(br.at("min"), &region.min) || !ReadVec(br.at("max"), &region.max)) {
-      return Lost("base region");
-    }
-    w.base_regions.push_back(region);
-  }
-  if (j.contains("discretePoses")) {
-    const json& poses = j.at("discretePoses");
-    if (!poses.is_array() || static_cast<int64_t>(poses.size()) > limits.max_discrete_poses) {
-      return Lost("discretePoses");
-    }
-    for (const json& pose : poses) w.discrete_poses.push_back(ReadConfig(pose));
-  }
-  const json& g = j.at("grid");
-  if (!g.is_object() || !g.contains("workspaces") || !g.at("workspaces").is_array() ||
-      !g.contains("logOdds") || !g.at("logOdds").is_array() ||
-      static_cast<int64_t>(g.at("workspaces").size()) > limits.max_furniture) {
-    return Lost("grid");
-  }
-  std::vector<object_search::Workspace> workspaces;
-  for (const json& ws : g.at("workspaces")) {
-    object_search::Workspace s;
-    s.name = Utf8Prefix(String(ws, "name"), HardLimits().max_id_length);  // as furniture names
-    if (!ws.is_object() || !ws.contains("center") || !ReadVec(ws.at("center"), &s.center)) {
-      return Lost("grid workspace");
-    }
-    s.yaw = Number(ws, "yaw");
-    s.length = Number(ws, "length", 1.0);
-    s.width = Number(ws, "width", 1.0);
-    s.height = Number(ws, "height", 0.75);
-    if (!(s.length > 0 && s.width > 0 && s.length <= 100 && s.width <= 100)) {
-      return Lost("grid workspace size");
-    }
-    workspaces.push_back(s);
-  }
-  const double grid_resolution = Number(g, "resolution", kGridResolution);
-  if (!(grid_resolution >= 0.005 && grid_resolution <= 1.0) ||
-      GridCells(workspaces, grid_resolution) > limits.max_grid_cells ||
-      static_cast<int64_t>(g.at("logOdds").size()) != GridCells(workspaces, grid_resolution)) {
-    return Lost("grid size");
-  }
-  w.grid = object_search::GridWorld(workspaces, grid_resolution);
-  if (!w.grid.Validate().ok()) return Lost("grid");
-  std::vector<float> odds;
-  odds.reserve(g.at("logOdds").size());
-  for (const json& v : g.at("logOdds")) {
-    if (!v.is_number()) return Lost("grid log-odds");
-    odds.push_back(v.get<float>());
-  }
-  if (!w.grid.SetAllLogOdds(odds).ok()) return Lost("grid log-odds");
-  const json& objects = j.at("objects");
-  if (!objects.is_array() || objects.empty() ||
-      static_cast<int64_t>(objects.size()) > limits.max_objects + 1) {
-    return Lost("objects");
-  }
-  for (const json& o : objects) {
-    object_search::ObjectKnowledge k;
-    if (!o.is_object() || !o.contains("odds") || !o.at("odds").is_array() ||
-        o.at("odds").size() != 8 || !o.contains("box") || !ReadBox(o.at("box"), &k.box)) {
-      return Lost("object");
-    }
-    k.key = Utf8Prefix(String(o, "id"), HardLimits().max_id_length);
-    k.moveability = Number(o, "moveability", 1.0);
-    for (int i = 0; i < 8; ++i) {
-      if (!o.at("odds")[i].is_number()) return Lost("object odds");
-      k.odds[i] = o.at("odds")[i].get<float>();
-    }
-    const int64_t status = Integer(o, "status", object_search::kUpdating);
-    if (status < object_search::kRemoved || status > object_search::kDeclaredTarget) {
-      return Lost("object status");
-    }
-    k.status = static_cast<int8_t>(status);
-    w.objects.push_back(k);
-  }
+  ReadParams(j.at("params"), &w.params);
+  if (Status s = ReadFurniture(j.at("furniture"), limits, &w); !s.ok()) return s;
+  if (Status s = ReadOccupancy(j.at("occupancy"), limits, &w); !s.ok()) return s;
+  if (Status s = ReadRegionsAndPoses(j, limits, &w); !s.ok()) return s;
+  if (Status s = ReadGrid(j.at("grid"), limits, &w); !s.ok()) return s;
+  if (Status s = ReadObjects(j.at("objects"), limits, &w); !s.ok()) return s;
   w.robot_config = ReadConfig(j.at("robotConfig"));
   w.steps = static_cast<int>(std::clamp<int64_t>(Integer(j, "steps"), 0, 1'000'000));
   if (Status s = w.Validate(); !s.ok()) return Lost("world: " + s.message());
