@@ -7,7 +7,7 @@ NPFKCT_BUILD_PACKAGES=(
   build-essential cmake pkg-config
   libeigen3-dev libcli11-dev
   nlohmann-json3-dev libcpp-httplib-dev libcurl4-openssl-dev libspdlog-dev libvalijson-dev
-  zlib1g-dev
+  zlib1g-dev libbrotli-dev
   libopencv-dev libpcl-dev libtorch-dev libopenblas0-pthread
 )
 # What a built npfkct-server needs to run: the shared libraries it links (readelf -d) and curl
