@@ -2,7 +2,9 @@
 # Installs the Debian 12 packages npfkct needs, if any are missing. Sourced by the other scripts.
 set -euo pipefail
 
-# What building npfkct-server needs and nothing else (the Docker images' build stage).
+# What building npfkct-server needs and nothing else (the Docker images' build stage). The server
+# reads and writes HTTP itself (server/src/http_front.cc); libbrotli-dev and zlib1g-dev compress
+# its responses as clients accept (brotli, gzip); libcpp-httplib-dev is the C++ tests' client.
 NPFKCT_BUILD_PACKAGES=(
   build-essential cmake pkg-config
   libeigen3-dev libcli11-dev
@@ -14,7 +16,7 @@ NPFKCT_BUILD_PACKAGES=(
 # for the health check (the Docker images' runtime stage: no compiler, no -dev package, no ROS,
 # no test tool; tests/test_docker.py checks the list). Keep in step with NPFKCT_BUILD_PACKAGES.
 NPFKCT_RUNTIME_PACKAGES=(
-  libspdlog1.10 libfmt9 libcpp-httplib0.11 zlib1g libopenblas0-pthread libtorch1.13
+  libspdlog1.10 libfmt9 libbrotli1 zlib1g libopenblas0-pthread libtorch1.13
   libopencv-core406 libopencv-imgproc406 libopencv-imgcodecs406 libopencv-features2d406
   libopencv-calib3d406
   libpcl-common1.13 libpcl-kdtree1.13 libpcl-search1.13 libpcl-filters1.13 libpcl-features1.13
