@@ -67,10 +67,10 @@ bool EncodesSeparator(std::string_view target) {
   const std::string_view path = target.substr(0, target.find('?'));
   for (size_t i = path.find('%'); i != std::string_view::npos && i + 1 < path.size();
        i = path.find('%', i + 1)) {
-    const char hi = static_cast<char>(std::tolower(path[i + 1]));
+    const char hi = static_cast<char>(std::tolower(static_cast<unsigned char>(path[i + 1])));
     if (hi == 'u') return true;
     if (i + 2 >= path.size()) break;
-    const char lo = static_cast<char>(std::tolower(path[i + 2]));
+    const char lo = static_cast<char>(std::tolower(static_cast<unsigned char>(path[i + 2])));
     if ((hi == '2' && lo == 'f') || (hi == '3' && lo == 'a')) return true;
   }
   return false;

@@ -13,6 +13,12 @@
 // a thread. GET /healthz and GET /metrics go to their own workers, which nothing else can occupy.
 // While a handler runs, Current() gives its connection, so a long handler can notice that the
 // client went away (ClientGone()).
+//
+// The framing and the reading of a head are the front's own, bounded as it reads, not a parser
+// library's: Debian 12's libhttp-parser (nodejs/http-parser 2.9.4) has been unmaintained since
+// 2020 (its successor, llhttp, is not packaged), and it takes what the front refuses (bare LF
+// line ends, folded header lines, chunk trailers; an 80 KiB head), so every refusal would have
+// needed a second reading of the head beside it.
 #pragma once
 
 #include <atomic>

@@ -139,8 +139,7 @@ HttpResponse Answer(const HttpRequest& req, RouteContext& ctx, const char** rout
                              .WithFieldViolation(refusal.substr(0, refusal.find(':')), "refused"),
                          403);
   }
-  // No route takes a multipart body (refused as httplib's multipart reader, which served the
-  // routes before, would have read it).
+  // Every body is one JSON document: a multipart one is refused, and its connection closed.
   if (req.Header("Content-Type").starts_with("multipart/form-data")) {
     if (Connection* conn = HttpFront::Current()) conn->must_close = true;
     return ErrorResponse(

@@ -257,8 +257,9 @@ TEST_F(HttpFrontTest, VersionsTargetsAndEncodedSeparatorsTheRoutesCannotServeAre
 }
 
 TEST_F(HttpFrontTest, HeaderLinesTheFrontRemovesAreNoLongerCountedInFlight) {
-  // Range and Expect lines are cut from the buffer before httplib reads it; they stayed counted
-  // in the in-flight total until their connection closed.
+  // Range and Expect lines were cut from the buffer before httplib read it, and stayed counted
+  // in the in-flight total until their connection closed. Every byte of a request is released
+  // once it is answered.
   HttpFrontOptions o;
   o.idle_timeout_s = 30.0;  // the connection stays open throughout
   Start(o);
@@ -297,7 +298,7 @@ TEST_F(HttpFrontTest, ABodyIsReadOnlyFromAClientWithTheBearerToken) {
       "POST /echo HTTP/1.1\r\nAuthorization: Bearer k3z\r\nTransfer-Encoding: "
       "chunked\r\n\r\n3\r\nabc\r\n0\r\n\r\n");
   EXPECT_EQ(reply.rfind("HTTP/1.1 401", 0), 0u) << reply;
-  // The token as httplib reads it for the routes: the first non-empty value, percent-decoded.
+  // The token as the routes read it (as httplib did): the first non-empty value, percent-decoded.
   reply = Exchange(
       "POST /echo HTTP/1.1\r\nAuthorization:\r\nAuthorization: Bearer k%33y\r\n"
       "Content-Length: 3\r\nConnection: close\r\n\r\nabc");
