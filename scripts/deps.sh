@@ -2,19 +2,21 @@
 # Installs the Debian 12 packages npfkct needs, if any are missing. Sourced by the other scripts.
 set -euo pipefail
 
-# What building npfkct-server needs and nothing else (the Docker images' build stage).
+# What building npfkct-server needs and nothing else (the Docker images' build stage). The server
+# reads and writes HTTP itself (server/src/http_front.cc); libbrotli-dev and zlib1g-dev compress
+# its responses as clients accept (brotli, gzip); libcpp-httplib-dev is the C++ tests' client.
 NPFKCT_BUILD_PACKAGES=(
   build-essential cmake pkg-config
   libeigen3-dev libcli11-dev
   nlohmann-json3-dev libcpp-httplib-dev libcurl4-openssl-dev libspdlog-dev libvalijson-dev
-  zlib1g-dev
+  zlib1g-dev libbrotli-dev
   libopencv-dev libpcl-dev libtorch-dev libopenblas0-pthread
 )
 # What a built npfkct-server needs to run: the shared libraries it links (readelf -d) and curl
 # for the health check (the Docker images' runtime stage: no compiler, no -dev package, no ROS,
 # no test tool; tests/test_docker.py checks the list). Keep in step with NPFKCT_BUILD_PACKAGES.
 NPFKCT_RUNTIME_PACKAGES=(
-  libspdlog1.10 libfmt9 libcpp-httplib0.11 zlib1g libopenblas0-pthread libtorch1.13
+  libspdlog1.10 libfmt9 libbrotli1 zlib1g libopenblas0-pthread libtorch1.13
   libopencv-core406 libopencv-imgproc406 libopencv-imgcodecs406 libopencv-features2d406
   libopencv-calib3d406
   libpcl-common1.13 libpcl-kdtree1.13 libpcl-search1.13 libpcl-filters1.13 libpcl-features1.13

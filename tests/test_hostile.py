@@ -738,6 +738,86 @@ def test_heads_httplib_would_read_otherwise_and_connection_tokens(hostile_server
     assert_alive_and_intact(hostile_server, before, rec)
 
 
+def replies_of(port, data, timeout=10.0):
+    """Every response to `data` on one connection until the server closes it: [(status, body)]."""
+    with socket.create_connection(("127.0.0.1", port), timeout=timeout) as s:
+        s.sendall(data)
+        out = b""
+        try:
+            while chunk := s.recv(65536):
+                out += chunk
+        except socket.timeout:
+            pass
+    replies = []
+    while out:
+        head, _, rest = out.partition(b"\r\n\r\n")
+        length = next((int(l.split(b":")[1]) for l in head.split(b"\r\n")
+                       if l.lower().startswith(b"content-length:")), 0)
+        replies.append((status_of(head), rest[:length]))
+        out = rest[length:]
+    return replies
+
+
+def test_each_request_is_read_once_however_it_is_spelled(hostile_server):
+    # The front reads each request once, into the request the routes get: whatever its spelling,
+    # a head is framed one way only, or refused and the connection closed.
+    url, port, rec = hostile_server.url, hostile_server.port, Recorder()
+    keeper = create(url, rec)
+    before = {keeper: snapshot_of(url, keeper)}
+    host = b"Host: 127.0.0.1\r\n"
+    health = b"GET /healthz HTTP/1.1\r\n" + host + b"Connection: close\r\n\r\n"
+    # Pipelined: a chunked body with a chunk extension, a body that holds a request (never
+    # answered: it is the body), and the next request; each answered in order, nothing else.
+    smuggled = b"GET /nope HTTP/1.1\r\n\r\n"
+    replies = replies_of(port, b"POST /v1/sessions HTTP/1.1\r\n" + host +
+                         b"Transfer-Encoding: Chunked\r\n\r\n3;ext=1\r\n{x}\r\n0\r\n\r\n"
+                         b"GET /v1/sessions HTTP/1.1\r\n" + host +
+                         b"Content-Length: %d\r\n\r\n" % len(smuggled) + smuggled + health)
+    assert [code for code, _ in replies] == [400, 200, 200], replies
+    assert b"SERVING" in replies[2][1] and keeper.encode() in replies[1][1], replies
+    # Equal Content-Length lines are one length: the next request is framed after it.
+    replies = replies_of(port, b"POST /v1/sessions HTTP/1.1\r\n" + host +
+                         b"Content-Length: 2\r\nContent-Length: 2\r\n\r\n{}" + health)
+    assert [code for code, _ in replies] == [400, 200], replies
+    # HTTP/1.0 kept alive when asked, then the next request.
+    replies = replies_of(port, b"GET /healthz HTTP/1.0\r\nConnection: Keep-Alive\r\n\r\n" +
+                         health)
+    assert [code for code, _ in replies] == [200, 200], replies
+    # Refused, the connection closed: a second request after them is never answered.
+    refused = {
+        b"POST /v1/sessions HTTP/1.1\r\nContent-Length: 2, 2\r\n\r\n{}": b"Content-Length",
+        b"POST /v1/sessions HTTP/1.1\r\nContent-Length: +2\r\n\r\n{}": b"Content-Length",
+        b"POST /v1/sessions HTTP/1.1\r\nContent-Length: 2\r\nContent-Length: 02\r\n\r\n{}":
+            b"conflicting",
+        b"POST /v1/sessions HTTP/1.1\r\nTransfer-Encoding: chunked\r\n"
+        b"Transfer-Encoding: chunked\r\n\r\n0\r\n\r\n": b"chunked",
+        b"GET /healthz HTTP/1.1\r\nX-A: a\r\n\tb\r\n\r\n": b"folding",
+        b"GET /healthz HTTP/1.1\r\nX\x00A: b\r\n\r\n": b"NUL",
+        b"\nGET /healthz HTTP/1.1\r\n\r\n": b"outside a CRLF",
+        b"GET http://127.0.0.1/healthz HTTP/1.1\r\n\r\n": b"starting with '/'",
+        b"OPTIONS * HTTP/1.1\r\n\r\n": b"starting with '/'",
+        b"CONNECT 127.0.0.1:80 HTTP/1.1\r\n\r\n": b"starting with '/'",
+        b"GET /healthz HTTP/1.1\r\n" + b"".join(b"X%d: 1\r\n" % i for i in range(2000)) +
+        b"\r\n": b"16384",
+        b"POST /v1/sessions HTTP/1.1\r\nTransfer-Encoding: chunked\r\n\r\n0x2\r\n{}\r\n0\r\n"
+        b"\r\n": b"chunk size",
+    }
+    for data, why in refused.items():
+        replies = replies_of(port, data + health)
+        assert len(replies) == 1 and replies[0][0] in (400, 431), (data[:80], replies)
+        assert why in replies[0][1], (data[:80], replies)
+        rec.add(replies[0][0])
+    # Many tiny header lines within the head's limit, and bytes no parser should choke on.
+    for head in (b"A:\r\n" * 3000, b"X-A: \xff\xfe\x01\x7f\r\n"):
+        replies = replies_of(port, b"GET /healthz HTTP/1.1\r\n" + host + head +
+                             b"Connection: close\r\n\r\n")
+        assert [code for code, _ in replies] == [200], replies
+    # A second '?' in the target: refused, as always; the connection stays usable.
+    replies = replies_of(port, b"GET /v1/sessions?a=1?b=2 HTTP/1.1\r\n" + host + b"\r\n" + health)
+    assert [code for code, _ in replies] == [400, 200], replies
+    assert_alive_and_intact(hostile_server, before, rec)
+
+
 # ---- 4. slowloris and starvation ----
 
 def test_slow_and_idle_clients_and_busy_planners_never_delay_health(hostile_server):

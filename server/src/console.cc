@@ -53,23 +53,25 @@ const ConsoleFile* FindConsoleFile(std::string_view path) {
   return nullptr;
 }
 
-void ServeConsole(const httplib::Request& req, httplib::Response& res) {
-  const ConsoleFile* file = FindConsoleFile(req.path);
+HttpResponse ServeConsole(std::string_view path) {
+  HttpResponse res;
+  const ConsoleFile* file = FindConsoleFile(path);
   if (file == nullptr) {
     res.status = 404;
-    res.set_content(api::RenderError(NotFoundError("no console file " + req.path.substr(0, 200))),
-                    "application/json");
-    return;
+    res.SetContent(
+        api::RenderError(NotFoundError("no console file " + std::string(path.substr(0, 200)))),
+        "application/json");
+    return res;
   }
-  res.status = 200;
-  res.set_content(std::string(file->body), std::string(file->content_type));
+  res.SetContent(std::string(file->body), std::string(file->content_type));
   // The page's own scripts and styles only; images it draws itself (data: URLs of canvases).
-  res.set_header("Content-Security-Policy",
-                 "default-src 'self'; img-src 'self' data: blob:; style-src 'self'; "
-                 "script-src 'self'; connect-src 'self'; frame-ancestors 'none'; "
-                 "base-uri 'none'; form-action 'none'");
-  res.set_header("X-Content-Type-Options", "nosniff");
-  res.set_header("Cache-Control", "no-cache");
+  res.AddHeader("Content-Security-Policy",
+                "default-src 'self'; img-src 'self' data: blob:; style-src 'self'; "
+                "script-src 'self'; connect-src 'self'; frame-ancestors 'none'; "
+                "base-uri 'none'; form-action 'none'");
+  res.AddHeader("X-Content-Type-Options", "nosniff");
+  res.AddHeader("Cache-Control", "no-cache");
+  return res;
 }
 
 }  // namespace npfkct::server

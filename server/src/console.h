@@ -4,13 +4,9 @@
 // API key and sends it with its own requests.
 #pragma once
 
-// server.h first: Eigen must come before httplib, which pulls in <resolv.h> and its `_res` macro.
-#include "npfkct/server/server.h"
-// clang-format off
-#include <httplib.h>
-// clang-format on
-
 #include <string_view>
+
+#include "http_message.h"
 
 namespace npfkct::server {
 
@@ -26,6 +22,6 @@ const ConsoleFile* FindConsoleFile(std::string_view path);
 
 /// Answers a GET of the console: the file with a strict Content-Security-Policy (scripts and
 /// styles from the server only, no inline code), or 404 NOT_FOUND.
-void ServeConsole(const httplib::Request& req, httplib::Response& res);
+HttpResponse ServeConsole(std::string_view path);
 
 }  // namespace npfkct::server

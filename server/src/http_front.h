@@ -1,22 +1,27 @@
-// The HTTP front of npfkct-server: cpp-httplib (Debian's 0.11.4) parses requests and routes them,
-// but connections are served by this front instead of httplib's one-thread-per-connection loop.
+// The HTTP front of npfkct-server: it accepts connections, frames and reads each request once into
+// a typed HttpRequest (http_message.h), hands complete requests to a handler on a worker thread,
+// and writes the typed HttpResponse the handler returns.
 //
 // An epoll reactor owns every connection while it is idle or still sending its request: it reads
 // the request head and the whole body (Content-Length or chunked, counted against the body limit
 // as it streams in) with deadlines for the head, the body and keep-alive idleness, answers
-// `Expect: 100-continue`, and refuses what httplib 0.11.4 would let through (a body past the
-// limit in any framing, compressed bodies, Content-Length with Transfer-Encoding, any other
-// transfer coding). Only complete requests reach a worker thread, and a response the socket
-// does not take at once goes back to the reactor to be sent as the client reads it, so slow or
-// idle clients, sending or reading, hold a file descriptor, never a thread. GET /healthz and GET
-// /metrics go to their own workers, which nothing else can occupy. While a handler runs, Current()
-// gives its connection, so a long handler can notice that the client went away (ClientGone()).
+// `Expect: 100-continue`, and refuses what it cannot frame without doubt (a body past the limit
+// in any framing, compressed bodies, Content-Length with Transfer-Encoding, any other transfer
+// coding, obsolete line folding, stray CR, LF or NUL). Only complete requests reach a worker
+// thread, and a response the socket does not take at once goes back to the reactor to be sent as
+// the client reads it, so slow or idle clients, sending or reading, hold a file descriptor, never
+// a thread. GET /healthz and GET /metrics go to their own workers, which nothing else can occupy.
+// While a handler runs, Current() gives its connection, so a long handler can notice that the
+// client went away (ClientGone()).
+//
+// The framing and the reading of a head are the front's own, bounded as it reads, not a parser
+// library's: Debian 12's libhttp-parser (nodejs/http-parser 2.9.4) has been unmaintained since
+// 2020 (its successor, llhttp, is not packaged), and it takes what the front refuses (bare LF
+// line ends, folded header lines, chunk trailers; an 80 KiB head), so every refusal would have
+// needed a second reading of the head beside it.
 #pragma once
 
-#include <httplib.h>
-
 #include <atomic>
-#include <chrono>
 #include <condition_variable>
 #include <deque>
 #include <functional>
@@ -26,6 +31,8 @@
 #include <string_view>
 #include <thread>
 #include <vector>
+
+#include "http_message.h"
 
 namespace npfkct::server {
 
@@ -58,30 +65,56 @@ bool SameSecret(std::string_view a, std::string_view b);
 /// One client connection, as a handler sees it.
 struct Connection {
   int fd = -1;
-  /// Set by a handler when the connection must close after its response.
+  /// Set by a handler when the connection must close after its response (which then says
+  /// `Connection: close`).
   bool must_close = false;
-  /// When the current request started being served, and its route's name (set by the server's
-  /// routing, for metrics).
-  std::chrono::steady_clock::time_point start;
-  const char* route = "-";
 };
 
-/// The front. Configure handlers on it as on any httplib::Server, then Start(), bind and
-/// listen_after_bind(); Shutdown() before destruction.
-class HttpFront : public httplib::Server {
+/// How a request's body is framed and what its head asks of the connection, as read from it.
+struct RequestFraming {
+  bool chunked = false;
+  size_t content_length = 0;  ///< Without chunking; 0 also when there is no body.
+  bool expect_continue = false;
+  bool close = false;  ///< Close after the response (asked, or HTTP/1.0 without keep-alive).
+  bool has_body() const { return chunked || content_length > 0; }
+};
+
+/// A request head the front answers itself: the status and the message of its error body.
+struct HeadRefusal {
+  int status = 0;  ///< 0: not refused.
+  std::string message;
+};
+
+/// Reads a complete request head (`head`: the request line and header lines, each ending in CRLF,
+/// without the blank line) into `request` (all but its body) and `framing`; a refusal when the
+/// front must answer it itself (malformed lines, an unsupported version or coding, a target the
+/// routes cannot serve, a body past `max_body_bytes`). Every header line is read once, here.
+HeadRefusal ReadRequestHead(std::string_view head, size_t max_body_bytes, HttpRequest* request,
+                            RequestFraming* framing);
+
+/// The front. Bind(), then Start(); Shutdown() before destruction.
+class HttpFront {
  public:
+  /// Answers a complete request (on a worker thread, Current() set).
+  using Handler = std::function<HttpResponse(const HttpRequest& request)>;
   /// Renders the body of an error the front answers itself (408, 413, 415, 429, 431, 400).
   using ErrorRenderer = std::function<std::string(int http_status, const std::string& message)>;
   /// Called for every response the front writes itself (status code), for metrics.
   using FrontResponseObserver = std::function<void(int http_status)>;
 
-  HttpFront(HttpFrontOptions options, ErrorRenderer render_error, FrontResponseObserver observe);
-  ~HttpFront() override;
+  HttpFront(HttpFrontOptions options, Handler handler, ErrorRenderer render_error,
+            FrontResponseObserver observe);
+  ~HttpFront();
+  HttpFront(const HttpFront&) = delete;
+  HttpFront& operator=(const HttpFront&) = delete;
 
-  /// Starts the reactor and the worker threads, and widens the bound socket's listen backlog.
+  /// Binds and listens on `host` (a name or an address) and `port` (0: any free port); the port
+  /// bound, or -1.
+  int Bind(const std::string& host, int port);
+  /// Starts the reactor (which accepts connections) and the worker threads. Throws
+  /// std::system_error when a thread cannot be started.
   void Start();
-  /// Stops accepting, closes every connection the reactor holds and joins the threads (after
-  /// httplib's stop()).
+  /// Stops accepting, closes every connection and joins the threads.
   void Shutdown();
 
   /// The connection the calling worker thread is serving; null outside a handler.
@@ -99,20 +132,28 @@ class HttpFront : public httplib::Server {
   struct Conn;  // a connection and its buffered bytes (http_front.cc)
 
  private:
-  bool process_and_close_socket(socket_t sock) override;
-  void Reactor();
+  class Pool;
+  class Reactor;
+
+  // Takes a new connection (from accept), or refuses it past the connection limit.
+  void Admit(int fd);
   void Serve(std::unique_ptr<Conn> conn);
+  // Writes a response: what the socket does not take goes to the connection's pending output.
+  bool Send(Conn* conn, const char* data, size_t size);
   void Return(std::unique_ptr<Conn> conn);
   void Close(std::unique_ptr<Conn> conn);
   void ReleaseBytes(Conn* conn, size_t n);
   // Sends what the connection's pending response the socket takes now; false on an error.
   bool FlushOut(Conn* conn);
+  // Counts `n` more bytes in the front's pending output, unless that would pass its bound.
+  bool Reserve(Conn* conn, size_t n);
   void Wake();
 
-  class Pool;
   HttpFrontOptions options_;
+  Handler handler_;
   ErrorRenderer render_error_;
   FrontResponseObserver observe_;
+  int listen_fd_ = -1;
   int epoll_fd_ = -1;
   int wake_fd_ = -1;
   std::atomic<bool> stopping_{false};

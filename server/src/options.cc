@@ -114,15 +114,16 @@ Status ServerOptions::Validate() const {
     if (!(t > 0.0 && t <= 3600.0)) return InvalidFieldError("timeouts", "must be in (0, 3600] s");
   }
   if (max_models < 1) return InvalidFieldError("max-models", "must be >= 1");
-  // httplib percent-decodes and trims header values before the server compares them: a key with
-  // '%', a space or a control character could never be sent as it is.
+  // Header values are percent-decoded and trimmed before the server compares them (as httplib,
+  // which served the API before, read them): a key with '%', a space or a control character
+  // could never be sent as it is.
   if (std::any_of(api_key.begin(), api_key.end(), [](char ch) {
         const auto u = static_cast<unsigned char>(ch);
         return ch == '%' || u <= 0x20 || u == 0x7f;
       })) {
     return InvalidFieldError("api-key",
-                             "must not hold '%', spaces or control characters (httplib decodes "
-                             "and trims the Authorization header)");
+                             "must not hold '%', spaces or control characters (the server "
+                             "decodes and trims the Authorization header)");
   }
   if (api_key.empty() && !insecure && !IsLoopbackHost(host)) {
     return InvalidFieldError(
@@ -150,44 +151,9 @@ HttpFront::ErrorRenderer FrontErrors() {
                               : code == 413 ? StatusCode::kResourceExhausted
                               : code == 429 ? StatusCode::kResourceExhausted
                               : code == 431 ? StatusCode::kResourceExhausted
+                              : code == 500 ? StatusCode::kInternal
                                             : StatusCode::kInvalidArgument;
     return api::RenderError(Status(status, message), code, code == 429 ? 1 : 0);
-  };
-}
-
-httplib::Server::HandlerWithResponse HttpErrorBodies() {
-  return [](const httplib::Request& req, httplib::Response& res) {
-    using R = httplib::Server::HandlerResponse;
-    if (!res.body.empty()) return R::Unhandled;
-    const int code = res.status;
-    // httplib answers 400 to a method it does not know before any route sees the request.
-    static constexpr std::string_view kKnown[] = {"GET",    "HEAD",    "POST",  "PUT",
-                                                  "DELETE", "OPTIONS", "PATCH", "CONNECT"};
-    if (code == 400 && !req.method.empty() &&
-        std::find(std::begin(kKnown), std::end(kKnown), req.method) == std::end(kKnown)) {
-      std::string method;
-      for (char c : req.method.substr(0, 16)) {
-        method += std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' ? c : '?';
-      }
-      res.set_content(api::RenderError(InvalidArgumentError("method " + method +
-                                                            " is not supported (GET, HEAD, "
-                                                            "POST, DELETE)"),
-                                       code),
-                      "application/json");
-      return R::Handled;
-    }
-    const StatusCode status = code == 404   ? StatusCode::kNotFound
-                              : code == 413 ? StatusCode::kResourceExhausted
-                              : code == 416 ? StatusCode::kOutOfRange
-                              : code >= 500 ? StatusCode::kInternal
-                                            : StatusCode::kInvalidArgument;
-    res.set_content(api::RenderError(Status(status, "the HTTP layer refused the request (HTTP " +
-                                                        std::to_string(code) +
-                                                        "): check its request line "
-                                                        "and headers"),
-                                     code),
-                    "application/json");
-    return R::Handled;
   };
 }
 

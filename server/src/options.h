@@ -2,14 +2,11 @@
 // the HTTP front's share of them.
 #pragma once
 
-// server.h first: Eigen must come before httplib, which pulls in <resolv.h> and its `_res` macro.
-#include "npfkct/server/server.h"
-// clang-format off
-#include "http_front.h"
-// clang-format on
-
 #include <string>
 #include <string_view>
+
+#include "http_front.h"
+#include "npfkct/server/server.h"
 
 namespace npfkct::server {
 
@@ -34,12 +31,8 @@ std::string BrowserRefusal(const ServerOptions& o, bool api_route, std::string_v
 HttpFrontOptions FrontOptions(const ServerOptions& o);
 
 /// The bodies of the errors the front answers itself: the API's error body with the canonical
-/// status of each HTTP status (408 DEADLINE_EXCEEDED, 413/429/431 RESOURCE_EXHAUSTED, 416
-/// OUT_OF_RANGE, else INVALID_ARGUMENT).
+/// status of each HTTP status (401 UNAUTHENTICATED, 404 NOT_FOUND, 408 DEADLINE_EXCEEDED,
+/// 413/429/431 RESOURCE_EXHAUSTED, 416 OUT_OF_RANGE, 500 INTERNAL, else INVALID_ARGUMENT).
 HttpFront::ErrorRenderer FrontErrors();
-
-/// httplib's error handler: the errors httplib answers itself (a malformed request line, a URI
-/// too long) get the API's error body too.
-httplib::Server::HandlerWithResponse HttpErrorBodies();
 
 }  // namespace npfkct::server

@@ -1,5 +1,6 @@
 // The HTTP front over raw sockets: bodies in every framing against the limit, refused encodings,
-// deadlines for slow clients, health that slow clients cannot starve, pipelining, hang-ups.
+// deadlines for slow clients, health that slow clients cannot starve, pipelining, hang-ups; and
+// its one reading of a request head, without a socket (ReadRequestHead).
 #include "http_front.h"
 
 #include <arpa/inet.h>
@@ -26,38 +27,36 @@ class HttpFrontTest : public ::testing::Test {
  protected:
   void Start(HttpFrontOptions o) {
     front_ = std::make_unique<HttpFront>(
-        o, [](int code, const std::string& m) { return std::to_string(code) + " " + m; },
+        o, [this](const HttpRequest& req) { return Handle(req); },
+        [](int code, const std::string& m) { return std::to_string(code) + " " + m; },
         [this](int code) { front_codes_.push_back(code); });
-    front_->Get("/healthz", [](const httplib::Request&, httplib::Response& res) {
-      res.set_content("ok", "text/plain");
-    });
-    front_->Post("/echo", [](const httplib::Request&, httplib::Response& res,
-                             const httplib::ContentReader& reader) {
-      std::string body;
-      reader([&](const char* d, size_t n) {
-        body.append(d, n);
-        return true;
-      });
-      res.set_content(std::to_string(body.size()) + ":" + body.substr(0, 16), "text/plain");
-    });
-    front_->Get("/wait", [this](const httplib::Request&, httplib::Response& res) {
+    port_ = front_->Bind("127.0.0.1", 0);
+    ASSERT_GT(port_, 0);
+    front_->Start();
+  }
+  // The routes of the tests: GET /healthz, POST /echo (the body's size and start), GET /wait.
+  HttpResponse Handle(const HttpRequest& req) {
+    HttpResponse res;
+    const bool get = req.method == "GET" || req.method == "HEAD";
+    if (get && req.path == "/healthz") {
+      res.SetContent("ok", "text/plain");
+    } else if (req.method == "POST" && req.path == "/echo") {
+      res.SetContent(std::to_string(req.body.size()) + ":" + req.body.substr(0, 16), "text/plain");
+    } else if (get && req.path == "/wait") {
       // A long handler that notices its client hanging up.
       const auto t0 = Clock::now();
       while (!HttpFront::ClientGone() && Since(t0) < 5.0) {
         std::this_thread::sleep_for(std::chrono::milliseconds(2));
       }
       gone_after_ = Since(t0);
-      res.set_content("done", "text/plain");
-    });
-    port_ = front_->bind_to_any_port("127.0.0.1");
-    front_->Start();
-    listener_ = std::thread([this] { front_->listen_after_bind(); });
+      res.SetContent("done", "text/plain");
+    } else {
+      res.status = 404;
+    }
+    return res;
   }
   void TearDown() override {
-    if (!front_) return;
-    front_->stop();
-    listener_.join();
-    front_->Shutdown();
+    if (front_) front_->Shutdown();
   }
   int Connect() {
     const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
@@ -95,7 +94,6 @@ class HttpFrontTest : public ::testing::Test {
   }
 
   std::unique_ptr<HttpFront> front_;
-  std::thread listener_;
   int port_ = 0;
   std::vector<int> front_codes_;
   std::atomic<double> gone_after_{-1.0};
@@ -259,8 +257,9 @@ TEST_F(HttpFrontTest, VersionsTargetsAndEncodedSeparatorsTheRoutesCannotServeAre
 }
 
 TEST_F(HttpFrontTest, HeaderLinesTheFrontRemovesAreNoLongerCountedInFlight) {
-  // Range and Expect lines are cut from the buffer before httplib reads it; they stayed counted
-  // in the in-flight total until their connection closed.
+  // Range and Expect lines were cut from the buffer before httplib read it, and stayed counted
+  // in the in-flight total until their connection closed. Every byte of a request is released
+  // once it is answered.
   HttpFrontOptions o;
   o.idle_timeout_s = 30.0;  // the connection stays open throughout
   Start(o);
@@ -299,7 +298,7 @@ TEST_F(HttpFrontTest, ABodyIsReadOnlyFromAClientWithTheBearerToken) {
       "POST /echo HTTP/1.1\r\nAuthorization: Bearer k3z\r\nTransfer-Encoding: "
       "chunked\r\n\r\n3\r\nabc\r\n0\r\n\r\n");
   EXPECT_EQ(reply.rfind("HTTP/1.1 401", 0), 0u) << reply;
-  // The token as httplib reads it for the routes: the first non-empty value, percent-decoded.
+  // The token as the routes read it (as httplib did): the first non-empty value, percent-decoded.
   reply = Exchange(
       "POST /echo HTTP/1.1\r\nAuthorization:\r\nAuthorization: Bearer k%33y\r\n"
       "Content-Length: 3\r\nConnection: close\r\n\r\nabc");
@@ -405,6 +404,91 @@ TEST_F(HttpFrontTest, BytesInFlightAndConnectionsAreBounded) {
   EXPECT_EQ(Read(extra).rfind("HTTP/1.1 429", 0), 0u);
   ::close(extra);
   for (int fd : many) ::close(fd);
+}
+
+// The head of a request: its lines, each with its CRLF (no blank line).
+HeadRefusal ReadHead(const std::string& head, HttpRequest* req, RequestFraming* framing,
+                     size_t max_body = 1000) {
+  return ReadRequestHead(head, max_body, req, framing);
+}
+
+TEST(ReadRequestHead, FillsTheRequestOnce) {
+  HttpRequest req;
+  RequestFraming framing;
+  const HeadRefusal r = ReadHead(
+      "POST /v1/sessions/abc:plan?x=%31 HTTP/1.1\r\nHost: h\r\nauthorization: Bearer k%33y  \r\n"
+      "Authorization: second\r\nX-Empty:\r\nContent-Length: 12\r\nConnection: Keep-Alive, "
+      "CLOSE\r\nExpect: 100-continue\r\n",
+      &req, &framing);
+  ASSERT_EQ(r.status, 0) << r.message;
+  EXPECT_EQ(req.method, "POST");
+  EXPECT_EQ(req.target, "/v1/sessions/abc:plan?x=%31");
+  EXPECT_EQ(req.version, "HTTP/1.1");
+  EXPECT_EQ(req.path, "/v1/sessions/abc:plan");
+  EXPECT_EQ(req.Param("x"), "1");
+  EXPECT_EQ(req.Header("Authorization"), "Bearer k3y");  // the first, trimmed and decoded
+  EXPECT_FALSE(req.HasHeader("X-Empty"));
+  EXPECT_FALSE(framing.chunked);
+  EXPECT_EQ(framing.content_length, 12u);
+  EXPECT_TRUE(framing.close);
+  EXPECT_TRUE(framing.expect_continue);
+
+  HttpRequest old;
+  RequestFraming old_framing;
+  ASSERT_EQ(ReadHead("GET / HTTP/1.0\r\nTransfer-Encoding: Chunked\r\n", &old, &old_framing).status,
+            0);
+  EXPECT_TRUE(old_framing.chunked);
+  EXPECT_TRUE(old_framing.close);  // HTTP/1.0 without keep-alive
+  HttpRequest kept;
+  RequestFraming kept_framing;
+  ASSERT_EQ(ReadHead("GET / HTTP/1.0\r\nConnection: keep-alive\r\n", &kept, &kept_framing).status,
+            0);
+  EXPECT_FALSE(kept_framing.close);
+}
+
+TEST(ReadRequestHead, RefusesWhatItCannotFrameWithoutDoubt) {
+  const std::pair<std::string, int> refused[] = {
+      {"GET / HTTP/1.1\r\nX: a\nb\r\n", 400},                   // a bare LF
+      {"GET / HTTP/1.1\r\nX: a\rb\r\n", 400},                   // a bare CR
+      {std::string("GET / HTTP/1.1\r\nX: a\0b\r\n", 25), 400},  // a NUL
+      {"GET  / HTTP/1.1\r\n", 400},
+      {"G@T / HTTP/1.1\r\n", 400},
+      {"GET / HTTP/2.0\r\n", 505},
+      {"GET /" + std::string(8000, 'a') + " HTTP/1.1\r\n", 414},
+      {"GET http://h/ HTTP/1.1\r\n", 400},  // absolute form
+      {"OPTIONS * HTTP/1.1\r\n", 400},
+      {"GET /v1/sessions/a%2Fsteps HTTP/1.1\r\n", 404},
+      {"GET / HTTP/1.1\r\nX: " + std::string(8200, 'a') + "\r\n", 431},
+      {"GET / HTTP/1.1\r\nX: a\r\n b\r\n", 400},  // obsolete line folding
+      {"GET / HTTP/1.1\r\nX : a\r\n", 400},
+      {"GET / HTTP/1.1\r\n: a\r\n", 400},
+      {"GET / HTTP/1.1\r\nno colon\r\n", 400},
+      {"POST / HTTP/1.1\r\nContent-Length: 3\r\nContent-Length: 4\r\n", 400},
+      {"POST / HTTP/1.1\r\nContent-Length: 3, 3\r\n", 400},
+      {"POST / HTTP/1.1\r\nContent-Length: +3\r\n", 400},
+      {"POST / HTTP/1.1\r\nContent-Length: 1001\r\n", 413},
+      {"POST / HTTP/1.1\r\nContent-Length: 3\r\nTransfer-Encoding: chunked\r\n", 400},
+      {"POST / HTTP/1.1\r\nTransfer-Encoding: chunked\r\nTransfer-Encoding: chunked\r\n", 400},
+      {"POST / HTTP/1.1\r\nTransfer-Encoding: gzip, chunked\r\n", 400},
+      {"POST / HTTP/1.1\r\nContent-Encoding: identity\r\nContent-Encoding: gzip\r\n", 415},
+      {"GET / HTTP/1.1\r\nRange: bytes=0-1,2-3\r\n", 416},
+  };
+  for (const auto& [head, status] : refused) {
+    HttpRequest req;
+    RequestFraming framing;
+    const HeadRefusal r = ReadHead(head, &req, &framing);
+    EXPECT_EQ(r.status, status) << head.substr(0, 80) << ": " << r.message;
+    EXPECT_FALSE(r.message.empty());
+  }
+  // Repeated equal lengths and an identity coding are no doubt.
+  HttpRequest req;
+  RequestFraming framing;
+  EXPECT_EQ(ReadHead("POST / HTTP/1.1\r\nContent-Length: 3\r\nContent-Length: 3\r\n"
+                     "Content-Encoding: identity\r\nContent-Encoding:\r\nRange: bytes=0-1\r\n",
+                     &req, &framing)
+                .status,
+            0);
+  EXPECT_EQ(framing.content_length, 3u);
 }
 
 }  // namespace
