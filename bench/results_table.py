@@ -497,6 +497,16 @@ def compare(a_root, b_root):
     print(f"\n{agree} of {len(keys)} cells agree.")
 
 
+def inside_count(old_root, new_root):
+    """How many of the new run's cell means lie inside the old run's 95% interval of the cell."""
+    a, b = load_cells(old_root), load_cells(new_root)
+    keys = [k for k in a if k in b]
+    inside = sum(abs(b[k]["mean_discounted_reward"] - a[k]["mean_discounted_reward"]) <=
+                 a[k]["ci95"] + 1e-6 for k in keys)
+    return (f"{inside} of {len(keys)} of {os.path.basename(new_root)}'s means lie inside "
+            f"{os.path.basename(old_root)}'s interval of the cell.")
+
+
 def flat(path):
     rows = [json.loads(line) for line in open(path, encoding="utf-8") if line.strip()]
     modes = {r.get("observe", "geometric") for r in rows}
@@ -904,6 +914,7 @@ and Covered1 for the planners that beat NPF-kCT there; run 3 is every cell with 
 rollout, run 4 (Table 1) every cell with the aimed rollout. A cell agrees when each run's mean
 lies inside the other run's 95% interval.
 
+    SCENES="loose1 hidden1" bench/bench_table1.sh --run house         # after the restructure
     SCENES="loose1 complex1" bench/bench_table1.sh --run run2
     SCENES="hidden1 covered1" PLANNERS="oracle npfkct kct pomcp-joint gpomcp" \\
       bench/bench_table1.sh --run run2
@@ -915,7 +926,12 @@ lies inside the other run's 95% interval.
       lambda r: print("\nRun 1 against run 3 (both greedy; run 3 with a faster model, on "
                       "another machine), agreement only:\n"),
       lambda r: print(capture(compare, os.path.join(r, "table1", "run1"),
-                              os.path.join(r, "table1", "run3")).rstrip().splitlines()[-1])]),
+                              os.path.join(r, "table1", "run3")).rstrip().splitlines()[-1]),
+      lambda r: print("\nRun house (Loose1 and Hidden1 again after the code was moved into its "
+                      "layers and the planners into one registry of factories) against run 4:\n"),
+      lambda r: compare(os.path.join(r, "table1", "run4"), os.path.join(r, "table1", "house")),
+      lambda r: print(inside_count(os.path.join(r, "table1", "run4"),
+                                   os.path.join(r, "table1", "house")))]),
     ("Which side first: paper scenes mirrored", """\
 Hidden1, Complex1 and Covered1 beside their mirror images (every object's position mirrored across
 the table's short axis), at Table 1's protocol, with the trials whose first view saw the target
