@@ -26,6 +26,9 @@ namespace npfkct::bench {
 struct EpisodeResult {
   double discounted_return = 0.0;
   double undiscounted_return = 0.0;
+  /// The discounted reward without what obstacle declarations earned beyond a step (R_co -
+  /// R_min each): what finding and removing the target earned (object search only).
+  double target_return = 0.0;
   int steps = 0;
   bool success = false;
   std::vector<int64_t> sims_per_step;

@@ -253,6 +253,11 @@ EpisodeResult RunTrial(const TrialContext& ctx) {
     const sim::ExecutionOutcome outcome = simulator.Execute(d.action, world, world_rng);
     result.discounted_return += discount * outcome.reward;
     result.undiscounted_return += outcome.reward;
+    const bool obstacle_declared =
+        d.action.kind != object_search::kMoveKind && outcome.success &&
+        object_search::KindOffset(d.action.kind) == object_search::kDeclareObstacleOffset;
+    result.target_return +=
+        discount * (obstacle_declared ? world.params.r_min : outcome.reward);
     discount *= world.params.discount;
     ++result.steps;
     if (d.action.kind != object_search::kMoveKind && outcome.success) {
@@ -525,11 +530,13 @@ void PrintCell(const SearchBenchConfig& config, const BenchSetup& setup,
     perception_ms = ", \"median_perception_ms_per_frame\": " + std::to_string(Median(frame_ms));
   }
   // Every trial's outcome, so that tables and comparisons can be recomputed from the file.
-  std::string rewards, steps, successes;
+  std::string rewards, target_rewards, steps, successes;
   for (size_t k = 0; k < mine.size(); ++k) {
     char buf[64];
     std::snprintf(buf, sizeof buf, "%s%.1f", k ? ", " : "", mine[k].discounted_return);
     rewards += buf;
+    std::snprintf(buf, sizeof buf, "%s%.1f", k ? ", " : "", mine[k].target_return);
+    target_rewards += buf;
     if (k > 0) {
       steps.append(", ");
       successes.append(", ");
@@ -548,8 +555,8 @@ void PrintCell(const SearchBenchConfig& config, const BenchSetup& setup,
       "\"ci95_steps\": %.2f, \"success_rate\": %.3f, \"median_sims_per_step\": %.1f, "
       "\"median_sims_per_second\": %.1f, \"median_sims_per_cpu_second\": %.1f, "
       "\"median_cpu_ms_per_step\": %.1f, \"median_first_step_sims_per_second\": %.1f, "
-      "\"wall_seconds\": %.1f, \"failed_trials\": %d, \"rewards\": [%s], \"steps\": [%s], "
-      "\"successes\": [%s]%s%s%s%s}\n",
+      "\"wall_seconds\": %.1f, \"failed_trials\": %d, \"rewards\": [%s], "
+      "\"target_rewards\": [%s], \"steps\": [%s], \"successes\": [%s]%s%s%s%s}\n",
       JsonEscape(scenario.name).c_str(), planner.c_str(), mode.c_str(), config.trials,
       config.time_ms, config.cpu_ms, static_cast<long long>(config.sims), scenario.robot.c_str(),
       static_cast<unsigned long long>(config.seed), config.threads, option_list.c_str(),
@@ -557,7 +564,7 @@ void PrintCell(const SearchBenchConfig& config, const BenchSetup& setup,
       s.mean_steps, s.ci95_steps, s.success_rate.value_or(0.0), s.median_sims_per_step,
       s.median_sims_per_second, s.median_sims_per_cpu_second, s.median_cpu_ms_per_step,
       s.median_first_step_sims_per_second, s.wall_seconds, s.failed_episodes, rewards.c_str(),
-      steps.c_str(), successes.c_str(), perception_ms.c_str(),
+      target_rewards.c_str(), steps.c_str(), successes.c_str(), perception_ms.c_str(),
       s.first_error.empty() ? "" : ", \"error\": \"", JsonEscape(s.first_error).c_str(),
       s.first_error.empty() ? "" : "\"");
 }

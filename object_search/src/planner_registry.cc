@@ -5,6 +5,7 @@
 #include <utility>
 
 #include "npfkct/object_search/discrete.h"
+#include "npfkct/object_search/policies.h"
 #include "npfkct/object_search/proposals.h"
 #include "npfkct/solver/advt.h"
 #include "npfkct/solver/kct.h"
@@ -301,6 +302,31 @@ PlannerRegistry MakeBuiltIn() {
          if (Status s = ApplyOptions(&o, args.options); !s.ok()) return s;
          return std::unique_ptr<SearchPlanner>(new HybridSearchPlanner<Advt<ObjectSearchModel>>(
              "advt", *args.model, o, OptionValues(o)));
+       }});
+  add({"nbv",
+       "A greedy next-best view over the same belief, no search tree: remove what was declared, "
+       "declare the target once confirmed, else the view that sees the most of the target or "
+       "clearing the movable object with the most of its mass inside (the reference every "
+       "search must beat)",
+       false, false,
+       [](const SearchParams&) {
+         return option_table::Values(NextBestViewTable(), NextBestViewOptions{});
+       },
+       [](const PlannerArgs& args) -> Made {
+         NextBestViewOptions o;
+         if (Status s = ApplyOptions(&o, args.options); !s.ok()) return s;
+         return std::unique_ptr<SearchPlanner>(new NextBestView(*args.model, o));
+       }});
+  add({"rollout",
+       "The model's rollout policy executed with no search: a legal declare or remove when the "
+       "odds allow it, else a view aimed at a placement of the target, else a random one",
+       false, false, [](const SearchParams&) { return OptionList{}; },
+       [](const PlannerArgs& args) -> Made {
+         if (!args.options.empty()) {
+           return InvalidArgumentError("option " + args.options[0].first +
+                                       ": the rollout policy takes no options");
+         }
+         return std::unique_ptr<SearchPlanner>(new RolloutPolicy(*args.model));
        }});
   add(OracleEntry("oracle",
                   "Told the true world: plans the shortest legal action sequence (the ceiling; "

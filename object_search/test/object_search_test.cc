@@ -11,6 +11,7 @@
 #include "npfkct/object_search/discrete.h"
 #include "npfkct/object_search/model.h"
 #include "npfkct/object_search/planner_registry.h"
+#include "npfkct/object_search/policies.h"
 #include "npfkct/object_search/proposals.h"
 #include "npfkct/solver/kct.h"
 #include "npfkct/solver/pomcp.h"
@@ -657,10 +658,10 @@ TEST(WorldTest, BaseRegionsAreCutToTheRoomAndMustLeaveRoomForTheBase) {
 
 TEST(PlannerRegistryTest, BuiltInPlannersAreListedInTableOrderWithValidNames) {
   const PlannerRegistry& r = PlannerRegistry::BuiltIn();
-  EXPECT_EQ(r.Names(),
-            (std::vector<std::string>{"npfkct", "kct", "pomcp", "gpomcp", "pomcp-joint", "pomcpow",
-                                      "vomcpow", "advt", "oracle", "oracle-cover-unknown"}));
-  EXPECT_EQ(r.Names(/*servable_only=*/true).size(), 8u);
+  EXPECT_EQ(r.Names(), (std::vector<std::string>{"npfkct", "kct", "pomcp", "gpomcp", "pomcp-joint",
+                                                 "pomcpow", "vomcpow", "advt", "nbv", "rollout",
+                                                 "oracle", "oracle-cover-unknown"}));
+  EXPECT_EQ(r.Names(/*servable_only=*/true).size(), 10u);
   PlannerRegistry copy = r;
   for (const PlannerEntry& e : r.entries()) {
     EXPECT_FALSE(copy.Add(e).ok()) << e.name;  // taken
@@ -698,6 +699,10 @@ TEST(PlannerRegistryTest, OptionsUsedAreTheDefaultsWithTheOverridesApplied) {
     auto plain = MakeSearchPlanner(name, model, {});
     ASSERT_TRUE(plain.ok()) << name;
     EXPECT_TRUE(SameOptions((*plain)->OptionsUsed(), defaults)) << name;
+    const bool searches = std::any_of(defaults.begin(), defaults.end(), [](const auto& kv) {
+      return kv.first == "search.max_depth";
+    });
+    if (!searches) continue;  // the references without a tree have no depth
     auto deeper = MakeSearchPlanner(name, model, {{"search.max_depth", 20}});
     ASSERT_TRUE(deeper.ok()) << name;
     OptionList expected = defaults;
@@ -726,6 +731,56 @@ TEST(PlannerRegistryTest, PlannersThatNeedTheTruthAreRefusedWithoutIt) {
   auto unknown = MakeSearchPlanner("nope", model, {});
   ASSERT_FALSE(unknown.ok());
   EXPECT_NE(unknown.status().message().find("expected one of npfkct, kct"), std::string::npos);
+}
+
+TEST(NextBestViewTest, RemovesWhatWasDeclaredAndDeclaresAConfirmedTarget) {
+  World w = FourSidedWorld();
+  w.objects.push_back(Object("box", Vec3(1.0, 0.2, 0.8), Vec3(0.1, 0.1, 0.1), 0.0f));
+  Rng rng(3);
+  auto plan = [&](const World& world) {
+    ObjectSearchModel model(std::make_shared<World>(world));
+    NextBestView nbv(model, NextBestViewOptions{});
+    nbv.SetBelief(ParticleBelief<State>::FromInitial(model, 50, rng));
+    return nbv.Plan(Budget::Cpu(200), rng);
+  };
+  // Nothing is known of the box: look.
+  auto look = plan(w);
+  ASSERT_TRUE(look.status.ok()) << look.status.ToString();
+  EXPECT_EQ(look.action.kind, kMoveKind);
+  EXPECT_GT(look.value, 0.0);  // some view shows the guessed target
+  // Every face confirmed as the target's: declare it; declared: remove it.
+  World confirmed = w;
+  confirmed.objects[1].odds.fill(3.0f);
+  EXPECT_EQ(plan(confirmed).action.kind, DeclareTargetKind(1));
+  World declared = confirmed;
+  declared.objects[1].status = kDeclaredTarget;
+  EXPECT_EQ(plan(declared).action.kind, RemoveKind(1));
+  declared.objects[1].status = kDeclaredObstacle;
+  EXPECT_EQ(plan(declared).action.kind, RemoveKind(1));
+}
+
+TEST(NextBestViewTest, ClearsTheBoxThatHoldsTheTargetsMassWhenNothingElseCanBeSeen) {
+  World w = FourSidedWorld();
+  // A large box over most of the table, confirmed as an obstacle on every face, and the grid
+  // world's mass left only beneath it (everything around it seen empty).
+  w.objects.push_back(Object("cover", Vec3(1.2, 0.0, 0.9), Vec3(0.6, 0.6, 0.3), -3.0f));
+  for (int c = 0; c < w.grid.num_cells(); ++c) {
+    const Vec3 p = w.grid.CellCenter(c);
+    const bool under = std::abs(p.x() - 1.2) < 0.28 && std::abs(p.y()) < 0.28;
+    w.grid.set_log_odds(c, under ? 2.0f : -8.0f);
+  }
+  w.grid.RebuildSampler();
+  ObjectSearchModel model(std::make_shared<World>(w));
+  NextBestView nbv(model, NextBestViewOptions{});
+  Rng rng(5);
+  nbv.SetBelief(ParticleBelief<State>::FromInitial(model, 100, rng));
+  const auto d = nbv.Plan(Budget::Cpu(500), rng);
+  ASSERT_TRUE(d.status.ok());
+  EXPECT_EQ(d.action.kind, DeclareObstacleKind(1));
+  // The rollout reference plays the model's rollout policy: the same declaration.
+  RolloutPolicy rollout(model);
+  rollout.SetBelief(ParticleBelief<State>::FromInitial(model, 100, rng));
+  EXPECT_EQ(rollout.Plan(Budget::Cpu(10), rng).action.kind, DeclareObstacleKind(1));
 }
 
 }  // namespace
