@@ -99,6 +99,17 @@ const std::vector<RobotConfig>& Oracle::ViewsOf(int object) const {
   return views_[object] = std::move(views);
 }
 
+bool Oracle::Failed(const RobotConfig& c) const {
+  for (const RobotConfig& f : failed_views_) {
+    if (std::hypot(c.x - f.x, c.y - f.y) < 0.05 &&
+        std::abs(object_search::WrapAngle(c.yaw - f.yaw)) < 0.1 &&
+        std::abs(c.lift - f.lift) < 0.05 && std::abs(c.pan - f.pan) < 0.05) {
+      return true;
+    }
+  }
+  return false;
+}
+
 uint32_t Oracle::SeeableCorners(int object, uint64_t ignore) const {
   uint32_t seen = 0;
   for (const RobotConfig& c : ViewsOf(object)) {
@@ -118,6 +129,7 @@ bool Oracle::BestView(int object, const std::array<float, 8>& odds, double sign,
   std::vector<uint32_t> gain(views.size(), 0);
   std::array<bool, 256> present{};
   for (size_t v = 0; v < views.size(); ++v) {
+    if (Failed(views[v])) continue;
     uint32_t seen = 0;
     for (int k : sim_.VisibleCorners(object, views[v], ignore)) {
       if (k >= 0) seen |= 1u << k;
@@ -216,10 +228,23 @@ HybridAction Oracle::Next(const object_search::World& knowledge) const {
       return OnObject(kt, object_search::kDeclareTargetOffset);
     }
   }
+  // A view planned last step that confirmed none of the face grids it was for (a slot narrower
+  // than the pose noise, faces hidden after all) is not planned again.
+  if (last_.object >= 0) {
+    const int k = known(last_.object);
+    const int now = k > 0 ? count(knowledge.objects[k].odds, last_.sign) : 0;
+    if (now <= last_.confirmed) failed_views_.push_back(last_.view);
+    last_.object = -1;
+  }
+  auto planned = [&](int object, double sign, const std::array<float, 8>& odds,
+                     const RobotConfig& v) {
+    last_ = {object, sign, count(odds, sign), v};
+    return Move(v);
+  };
   // 2. Look at the target.
   RobotConfig view;
   if (BestView(target, target_odds, +1, p.n_odds - count(target_odds, +1), 0, &view)) {
-    return Move(view);
+    return planned(target, +1, target_odds, view);
   }
   // 3. Nothing more of the target can be seen: clear the object whose removal exposes the most
   // (not told the cover: the movable object of the largest footprint).
@@ -271,9 +296,40 @@ HybridAction Oracle::Next(const object_search::World& knowledge) const {
       }
     }
     if (!BestView(b, odds, -1, p.n_odds - count(odds, -1), 0, &view)) return false;
-    action = Move(view);
+    action = planned(b, -1, odds, view);
     return true;
   };
+  // No single removal shows the target (stacked covers, a cage): the fewest nearby movable
+  // objects whose removal together does, dropping the farthest first; cleared from the outside
+  // in (the first of them whose faces can be confirmed).
+  if (blocker < 0 && !options_.cover_unknown) {
+    std::vector<int> around;
+    uint64_t gone = 0;
+    for (int b = 0; b < considered; ++b) {
+      if (movable(b) && distance_to_target(b) <= 0.8) {
+        around.push_back(b);
+        gone |= uint64_t{1} << b;
+      }
+    }
+    auto exposed = [&](uint64_t mask) {
+      return std::popcount(SeeableCorners(target, mask) & ~target_confirmed);
+    };
+    if (exposed(gone) > 0) {
+      std::sort(around.begin(), around.end(),
+                [&](int a, int b) { return distance_to_target(a) > distance_to_target(b); });
+      std::vector<int> needed;
+      for (int b : around) {
+        if (exposed(gone & ~(uint64_t{1} << b)) > 0) {
+          gone &= ~(uint64_t{1} << b);
+        } else {
+          needed.push_back(b);
+        }
+      }
+      for (auto it = needed.rbegin(); it != needed.rend(); ++it) {
+        if (clear(*it)) return action;
+      }
+    }
+  }
   if (blocker >= 0) {
     if (clear(blocker)) return action;
     // Other objects hide the faces of the blocker still to be confirmed (a wall wedged between
@@ -301,6 +357,27 @@ HybridAction Oracle::Next(const object_search::World& knowledge) const {
   std::array<float, 8> none{};
   if (BestView(target, none, +1, 1, 0, &view)) return Move(view);
   return Move(knowledge.robot_config);
+}
+
+int OracleEpisodeSteps(const Scenario& scenario, uint64_t seed, int max_steps) {
+  Simulator simulator(scenario, seed);
+  auto initial = simulator.InitialWorld();
+  if (!initial.ok()) return -1;
+  object_search::World world = *initial;
+  Rng rng(seed * 104729 + 3);
+  if (!object_search::ApplyRealObservation(&world, simulator.Observe(rng)).ok()) return -1;
+  const Oracle oracle(simulator);
+  for (int t = 1; t <= max_steps; ++t) {
+    const HybridAction a = oracle.Next(world);
+    const ExecutionOutcome outcome = simulator.Execute(a, world, rng);
+    if (outcome.terminal) return t;
+    if (a.kind != object_search::kMoveKind && outcome.success) {
+      (void)object_search::ApplyDiscreteOutcome(&world, object_search::KindObject(a.kind),
+                                                object_search::KindOffset(a.kind), true);
+    }
+    if (!object_search::ApplyRealObservation(&world, simulator.Observe(rng)).ok()) return -1;
+  }
+  return -1;
 }
 
 namespace {

@@ -82,8 +82,8 @@ json Pair(double a, double b) { return json::array({R3(a), R3(b)}); }
 class Generator {
  public:
   // A scene named after `seed`, drawn from `draw` (the seed itself, or a redraw of it).
-  Generator(uint64_t seed, uint64_t draw)
-      : seed_(seed), rng_(draw * 0x9e3779b97f4a7c15ULL + 0x5eed) {}
+  Generator(uint64_t seed, uint64_t draw, const SceneOptions& options)
+      : seed_(seed), rng_(draw * 0x9e3779b97f4a7c15ULL + 0x5eed), options_(options) {}
 
   json Make(SceneSummary* summary) {
     robot_ = rng_.Bernoulli(0.5) ? "fetch" : "stretch";
@@ -92,14 +92,26 @@ class Generator {
     const double r = rng_.Uniform();
     placement_ = r < 0.4 ? TargetPlacement::kOpen
                          : (r < 0.7 ? TargetPlacement::kHidden : TargetPlacement::kCovered);
-    PlaceTarget();
-    PlaceOthers(3 + static_cast<int>(rng_.UniformInt(38)));
+    if (options_.version >= 2) {
+      placement_ = static_cast<TargetPlacement>(std::min(2, static_cast<int>(3 * r)));
+    }
+    if (options_.placement) placement_ = *options_.placement;
+    if (options_.version >= 2) {
+      PlaceTargetV2();
+      PlaceDecoys();
+      PlaceOthers(static_cast<int>(objects_.size()) + 3 + static_cast<int>(rng_.UniformInt(30)));
+    } else {
+      PlaceTarget();
+      PlaceOthers(3 + static_cast<int>(rng_.UniformInt(38)));
+    }
     json j = ToJson();
     if (summary != nullptr) {
       summary->robot = robot_;
       summary->furniture = static_cast<int>(furniture_.size());
       summary->objects = static_cast<int>(objects_.size());
       summary->placement = placement_;
+      summary->variant = variant_;
+      summary->decoys = decoys_;
     }
     return j;
   }
@@ -214,6 +226,160 @@ class Generator {
     }
   }
 
+  // ---- version 2 ----
+
+  // A cover's size law: the box it covers, larger by 0.06-0.14 m across and 0.05-0.12 m up.
+  object_search::Vec3 CoverSize(const object_search::Vec3& inner) {
+    return inner + object_search::Vec3(rng_.Uniform(0.06, 0.14), rng_.Uniform(0.06, 0.14),
+                                       rng_.Uniform(0.05, 0.12));
+  }
+
+  // Tall boxes (walls) on `count` of the four sides of a footprint of `size` at `uv` with `yaw`,
+  // in its frame; the remaining sides stay open.
+  std::vector<GenObject> Walls(int on, const Vec2& uv, double yaw, const object_search::Vec3& size,
+                               int count, const std::string& prefix) {
+    std::array<int, 4> sides = {0, 1, 2, 3};
+    for (int k = 3; k > 0; --k) std::swap(sides[k], sides[rng_.UniformInt(k + 1)]);
+    std::vector<GenObject> walls;
+    const double c = std::cos(yaw), s = std::sin(yaw);
+    for (int w = 0; w < count; ++w) {
+      const int side = sides[w];
+      const bool along_u = side < 2;
+      const double dir = side % 2 ? 1.0 : -1.0;
+      GenObject wall;
+      wall.name = prefix + std::to_string(w + 1);
+      wall.on = on;
+      const double depth = rng_.Uniform(0.05, 0.08);
+      const double span = (along_u ? size.y() : size.x()) + rng_.Uniform(0.08, 0.2);
+      wall.size =
+          along_u ? object_search::Vec3(depth, span, 0) : object_search::Vec3(span, depth, 0);
+      wall.size.z() = size.z() + rng_.Uniform(0.08, 0.2);
+      const double offset = 0.5 * (along_u ? size.x() : size.y()) + 0.5 * depth + 0.015;
+      const Vec2 local = along_u ? Vec2(dir * offset, 0) : Vec2(0, dir * offset);
+      wall.uv = uv + Vec2(c * local.x() - s * local.y(), s * local.x() + c * local.y());
+      wall.yaw = yaw;
+      wall.color = RandomColor(rng_);
+      walls.push_back(wall);
+    }
+    return walls;
+  }
+
+  // The target at any yaw, and what hides it: walls on one to three sides (or three, deeper:
+  // a pocket), or a cover (alone, under a second cover, or walled on one to two sides); a few
+  // small boxes beside it.
+  void PlaceTargetV2() {
+    for (int attempt = 0;; ++attempt) {
+      GenObject t;
+      t.name = "target";
+      t.target = true;
+      t.on = static_cast<int>(rng_.UniformInt(static_cast<int64_t>(furniture_.size())));
+      const GenFurniture& f = furniture_[t.on];
+      t.size = object_search::Vec3(rng_.Uniform(0.06, 0.14), rng_.Uniform(0.06, 0.14),
+                                   rng_.Uniform(0.08, 0.18));
+      t.color = RandomColor(rng_);
+      t.texture = 1 + static_cast<uint32_t>(rng_.UniformInt(2000000000));
+      t.yaw = rng_.Uniform(-0.5 * kPi, 0.5 * kPi);
+      t.uv = Vec2(rng_.Uniform(-0.3, 0.3) * f.length, rng_.Uniform(-0.3, 0.3) * f.width);
+      std::vector<GenObject> extra;
+      const double kind = rng_.Uniform();
+      variant_ = "open";
+      if (placement_ == TargetPlacement::kHidden) {
+        const bool pocket = kind < 0.3;
+        variant_ = pocket ? "pocket" : "walls";
+        extra = Walls(t.on, t.uv, t.yaw, t.size,
+                      pocket ? 3 : 1 + static_cast<int>(rng_.UniformInt(3)), "wall-");
+        if (pocket) {
+          for (GenObject& w : extra) w.size.z() += 0.1;
+        }
+      } else if (placement_ == TargetPlacement::kCovered) {
+        GenObject cover;
+        cover.name = "cover";
+        cover.on = t.on;
+        cover.uv = t.uv;
+        cover.yaw = t.yaw;
+        cover.size = CoverSize(t.size);
+        cover.color = RandomColor(rng_);
+        extra.push_back(cover);
+        variant_ = "cover";
+        if (kind < 0.25) {
+          GenObject outer = cover;
+          outer.name = "outer-cover";
+          outer.size = CoverSize(cover.size);
+          outer.color = RandomColor(rng_);
+          extra.push_back(outer);
+          variant_ = "stacked covers";
+        } else if (kind < 0.5) {
+          for (GenObject& w : Walls(t.on, t.uv, t.yaw, cover.size,
+                                    1 + static_cast<int>(rng_.UniformInt(2)), "wall-")) {
+            extra.push_back(w);
+          }
+          variant_ = "walled cover";
+        }
+      }
+      // Small boxes beside it, clear of what hides it.
+      const int clutter = 1 + static_cast<int>(rng_.UniformInt(4));
+      std::vector<GenObject> placed = extra;
+      placed.push_back(t);
+      for (int k = 0, tries = 0; k < clutter && tries < 60; ++tries) {
+        GenObject o = RandomObject(t.on, rng_);
+        o.size = object_search::Vec3(rng_.Uniform(0.04, 0.1), rng_.Uniform(0.04, 0.1),
+                                     rng_.Uniform(0.04, 0.15));
+        const double angle = rng_.Uniform(-kPi, kPi), distance = rng_.Uniform(0.15, 0.35);
+        o.uv = t.uv + distance * Vec2(std::cos(angle), std::sin(angle));
+        if (!OnSurface(f, o) || Overlaps(o, placed)) continue;
+        o.name = "near-" + std::to_string(++k);
+        placed.push_back(o);
+        extra.push_back(o);
+      }
+      bool fits = OnSurface(f, t);
+      for (const GenObject& e : extra) fits = fits && OnSurface(f, e);
+      if (fits || attempt > 100) {
+        objects_.push_back(t);
+        for (GenObject& e : extra) objects_.push_back(e);
+        if (!fits) placement_ = TargetPlacement::kOpen;  // never reached in practice
+        return;
+      }
+    }
+  }
+
+  // Decoys from the same laws, elsewhere and empty: covers (so the cover is not the largest box
+  // nor the only one of its kind), wall pockets, and immovable boxes larger than any cover.
+  void PlaceDecoys() {
+    const int covers = 1 + static_cast<int>(rng_.UniformInt(3));
+    const int pockets = static_cast<int>(rng_.UniformInt(3));
+    const int heavy = static_cast<int>(rng_.UniformInt(3));
+    for (int k = 0, tries = 0; k < covers + pockets + heavy && tries < 400; ++tries) {
+      const int on = static_cast<int>(rng_.UniformInt(static_cast<int64_t>(furniture_.size())));
+      GenObject o = RandomObject(on, rng_);
+      const object_search::Vec3 inner(rng_.Uniform(0.06, 0.14), rng_.Uniform(0.06, 0.14),
+                                      rng_.Uniform(0.08, 0.18));
+      std::vector<GenObject> group;
+      if (k < covers) {
+        o.size = CoverSize(inner);
+        o.moveable = true;
+        o.name = "decoy-cover-" + std::to_string(k + 1);
+        group.push_back(o);
+      } else if (k < covers + pockets) {
+        group = Walls(on, o.uv, o.yaw, inner, 2 + static_cast<int>(rng_.UniformInt(2)),
+                      "decoy-wall-" + std::to_string(k + 1) + "-");
+      } else {
+        o.size = object_search::Vec3(rng_.Uniform(0.2, 0.32), rng_.Uniform(0.2, 0.32),
+                                     rng_.Uniform(0.15, 0.35));
+        o.moveable = false;
+        o.name = "heavy-" + std::to_string(k + 1);
+        group.push_back(o);
+      }
+      bool fits = true;
+      for (const GenObject& g : group) {
+        fits = fits && OnSurface(furniture_[on], g) && !Overlaps(g, objects_, 0.04);
+      }
+      if (!fits) continue;
+      for (GenObject& g : group) objects_.push_back(g);
+      ++k;
+      ++decoys_;
+    }
+  }
+
   void PlaceOthers(int total) {
     Rng rng = rng_.Split();
     int placed = static_cast<int>(objects_.size());
@@ -232,11 +398,15 @@ class Generator {
     j["name"] = "gen-" + std::to_string(seed_);
     static const char* kPlacements[] = {"in the open", "hidden behind tall boxes",
                                         "covered by a larger box"};
-    j["description"] = "Generated by npfkct-scenegen --seed " + std::to_string(seed_) + ": " +
-                       std::to_string(furniture_.size()) +
-                       (furniture_.size() == 1 ? " piece" : " pieces") + " of furniture, " +
-                       std::to_string(objects_.size()) + " objects, the target " +
-                       kPlacements[static_cast<int>(placement_)] + ".";
+    j["description"] =
+        "Generated by npfkct-scenegen --seed " + std::to_string(seed_) +
+        (options_.version >= 2 ? " --version 2" : "") + ": " + std::to_string(furniture_.size()) +
+        (furniture_.size() == 1 ? " piece" : " pieces") + " of furniture, " +
+        std::to_string(objects_.size()) + " objects, the target " +
+        kPlacements[static_cast<int>(placement_)] +
+        (options_.version >= 2 ? " (" + variant_ + ", " + std::to_string(decoys_) + " decoys)"
+                               : std::string()) +
+        ".";
     j["robot"] = robot_;
     j["room"] = {{"min", Pair(-0.5 * room_.x(), -0.5 * room_.y())},
                  {"max", Pair(0.5 * room_.x(), 0.5 * room_.y())}};
@@ -353,6 +523,9 @@ class Generator {
 
   uint64_t seed_;
   Rng rng_;
+  SceneOptions options_;
+  std::string variant_;
+  int decoys_ = 0;
   std::string robot_;
   Vec2 room_ = Vec2(6, 6);
   TargetPlacement placement_ = TargetPlacement::kOpen;
@@ -363,7 +536,10 @@ class Generator {
 // Whether the scene can be solved: the target shows at least n_odds distinct face grids from the
 // base regions once every other object is gone (the oracle's views), and every base region has
 // room for the base.
-bool Solvable(const std::string& text) {
+// Version 2 asks more: the oracle, told the scene, removes the target within 30 steps (its
+// ceiling exists: a pocket whose open side is narrower than the pose noise, walls whose faces
+// cannot be confirmed, are drawn again).
+bool Solvable(const std::string& text, int version) {
   auto parsed = ParseScenario(text);
   if (!parsed.ok()) return false;
   Simulator simulator(*parsed, 1);
@@ -371,23 +547,34 @@ bool Solvable(const std::string& text) {
   if (oracle.bases().empty()) return false;
   const int target = simulator.target_index();
   const uint64_t others = ~(uint64_t{1} << target);
-  return std::popcount(oracle.SeeableCorners(target, others)) >= parsed->params.n_odds;
+  if (std::popcount(oracle.SeeableCorners(target, others)) < parsed->params.n_odds) return false;
+  return version < 2 || OracleEpisodeSteps(*parsed, 1, 30) > 0;
 }
 
 }  // namespace
 
-std::string GenerateScenarioJson(uint64_t seed, SceneSummary* summary) {
+SceneOptions V2Options(uint64_t seed) {
+  SceneOptions o;
+  o.version = 2;
+  if (seed > kHeldOutV2SeedBase && seed <= kHeldOutV2SeedBase + 60) {
+    o.placement = static_cast<TargetPlacement>((seed - kHeldOutV2SeedBase - 1) / 20);
+  }
+  return o;
+}
+
+std::string GenerateScenarioJson(uint64_t seed, SceneSummary* summary,
+                                 const SceneOptions& options) {
   // A few scenes are unsolvable as drawn (a target too high to see, no free base region): the
   // seed then draws again, deterministically.
   for (uint64_t attempt = 0;; ++attempt) {
-    Generator generator(seed, attempt == 0 ? seed : HashMix(seed * 131 + attempt));
+    Generator generator(seed, attempt == 0 ? seed : HashMix(seed * 131 + attempt), options);
     json j = generator.Make(summary);
     if (attempt > 0) {
       j["description"] =
           j["description"].get<std::string>() + " (draw " + std::to_string(attempt + 1) + ")";
     }
     std::string text = j.dump(2) + "\n";
-    if (Solvable(text) || attempt >= 50) return text;
+    if (Solvable(text, options.version) || attempt >= 50) return text;
   }
 }
 

@@ -5,6 +5,10 @@
 
 #include <gtest/gtest.h>
 
+#include <fstream>
+#include <iterator>
+#include <string>
+
 #include "npfkct/object_search/model.h"
 #include "npfkct/sim/scenegen.h"
 
@@ -118,6 +122,56 @@ TEST(OracleTest, ClearsAWallThatHidesTheBlockersFaces) {
     const Episode e = RunOracle(pocket, 1000003ULL + trial);
     EXPECT_TRUE(e.success) << "trial " << trial;
     EXPECT_LE(e.steps, 16) << "trial " << trial;
+  }
+}
+
+// Covered1 with more over and around its target, written as a scenario file would be.
+Scenario Covered1With(const std::string& extra_objects) {
+  std::ifstream in(std::string(NPFKCT_SCENARIO_DIR) + "/covered1.json");
+  std::string text((std::istreambuf_iterator<char>(in)), {});
+  const size_t objects = text.find("\"objects\": [");
+  EXPECT_NE(objects, std::string::npos);
+  text.insert(objects + 12, extra_objects);
+  auto parsed = ParseScenario(text);
+  EXPECT_TRUE(parsed.ok()) << parsed.status().ToString();
+  return parsed.value();
+}
+
+TEST(OracleTest, ClearsStackedCoversFromTheOutsideIn) {
+  // A second cover over Covered1's cover: removing either alone shows nothing of the target.
+  const Scenario stacked = Covered1With(
+      R"({"name": "outer", "on": "table", "position": [0.2, -0.1], "size": [0.36, 0.34, 0.34]},)");
+  for (uint64_t trial = 0; trial < 3; ++trial) {
+    const Episode e = RunOracle(stacked, 1000003ULL + trial);
+    EXPECT_TRUE(e.success) << trial;
+    // Two covers cleared (views, a declaration and a removal each) and the target found.
+    EXPECT_GE(e.steps, 9);
+    EXPECT_LE(e.steps, 20);
+  }
+}
+
+TEST(OracleTest, OpensACage) {
+  // The target under two stacked crates with a wall on each side of them: a cage.
+  const Scenario cage = Covered1With(
+      R"({"name": "crate", "on": "table", "position": [0.2, -0.1], "size": [0.36, 0.34, 0.34]},)"
+      R"({"name": "wall-left", "on": "table", "position": [0.2, 0.12], "size": [0.4, 0.06, 0.45]},)"
+      R"({"name": "wall-right", "on": "table", "position": [0.2, -0.32], "size": [0.4, 0.06, )"
+      R"(0.45]},)");
+  for (uint64_t trial = 0; trial < 3; ++trial) {
+    const Episode e = RunOracle(cage, 1000003ULL + trial);
+    EXPECT_TRUE(e.success) << trial;
+    EXPECT_LE(e.steps, 30);
+  }
+}
+
+TEST(OracleTest, RemovesTheTargetInEveryHeldOutSceneOfGeneratorVersion2) {
+  // Generator version 2 keeps only the scenes its oracle solves; its held-out scenes, played with
+  // other seeds than the generator's check used, are solved too.
+  for (uint64_t i = 1; i <= 60; i += 7) {
+    const uint64_t seed = kHeldOutV2SeedBase + i;
+    const Scenario scene =
+        ParseScenario(GenerateScenarioJson(seed, nullptr, V2Options(seed))).value();
+    EXPECT_GT(OracleEpisodeSteps(scene, 1000003ULL + i, 50), 0) << seed;
   }
 }
 

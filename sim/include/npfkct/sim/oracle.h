@@ -36,9 +36,13 @@ struct OracleOptions {
 /// otherwise the view that confirms the most target face grids, chosen with a two-view lookahead
 /// so that the fewest views reach n_odds. When no view can see an unconfirmed face grid of the
 /// target, it finds the movable object whose removal would expose the most (the cover of a
-/// covered target), looks at it until it can be declared an obstacle, declares and removes it. It
-/// replans after every step from what the robot actually observed, so pose noise and false
-/// detections cost it steps as they cost any planner; it is a ceiling, not an exact optimum.
+/// covered target), looks at it until it can be declared an obstacle, declares and removes it;
+/// when no single removal exposes the target (stacked covers, a cage), the fewest nearby objects
+/// whose removal together does, from the outside in. A view that confirmed none of the face
+/// grids it was planned for (a slot narrower than the pose noise) is not planned again. It
+/// replans after every step from what the robot actually observed, so pose noise
+/// and false detections cost it steps as they cost any planner; it is a ceiling, not an exact
+/// optimum. Next() keeps what the last steps did: one oracle per trial.
 class Oracle {
  public:
   /// An oracle for `simulator`'s scene (which must outlive it).
@@ -68,7 +72,26 @@ class Oracle {
   OracleOptions options_;
   std::vector<object_search::Vec2> bases_;
   mutable std::map<int, std::vector<object_search::RobotConfig>> views_;
+  // Whether `c` is (within the pose noise of) a view that confirmed nothing.
+  bool Failed(const object_search::RobotConfig& c) const;
+
+  // What the last step planned (Next is called once per step of one trial): the view, the object
+  // and direction it was to confirm, and how many face grids were confirmed before; and the
+  // views that confirmed nothing.
+  struct Planned {
+    int object = -1;
+    double sign = 1.0;
+    int confirmed = 0;
+    object_search::RobotConfig view;
+  };
+  mutable Planned last_;
+  mutable std::vector<object_search::RobotConfig> failed_views_;
 };
+
+/// Steps the oracle takes to remove the target in `scenario` with the simulator seeded by `seed`
+/// (the bench's episode: a first look, then the oracle's action, its execution and observation
+/// each step), or -1 when it has not within `max_steps`.
+int OracleEpisodeSteps(const Scenario& scenario, uint64_t seed, int max_steps);
 
 /// The true scene of a benchmark trial, for the planners that are told it (the oracles).
 class SceneTruth final : public object_search::Truth {
