@@ -1,6 +1,7 @@
 // npfkct-bench: runs episodes of a benchmark problem with a planner and a per-step budget and
 // prints one JSON object per run.
 #include <CLI/CLI.hpp>
+#include <cmath>
 #include <cstdio>
 #include <iostream>
 #include <memory>
@@ -324,7 +325,10 @@ int main(int argc, char** argv) {
   app.add_option(
       "--rollout", c.rollout,
       "tiger: listen (default) | random; vdptag: random (default) | tonextml; scenarios: "
-      "aimed (default) | greedy | random");
+      "aimed (default) | clear | greedy | random");
+  double plan_r_co = std::nan("");
+  app.add_option("--plan-r-co", plan_r_co,
+                 "scenarios: R_co of the planners' model (the simulator pays the scenario's)");
   app.add_option(
       "--opt", c.options,
       "planner option key=value (repeatable); scenarios: filter.* set Net_sam's options");
@@ -352,6 +356,7 @@ int main(int argc, char** argv) {
     search.max_steps = c.max_steps;
     search.options = c.options;
     if (!c.rollout.empty()) search.rollout = c.rollout;
+    if (!std::isnan(plan_r_co)) search.plan_r_co = plan_r_co;
     return npfkct::bench::RunObjectSearchBench(search);
   }
   if (search.planners.size() != 1) {

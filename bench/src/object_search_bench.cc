@@ -8,6 +8,7 @@
 #include <iostream>
 #include <map>
 #include <memory>
+#include <optional>
 #include <sstream>
 
 #include "episode_runner.h"
@@ -39,7 +40,16 @@ struct TrialContext {
   bool perception = false;    // observe through rendered frames and the perception pipeline
   std::shared_ptr<const filter::NeuralFilter> filter;  // Net_sam of the npfkct planner
   object_search::SearchRollout rollout = object_search::SearchRollout::kAimed;
+  std::optional<double> plan_r_co;  // R_co of the planning model (the simulator pays the real one)
 };
+
+// The world the planners plan on: the robot's knowledge, with the planning model's R_co when the
+// run gives one.
+std::shared_ptr<World> PlanningWorld(const World& world, const std::optional<double>& plan_r_co) {
+  auto planning = std::make_shared<World>(world);
+  if (plan_r_co) planning->params.r_co = *plan_r_co;
+  return planning;
+}
 
 // A registry planner; one that takes the filter's candidates gets Net_sam over the loaded filter;
 // one that needs the truth is told `truth`.
@@ -168,8 +178,8 @@ void TraceStep(const TrialContext& ctx, const ObjectSearchModel& model, const Wo
 // Takes an observation after step `action`, gives it to the world, the model and the planner:
 // a fresh belief of `particles` (drawn from `rng`), the tree kept unless new objects appeared.
 Status TakeObservation(const object_search::RealObservation& obs, const HybridAction& action,
-                       int particles, World* world, ObjectSearchModel* model,
-                       object_search::SearchPlanner* planner, Rng& rng) {
+                       int particles, const std::optional<double>& plan_r_co, World* world,
+                       ObjectSearchModel* model, object_search::SearchPlanner* planner, Rng& rng) {
   std::vector<int> detected;
   bool new_objects = false;
   for (const auto& det : obs.objects) {
@@ -179,7 +189,7 @@ Status TakeObservation(const object_search::RealObservation& obs, const HybridAc
   }
   const object_search::Observation key = model->RealObservationKey(detected);
   if (Status s = object_search::ApplyRealObservation(world, obs); !s.ok()) return s;
-  model->SetWorld(std::make_shared<World>(*world));
+  model->SetWorld(PlanningWorld(*world, plan_r_co));
   planner->OnWorldChanged();
   auto belief = ParticleBelief<object_search::State>::FromInitial(*model, particles, rng);
   if (new_objects) {
@@ -227,7 +237,7 @@ EpisodeResult RunTrial(const TrialContext& ctx) {
     result.error = first_status.ToString();
     return result;
   }
-  ObjectSearchModel model(std::make_shared<World>(world), ctx.rollout);
+  ObjectSearchModel model(PlanningWorld(world, ctx.plan_r_co), ctx.rollout);
   // The oracles are told the true scene; every other planner plans on the robot's belief.
   const sim::SceneTruth truth(simulator);
   auto made = MakePlanner(*ctx.planners, ctx.planner, model, ctx.options, ctx.filter_options,
@@ -256,8 +266,7 @@ EpisodeResult RunTrial(const TrialContext& ctx) {
     const bool obstacle_declared =
         d.action.kind != object_search::kMoveKind && outcome.success &&
         object_search::KindOffset(d.action.kind) == object_search::kDeclareObstacleOffset;
-    result.target_return +=
-        discount * (obstacle_declared ? world.params.r_min : outcome.reward);
+    result.target_return += discount * (obstacle_declared ? world.params.r_min : outcome.reward);
     discount *= world.params.discount;
     ++result.steps;
     if (d.action.kind != object_search::kMoveKind && outcome.success) {
@@ -272,8 +281,8 @@ EpisodeResult RunTrial(const TrialContext& ctx) {
       break;
     }
     auto observed = observe();
-    Status s = observed.ok() ? TakeObservation(*observed, d.action, particles, &world, &model,
-                                               planner.get(), rng)
+    Status s = observed.ok() ? TakeObservation(*observed, d.action, particles, ctx.plan_r_co,
+                                               &world, &model, planner.get(), rng)
                              : observed.status();
     if (!s.ok()) {
       result.error = s.ToString();
@@ -399,12 +408,14 @@ bool CheckModesAndRollout(const SearchBenchConfig& config, BenchSetup* setup) {
       return false;
     }
   }
-  if (config.rollout == "greedy") {
+  if (config.rollout == "clear") {
+    setup->rollout = object_search::SearchRollout::kClear;
+  } else if (config.rollout == "greedy") {
     setup->rollout = object_search::SearchRollout::kGreedy;
   } else if (config.rollout == "random") {
     setup->rollout = object_search::SearchRollout::kRandom;
   } else if (config.rollout != "aimed") {
-    std::cerr << "npfkct-bench: scenario rollouts are aimed (default), greedy or random\n";
+    std::cerr << "npfkct-bench: scenario rollouts are aimed (default), clear, greedy or random\n";
     return false;
   }
   return true;
@@ -509,7 +520,8 @@ std::vector<EpisodeResult> RunAllTrials(const SearchBenchConfig& config, const B
                          config.trace,
                          mode == "perception",
                          setup.net,
-                         setup.rollout};
+                         setup.rollout,
+                         config.plan_r_co};
         return RunTrial(ctx);
       },
       "object search");

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -38,6 +39,9 @@ struct SearchBenchConfig {
   /// The model's rollout policy for every planner: "aimed" (the default), "greedy" or "random"
   /// (object_search::SearchRollout).
   std::string rollout = "aimed";
+  /// R_co of the planners' model, when it differs from the scenario's (the simulator still pays
+  /// the scenario's): what a planner that does not chase obstacle declarations does.
+  std::optional<double> plan_r_co;
 };
 
 /// Runs every (scenario, planner) pair; prints one JSON line per pair (with every trial's reward,

@@ -288,11 +288,43 @@ double ObjectSearchModel::ObservationLikelihood(const Action& a, const State& sp
   return 1.0;
 }
 
+int ObjectSearchModel::CoverOf(const State& s) const {
+  for (int j = 1; j < static_cast<int>(s.objects.size()); ++j) {
+    if (s.objects[j].status != kRemoved && object_frames_[j].Contains(s.target)) return j;
+  }
+  return -1;
+}
+
 HybridAction ObjectSearchModel::RolloutAction(const State& s, Rng& rng) const {
   thread_local std::vector<int> kinds;
   ActionKinds(s, &kinds);
   HybridAction a;
-  if (rollout_ != SearchRollout::kRandom) {
+  if (rollout_ == SearchRollout::kClear) {
+    // Remove the declared target, declare the target, remove or declare the cover; nothing else
+    // is declared.
+    const int cover = CoverOf(s);
+    int best = -1, best_rank = 0;
+    for (int k : kinds) {
+      if (k == kMoveKind) continue;
+      const int i = KindObject(k), offset = KindOffset(k);
+      int rank = 0;
+      if (offset == kRemoveOffset && s.objects[i].status == kDeclaredTarget) rank = 4;
+      if (offset == kDeclareTargetOffset) rank = 3;
+      if (i == cover && offset == kRemoveOffset) rank = 2;
+      if (i == cover && offset == kDeclareObstacleOffset) rank = 1;
+      if (rank > best_rank) {
+        best_rank = rank;
+        best = k;
+      }
+    }
+    a.kind = best >= 0 ? best : kMoveKind;
+    if (a.kind != kMoveKind) return a;
+    RobotConfig c;
+    if (cover >= 0 && AimAt(*world_, world_->objects[cover].box.center, rng, &c)) {
+      a.x = VecOf(c);
+      return a;
+    }
+  } else if (rollout_ != SearchRollout::kRandom) {
     int best = -1, best_rank = 0;
     for (int k : kinds) {
       if (k == kMoveKind) continue;
@@ -315,7 +347,8 @@ HybridAction ObjectSearchModel::RolloutAction(const State& s, Rng& rng) const {
     a.kind = kinds[rng.UniformInt(static_cast<int64_t>(kinds.size()))];
   }
   if (a.kind != kMoveKind) return a;
-  if (rollout_ == SearchRollout::kAimed && rng.Uniform() < 0.5) {
+  if ((rollout_ == SearchRollout::kAimed || rollout_ == SearchRollout::kClear) &&
+      rng.Uniform() < 0.5) {
     // A placement the belief allows, drawn again (up to 4 times) while inside a known object
     // that still stands; a camera aimed at it (else the random configuration below).
     const int n = static_cast<int>(s.objects.size());

@@ -733,6 +733,29 @@ TEST(PlannerRegistryTest, PlannersThatNeedTheTruthAreRefusedWithoutIt) {
   EXPECT_NE(unknown.status().message().find("expected one of npfkct, kct"), std::string::npos);
 }
 
+TEST(RolloutTest, TheClearingRolloutDeclaresOnlyTheCoverOfTheParticlesTarget) {
+  World w = FourSidedWorld();
+  // Two boxes, each confirmed an obstacle on every face; the particle's target is in the first.
+  w.objects.push_back(Object("cover", Vec3(1.2, 0.2, 0.85), Vec3(0.2, 0.2, 0.2), -3.0f));
+  w.objects.push_back(Object("other", Vec3(1.2, -0.25, 0.85), Vec3(0.2, 0.2, 0.2), -3.0f));
+  ObjectSearchModel clear(std::make_shared<World>(w), SearchRollout::kClear);
+  ObjectSearchModel aimed(std::make_shared<World>(w), SearchRollout::kAimed);
+  Rng rng(7);
+  State s = clear.SampleInitialState(rng);
+  s.target = Vec3(1.2, 0.2, 0.8);
+  ASSERT_EQ(clear.CoverOf(s), 1);
+  EXPECT_EQ(clear.RolloutAction(s, rng).kind, DeclareObstacleKind(1));
+  // The aimed rollout declares whichever obstacle it can, the clearing one only the cover.
+  s.target = Vec3(0.9, 0.0, 0.8);
+  ASSERT_EQ(clear.CoverOf(s), -1);
+  EXPECT_EQ(clear.RolloutAction(s, rng).kind, kMoveKind);
+  EXPECT_NE(aimed.RolloutAction(s, rng).kind, kMoveKind);
+  // A declared cover is removed; a declared other obstacle is left standing.
+  s.target = Vec3(1.2, 0.2, 0.8);
+  s.objects[1].status = kDeclaredObstacle;
+  EXPECT_EQ(clear.RolloutAction(s, rng).kind, RemoveKind(1));
+}
+
 TEST(NextBestViewTest, RemovesWhatWasDeclaredAndDeclaresAConfirmedTarget) {
   World w = FourSidedWorld();
   w.objects.push_back(Object("box", Vec3(1.0, 0.2, 0.8), Vec3(0.1, 0.1, 0.1), 0.0f));

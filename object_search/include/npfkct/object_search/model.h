@@ -73,6 +73,11 @@ enum class SearchRollout {
   /// world that the state could show (not inside a known object still standing there), so that
   /// a simulated removal is worth what the views beneath it find. The default.
   kAimed,
+  /// As kAimed, but an obstacle is declared only when the particle's target stands inside it (a
+  /// cover), a declared cover is removed, and while the target stands inside a known object the
+  /// moves look at that object: the rollout clears what hides the target instead of collecting
+  /// R_co for every obstacle it can declare.
+  kClear,
 };
 
 /// The generative object-search model over a World (held by shared pointer; the owner may
@@ -102,6 +107,8 @@ class ObjectSearchModel {
   /// 1 when `o` is what `sp` produces after `a` (observations are deterministic given s').
   double ObservationLikelihood(const Action& a, const State& sp, const Observation& o) const;
   Action RolloutAction(const State& s, Rng& rng) const;
+  /// The known object still standing that the particle's guessed target is inside, or -1.
+  int CoverOf(const State& s) const;
   double MinReward() const { return world_->params.r_ill; }
   double MaxReward() const { return world_->params.r_max; }
 
