@@ -303,10 +303,14 @@ int main(int argc, char** argv) {
   app.add_option("--scenario", search.scenarios,
                  "object-search scenario file(s) (repeatable or comma-separated)")
       ->delimiter(',');
+  std::string scenario_planners;
+  for (const std::string& name : npfkct::object_search::PlannerRegistry::BuiltIn().Names()) {
+    scenario_planners += name + ", ";
+  }
   app.add_option("--planner", search.planners,
                  "problems: pomcp | pomcpow | vomcpow | advt | kct; scenarios: a comma-separated "
-                 "list of npfkct, kct, pomcp, gpomcp, pomcp-joint, pomcpow, vomcpow, advt, oracle, "
-                 "oracle-cover-unknown, or all")
+                 "list of " +
+                     scenario_planners + "or all")
       ->delimiter(',')
       ->required();
   app.add_option("--episodes,--trials", c.episodes, "episodes (trials) per run")
@@ -329,6 +333,9 @@ int main(int argc, char** argv) {
   double plan_r_co = std::nan("");
   app.add_option("--plan-r-co", plan_r_co,
                  "scenarios: R_co of the planners' model (the simulator pays the scenario's)");
+  app.add_option("--obstacle-reward", search.obstacle_reward,
+                 "scenarios: what the planners' model pays for an obstacle declaration: every "
+                 "(default, the paper's) | covers (only one hiding the target)");
   app.add_option(
       "--opt", c.options,
       "planner option key=value (repeatable); scenarios: filter.* set Net_sam's options");

@@ -41,6 +41,7 @@ struct TrialContext {
   std::shared_ptr<const filter::NeuralFilter> filter;  // Net_sam of the npfkct planner
   object_search::SearchRollout rollout = object_search::SearchRollout::kAimed;
   std::optional<double> plan_r_co;  // R_co of the planning model (the simulator pays the real one)
+  object_search::ObstacleReward obstacle_reward = object_search::ObstacleReward::kEvery;
 };
 
 // The world the planners plan on: the robot's knowledge, with the planning model's R_co when the
@@ -238,6 +239,7 @@ EpisodeResult RunTrial(const TrialContext& ctx) {
     return result;
   }
   ObjectSearchModel model(PlanningWorld(world, ctx.plan_r_co), ctx.rollout);
+  model.SetObstacleReward(ctx.obstacle_reward);
   // The oracles are told the true scene; every other planner plans on the robot's belief.
   const sim::SceneTruth truth(simulator);
   auto made = MakePlanner(*ctx.planners, ctx.planner, model, ctx.options, ctx.filter_options,
@@ -313,6 +315,7 @@ struct BenchSetup {
   std::vector<std::string> planners;                // compared, "all" expanded
   std::shared_ptr<const filter::NeuralFilter> net;  // null: no planner takes it, or "none"
   object_search::SearchRollout rollout = object_search::SearchRollout::kAimed;
+  object_search::ObstacleReward obstacle_reward = object_search::ObstacleReward::kEvery;
 };
 
 // The stages before any trial each take the config and fill their part of `setup`; on an
@@ -418,6 +421,12 @@ bool CheckModesAndRollout(const SearchBenchConfig& config, BenchSetup* setup) {
     std::cerr << "npfkct-bench: scenario rollouts are aimed (default), clear, greedy or random\n";
     return false;
   }
+  if (config.obstacle_reward == "covers") {
+    setup->obstacle_reward = object_search::ObstacleReward::kCovers;
+  } else if (config.obstacle_reward != "every") {
+    std::cerr << "npfkct-bench: --obstacle-reward is every (default) or covers\n";
+    return false;
+  }
   return true;
 }
 
@@ -521,7 +530,8 @@ std::vector<EpisodeResult> RunAllTrials(const SearchBenchConfig& config, const B
                          mode == "perception",
                          setup.net,
                          setup.rollout,
-                         config.plan_r_co};
+                         config.plan_r_co,
+                         setup.obstacle_reward};
         return RunTrial(ctx);
       },
       "object search");
@@ -563,7 +573,8 @@ void PrintCell(const SearchBenchConfig& config, const BenchSetup& setup,
       "{\"scenario\": \"%s\", \"planner\": \"%s\", \"observe\": \"%s\", \"trials\": %d, "
       "\"time_ms\": %g, \"cpu_ms\": %g, \"sims\": %lld, \"robot\": \"%s\", \"seed\": %llu, "
       "\"threads\": %d, \"options\": [%s], \"model\": \"%s\", \"rollout\": \"%s\", "
-      "\"mean_discounted_reward\": %.1f, \"ci95\": %.1f, \"mean_steps\": %.2f, "
+      "\"obstacle_reward\": \"%s\", \"mean_discounted_reward\": %.1f, \"ci95\": %.1f, "
+      "\"mean_steps\": %.2f, "
       "\"ci95_steps\": %.2f, \"success_rate\": %.3f, \"median_sims_per_step\": %.1f, "
       "\"median_sims_per_second\": %.1f, \"median_sims_per_cpu_second\": %.1f, "
       "\"median_cpu_ms_per_step\": %.1f, \"median_first_step_sims_per_second\": %.1f, "
@@ -572,13 +583,13 @@ void PrintCell(const SearchBenchConfig& config, const BenchSetup& setup,
       JsonEscape(scenario.name).c_str(), planner.c_str(), mode.c_str(), config.trials,
       config.time_ms, config.cpu_ms, static_cast<long long>(config.sims), scenario.robot.c_str(),
       static_cast<unsigned long long>(config.seed), config.threads, option_list.c_str(),
-      JsonEscape(model_name).c_str(), config.rollout.c_str(), s.mean_return, s.ci95_return,
-      s.mean_steps, s.ci95_steps, s.success_rate.value_or(0.0), s.median_sims_per_step,
-      s.median_sims_per_second, s.median_sims_per_cpu_second, s.median_cpu_ms_per_step,
-      s.median_first_step_sims_per_second, s.wall_seconds, s.failed_episodes, rewards.c_str(),
-      target_rewards.c_str(), steps.c_str(), successes.c_str(), perception_ms.c_str(),
-      s.first_error.empty() ? "" : ", \"error\": \"", JsonEscape(s.first_error).c_str(),
-      s.first_error.empty() ? "" : "\"");
+      JsonEscape(model_name).c_str(), config.rollout.c_str(), config.obstacle_reward.c_str(),
+      s.mean_return, s.ci95_return, s.mean_steps, s.ci95_steps, s.success_rate.value_or(0.0),
+      s.median_sims_per_step, s.median_sims_per_second, s.median_sims_per_cpu_second,
+      s.median_cpu_ms_per_step, s.median_first_step_sims_per_second, s.wall_seconds,
+      s.failed_episodes, rewards.c_str(), target_rewards.c_str(), steps.c_str(), successes.c_str(),
+      perception_ms.c_str(), s.first_error.empty() ? "" : ", \"error\": \"",
+      JsonEscape(s.first_error).c_str(), s.first_error.empty() ? "" : "\"");
 }
 
 // Summarise and print: takes every trial's result, gives each (scenario, variant) cell's

@@ -42,6 +42,10 @@ struct SearchBenchConfig {
   /// R_co of the planners' model, when it differs from the scenario's (the simulator still pays
   /// the scenario's): what a planner that does not chase obstacle declarations does.
   std::optional<double> plan_r_co;
+  /// What the planners' model pays for an obstacle declaration: "every" (the paper's R_co for
+  /// each) or "covers" (only for an obstacle hiding the particle's target; object_search::
+  /// ObstacleReward). The simulator always pays the scenario's reward.
+  std::string obstacle_reward = "every";
 };
 
 /// Runs every (scenario, planner) pair; prints one JSON line per pair (with every trial's reward,

@@ -229,6 +229,10 @@ StepResult<State, Observation> ObjectSearchModel::Step(const State& s, const Act
     }
   }
   r.reward = RewardOf(p, outcome);
+  if (outcome == ActionOutcome::kDeclaredObstacle && obstacle_reward_ == ObstacleReward::kCovers &&
+      !object_frames_[KindObject(a.kind)].Contains(s.target)) {
+    r.reward = p.r_min;
+  }
   r.terminal = n.terminal;
   if (!n.terminal) Observe(&n, rng, &r.observation);
   return r;

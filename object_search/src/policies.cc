@@ -54,7 +54,7 @@ Status NextBestViewOptions::Validate() const {
 }
 
 NextBestView::NextBestView(const ObjectSearchModel& model, NextBestViewOptions options)
-    : model_(model), options_(options) {}
+    : TreelessPlanner("nbv", model), options_(options) {}
 
 OptionList NextBestView::OptionsUsed() const {
   return option_table::Values(NextBestViewTable(), options_);

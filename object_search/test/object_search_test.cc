@@ -756,6 +756,25 @@ TEST(RolloutTest, TheClearingRolloutDeclaresOnlyTheCoverOfTheParticlesTarget) {
   EXPECT_EQ(clear.RolloutAction(s, rng).kind, RemoveKind(1));
 }
 
+TEST(ObstacleRewardTest, CoversOnlyPaysForTheObstacleThatHidesTheParticlesTarget) {
+  World w = FourSidedWorld();
+  w.objects.push_back(Object("cover", Vec3(1.2, 0.2, 0.85), Vec3(0.2, 0.2, 0.2), -3.0f));
+  w.objects.push_back(Object("other", Vec3(1.2, -0.25, 0.85), Vec3(0.2, 0.2, 0.2), -3.0f));
+  ObjectSearchModel model(std::make_shared<World>(w));
+  Rng rng(3);
+  State s = model.SampleInitialState(rng);
+  s.target = Vec3(1.2, 0.2, 0.8);
+  HybridAction declare_cover, declare_other;
+  declare_cover.kind = DeclareObstacleKind(1);
+  declare_other.kind = DeclareObstacleKind(2);
+  // The paper's reward pays R_co for either.
+  EXPECT_EQ(model.Step(s, declare_cover, rng).reward, w.params.r_co);
+  EXPECT_EQ(model.Step(s, declare_other, rng).reward, w.params.r_co);
+  model.SetObstacleReward(ObstacleReward::kCovers);
+  EXPECT_EQ(model.Step(s, declare_cover, rng).reward, w.params.r_co);
+  EXPECT_EQ(model.Step(s, declare_other, rng).reward, w.params.r_min);
+}
+
 TEST(NextBestViewTest, RemovesWhatWasDeclaredAndDeclaresAConfirmedTarget) {
   World w = FourSidedWorld();
   w.objects.push_back(Object("box", Vec3(1.0, 0.2, 0.8), Vec3(0.1, 0.1, 0.1), 0.0f));

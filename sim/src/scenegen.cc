@@ -168,19 +168,27 @@ class Generator {
     return o;
   }
 
+  // The target's furniture, size, colour and texture; its yaw (0 unless `any_yaw`); its place
+  // within `reach` times the furniture's length and width of the top's centre.
+  GenObject DrawTarget(bool any_yaw, double reach) {
+    GenObject t;
+    t.name = "target";
+    t.target = true;
+    t.on = static_cast<int>(rng_.UniformInt(static_cast<int64_t>(furniture_.size())));
+    const GenFurniture& f = furniture_[t.on];
+    t.size = object_search::Vec3(rng_.Uniform(0.06, 0.14), rng_.Uniform(0.06, 0.14),
+                                 rng_.Uniform(0.08, 0.18));
+    t.color = RandomColor(rng_);
+    t.texture = 1 + static_cast<uint32_t>(rng_.UniformInt(2000000000));
+    t.yaw = any_yaw ? rng_.Uniform(-0.5 * kPi, 0.5 * kPi) : 0.0;
+    t.uv = Vec2(rng_.Uniform(-reach, reach) * f.length, rng_.Uniform(-reach, reach) * f.width);
+    return t;
+  }
+
   void PlaceTarget() {
     for (int attempt = 0;; ++attempt) {
-      GenObject t;
-      t.name = "target";
-      t.target = true;
-      t.on = static_cast<int>(rng_.UniformInt(static_cast<int64_t>(furniture_.size())));
+      GenObject t = DrawTarget(placement_ == TargetPlacement::kOpen, 0.35);
       const GenFurniture& f = furniture_[t.on];
-      t.size = object_search::Vec3(rng_.Uniform(0.06, 0.14), rng_.Uniform(0.06, 0.14),
-                                   rng_.Uniform(0.08, 0.18));
-      t.color = RandomColor(rng_);
-      t.texture = 1 + static_cast<uint32_t>(rng_.UniformInt(2000000000));
-      t.yaw = placement_ == TargetPlacement::kOpen ? rng_.Uniform(-0.5 * kPi, 0.5 * kPi) : 0.0;
-      t.uv = Vec2(rng_.Uniform(-0.35, 0.35) * f.length, rng_.Uniform(-0.35, 0.35) * f.width);
       std::vector<GenObject> extra;
       if (placement_ == TargetPlacement::kCovered) {
         GenObject cover;
@@ -269,17 +277,8 @@ class Generator {
   // small boxes beside it.
   void PlaceTargetV2() {
     for (int attempt = 0;; ++attempt) {
-      GenObject t;
-      t.name = "target";
-      t.target = true;
-      t.on = static_cast<int>(rng_.UniformInt(static_cast<int64_t>(furniture_.size())));
+      GenObject t = DrawTarget(true, 0.3);
       const GenFurniture& f = furniture_[t.on];
-      t.size = object_search::Vec3(rng_.Uniform(0.06, 0.14), rng_.Uniform(0.06, 0.14),
-                                   rng_.Uniform(0.08, 0.18));
-      t.color = RandomColor(rng_);
-      t.texture = 1 + static_cast<uint32_t>(rng_.UniformInt(2000000000));
-      t.yaw = rng_.Uniform(-0.5 * kPi, 0.5 * kPi);
-      t.uv = Vec2(rng_.Uniform(-0.3, 0.3) * f.length, rng_.Uniform(-0.3, 0.3) * f.width);
       std::vector<GenObject> extra;
       const double kind = rng_.Uniform();
       variant_ = "open";

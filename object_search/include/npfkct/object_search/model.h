@@ -80,6 +80,16 @@ enum class SearchRollout {
   kClear,
 };
 
+/// What the planning model pays for a correct obstacle declaration (the simulator and the real
+/// robot always pay the world's R_co).
+enum class ObstacleReward {
+  kEvery,  ///< R_co for every obstacle declared: the paper's reward.
+  /// R_co only for an obstacle that hides the particle's guessed target (a cover, which must be
+  /// declared to be removed); any other declaration costs a step like a move. A planner then
+  /// clears what hides the target instead of collecting R_co for every box it has seen.
+  kCovers,
+};
+
 /// The generative object-search model over a World (held by shared pointer; the owner may
 /// replace the World between planning calls, never during one).
 class ObjectSearchModel {
@@ -93,6 +103,8 @@ class ObjectSearchModel {
 
   /// Installs a new World (after a real step).
   void SetWorld(std::shared_ptr<const World> world);
+  /// Sets what a simulated obstacle declaration pays (default kEvery).
+  void SetObstacleReward(ObstacleReward r) { obstacle_reward_ = r; }
   const World& world() const { return *world_; }
 
   State SampleInitialState(Rng& rng) const;
@@ -145,6 +157,7 @@ class ObjectSearchModel {
   std::vector<BoxFrame> object_frames_;     ///< Of world_->objects' boxes, likewise.
   double tan_half_horizontal_ = 0.0;        ///< Of world_->camera, likewise.
   SearchRollout rollout_;
+  ObstacleReward obstacle_reward_ = ObstacleReward::kEvery;
   BoxSpace move_space_;
   BoxSpace point_;
 };

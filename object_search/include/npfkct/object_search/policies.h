@@ -8,7 +8,9 @@
 //   Decision<HybridAction> d = nbv.Plan(Budget::Cpu(250), rng);
 #pragma once
 
+#include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "npfkct/object_search/model.h"
@@ -32,6 +34,29 @@ const option_table::Table<NextBestViewOptions>& NextBestViewTable();
 /// Sets NextBestViewOptions field `key` ("proposals", "particles") to `value`.
 Status SetOption(NextBestViewOptions* o, std::string_view key, double value);
 
+/// What the tree-less policies below share: the belief they hold, replaced by SetBelief and
+/// AdvanceTo, and no tree to drop or reuse.
+class TreelessPlanner : public SearchPlanner {
+ public:
+  const std::string& name() const override { return name_; }
+  void SetBelief(ParticleBelief<State> belief) override { belief_ = std::move(belief); }
+  using SearchPlanner::Plan;
+  void AdvanceTo(const HybridAction&, const Observation&, ParticleBelief<State> belief) override {
+    belief_ = std::move(belief);
+  }
+  void DropTree() override {}
+  int64_t TreeSize() const override { return 0; }
+  bool ReusesTree() const override { return false; }
+
+ protected:
+  TreelessPlanner(std::string name, const ObjectSearchModel& model)
+      : name_(std::move(name)), model_(model) {}
+
+  const std::string name_;
+  const ObjectSearchModel& model_;
+  ParticleBelief<State> belief_;
+};
+
 /// The greedy next-best view. Each step, in this order: remove a declared object (the target,
 /// or an obstacle declared to be cleared); declare an object whose face grids confirm it as the
 /// target; otherwise the better of
@@ -43,21 +68,13 @@ Status SetOption(NextBestViewOptions* o, std::string_view key, double value);
 ///    declaration, the removal, a look): declare it once it can be, else the view that confirms
 ///    most of its faces.
 /// No search tree; the budget bounds how many proposals it scores.
-class NextBestView final : public SearchPlanner {
+class NextBestView final : public TreelessPlanner {
  public:
   /// `model` must outlive it.
   NextBestView(const ObjectSearchModel& model, NextBestViewOptions options);
 
-  const std::string& name() const override { return name_; }
-  void SetBelief(ParticleBelief<State> belief) override { belief_ = std::move(belief); }
-  using SearchPlanner::Plan;
+  using TreelessPlanner::Plan;
   Decision<HybridAction> Plan(const TerminationCondition& stop, Rng& rng) override;
-  void AdvanceTo(const HybridAction&, const Observation&, ParticleBelief<State> belief) override {
-    belief_ = std::move(belief);
-  }
-  void DropTree() override {}
-  int64_t TreeSize() const override { return 0; }
-  bool ReusesTree() const override { return false; }
   OptionList OptionsUsed() const override;
 
  private:
@@ -66,36 +83,20 @@ class NextBestView final : public SearchPlanner {
   double BestView(const std::vector<RobotConfig>& views, const TerminationCondition& stop,
                   Score score, RobotConfig* best) const;
 
-  std::string name_ = "nbv";
-  const ObjectSearchModel& model_;
   NextBestViewOptions options_;
-  ParticleBelief<State> belief_;
 };
 
 /// The model's rollout policy executed with no search: each step, the rollout action of a state
 /// drawn from the belief (a legal declare or remove when the odds allow it, else a view aimed at
 /// a placement of the target, else a random feasible configuration).
-class RolloutPolicy final : public SearchPlanner {
+class RolloutPolicy final : public TreelessPlanner {
  public:
   /// `model` must outlive it.
-  explicit RolloutPolicy(const ObjectSearchModel& model) : model_(model) {}
+  explicit RolloutPolicy(const ObjectSearchModel& model) : TreelessPlanner("rollout", model) {}
 
-  const std::string& name() const override { return name_; }
-  void SetBelief(ParticleBelief<State> belief) override { belief_ = std::move(belief); }
-  using SearchPlanner::Plan;
+  using TreelessPlanner::Plan;
   Decision<HybridAction> Plan(const TerminationCondition& stop, Rng& rng) override;
-  void AdvanceTo(const HybridAction&, const Observation&, ParticleBelief<State> belief) override {
-    belief_ = std::move(belief);
-  }
-  void DropTree() override {}
-  int64_t TreeSize() const override { return 0; }
-  bool ReusesTree() const override { return false; }
   OptionList OptionsUsed() const override { return {}; }
-
- private:
-  std::string name_ = "rollout";
-  const ObjectSearchModel& model_;
-  ParticleBelief<State> belief_;
 };
 
 }  // namespace npfkct::object_search
