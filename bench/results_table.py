@@ -213,7 +213,7 @@ def oracle_summary(cells, groups, scenes):
     `cells` is keyed (group, scene) and holds the oracle as the group "oracle"."""
     out = {}
     for g in groups:
-        shares, successes, steps, n = {}, [], [], 0
+        shares, target_shares, successes, steps, n = {}, {}, [], [], 0
         for s in scenes:
             r, o = cells.get((g, s)), cells.get(("oracle", s))
             if r is None:
@@ -223,11 +223,17 @@ def oracle_summary(cells, groups, scenes):
             steps += r.get("steps", [])
             if o is not None and o["mean_discounted_reward"] > 0:
                 shares[s] = r["mean_discounted_reward"] / o["mean_discounted_reward"]
+            # The reward without what obstacle declarations earned beyond a step's cost.
+            if o is not None and r.get("target_rewards") and o.get("target_rewards"):
+                mine, its = statistics.mean(r["target_rewards"]), statistics.mean(o["target_rewards"])
+                if its > 0:
+                    target_shares[s] = mine / its
         m, ci = mean_ci(list(shares.values()))
+        tm, tci = mean_ci(list(target_shares.values()))
         sm, sci = mean_ci(steps)
         succ = 100 * sum(successes) / len(successes) if successes else float("nan")
-        out[g] = {"share": m, "share_ci": ci, "success": succ, "steps": sm, "steps_ci": sci,
-                  "scenes": n, "shares": shares}
+        out[g] = {"share": m, "share_ci": ci, "target_share": tm, "target_share_ci": tci,
+                  "success": succ, "steps": sm, "steps_ci": sci, "scenes": n, "shares": shares}
     return out
 
 
@@ -279,11 +285,34 @@ def generated(root, scenes_dir=None):
     print(f"{len(scenes)} held-out generated scenes; budgets and trials (cpu_ms, trials): "
           f"{sorted(budget)}. Share of the oracle: per scene the planner's mean reward over the "
           f"oracle's, then the mean over scenes ± 95% t interval over scenes.\n")
-    print("| Planner | Share of the oracle's reward | Success | Steps | Scenes |")
-    print("|---|---|---|---|---|")
-    for p, x in oracle_summary(cells, planners, scenes).items():
-        print(f"| {p} | {100 * x['share']:.1f}% ± {100 * x['share_ci']:.1f} | "
-              f"{x['success']:.1f}% | {x['steps']:.1f} ± {x['steps_ci']:.1f} | {x['scenes']} |")
+    summary = oracle_summary(cells, planners, scenes)
+    with_target = any(x["target_share"] == x["target_share"] for x in summary.values())
+    with_nbv = "nbv" in summary
+    if with_target:
+        print("Target-only share: the same for the reward without what obstacle declarations "
+              "earned beyond a step's cost.")
+    if with_nbv:
+        print("vs nbv: the mean over scenes of the share minus nbv's in the same scene ± 95% t "
+              "interval (paired).")
+    columns = (["Share of the oracle's reward"] + (["Target-only share"] if with_target else [])
+               + ["Success", "Steps"] + (["vs nbv"] if with_nbv else []) + ["Scenes"])
+    if with_target or with_nbv:
+        print()
+    print("| Planner | " + " | ".join(columns) + " |")
+    print("|---" * (len(columns) + 1) + "|")
+    for p, x in summary.items():
+        row = [f"{100 * x['share']:.1f}% ± {100 * x['share_ci']:.1f}"]
+        if with_target:
+            row.append(f"{100 * x['target_share']:.1f}% ± {100 * x['target_share_ci']:.1f}"
+                       if x["target_share"] == x["target_share"] else "")
+        row += [f"{x['success']:.1f}%", f"{x['steps']:.1f} ± {x['steps_ci']:.1f}"]
+        if with_nbv:
+            nbv = summary["nbv"]["shares"]
+            diff = [x["shares"][s] - nbv[s] for s in x["shares"] if s in nbv]
+            dm, dci = mean_ci(diff)
+            row.append(f"{100 * dm:+.1f} ± {100 * dci:.1f}" if diff and p != "nbv" else "")
+        row.append(str(x["scenes"]))
+        print(f"| {p} | " + " | ".join(row) + " |")
     if scenes_dir is not None:
         by_placement(cells, planners, scenes, scenes_dir)
 

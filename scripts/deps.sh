@@ -115,6 +115,7 @@ npfkct_prepare() {
 
 # Writes the npfkct-scenegen scene of each seed to DIR/gen-SEED.json (DIR is created) and lists
 # the files in the array SCENE_FILES, in the seeds' order. Needs BUILD_DIR (npfkct_prepare).
+# Env: SCENE_VERSION (npfkct-scenegen --version: 1, the default, or 2).
 # Usage: npfkct_generate_scenes DIR SEED...
 npfkct_generate_scenes() {
   local dir="$1"
@@ -122,7 +123,8 @@ npfkct_generate_scenes() {
   mkdir -p "$dir"
   SCENE_FILES=()
   for seed in "$@"; do
-    "$BUILD_DIR/bin/npfkct-scenegen" --seed "$seed" >"$dir/gen-$seed.json"
+    "$BUILD_DIR/bin/npfkct-scenegen" --version "${SCENE_VERSION:-1}" --seed "$seed" \
+      >"$dir/gen-$seed.json"
     SCENE_FILES+=("$dir/gen-$seed.json")
   done
 }
