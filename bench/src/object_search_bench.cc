@@ -42,6 +42,7 @@ struct TrialContext {
   object_search::SearchRollout rollout = object_search::SearchRollout::kAimed;
   std::optional<double> plan_r_co;  // R_co of the planning model (the simulator pays the real one)
   object_search::ObstacleReward obstacle_reward = object_search::ObstacleReward::kEvery;
+  object_search::GridSampling grid_sampling = object_search::GridSampling::kProbability;
 };
 
 // The world the planners plan on: the robot's knowledge, with the planning model's R_co when the
@@ -223,6 +224,7 @@ EpisodeResult RunTrial(const TrialContext& ctx) {
     return result;
   }
   World world = *initial;
+  world.grid.SetSampling(ctx.grid_sampling);
   Rng rng(ctx.seed * 7919 + 1), world_rng(ctx.seed * 104729 + 3), sensor_rng(ctx.seed * 31 + 5);
   std::unique_ptr<PerceivingRobot> eyes;
   if (ctx.perception) eyes = std::make_unique<PerceivingRobot>(simulator, world);
@@ -316,6 +318,7 @@ struct BenchSetup {
   std::shared_ptr<const filter::NeuralFilter> net;  // null: no planner takes it, or "none"
   object_search::SearchRollout rollout = object_search::SearchRollout::kAimed;
   object_search::ObstacleReward obstacle_reward = object_search::ObstacleReward::kEvery;
+  object_search::GridSampling grid_sampling = object_search::GridSampling::kProbability;
 };
 
 // The stages before any trial each take the config and fill their part of `setup`; on an
@@ -427,6 +430,12 @@ bool CheckModesAndRollout(const SearchBenchConfig& config, BenchSetup* setup) {
     std::cerr << "npfkct-bench: --obstacle-reward is every (default) or covers\n";
     return false;
   }
+  if (config.grid_sampling == "odds") {
+    setup->grid_sampling = object_search::GridSampling::kOdds;
+  } else if (config.grid_sampling != "probability") {
+    std::cerr << "npfkct-bench: --grid-sampling is probability (default) or odds\n";
+    return false;
+  }
   return true;
 }
 
@@ -531,7 +540,8 @@ std::vector<EpisodeResult> RunAllTrials(const SearchBenchConfig& config, const B
                          setup.net,
                          setup.rollout,
                          config.plan_r_co,
-                         setup.obstacle_reward};
+                         setup.obstacle_reward,
+                         setup.grid_sampling};
         return RunTrial(ctx);
       },
       "object search");
@@ -573,7 +583,8 @@ void PrintCell(const SearchBenchConfig& config, const BenchSetup& setup,
       "{\"scenario\": \"%s\", \"planner\": \"%s\", \"observe\": \"%s\", \"trials\": %d, "
       "\"time_ms\": %g, \"cpu_ms\": %g, \"sims\": %lld, \"robot\": \"%s\", \"seed\": %llu, "
       "\"threads\": %d, \"options\": [%s], \"model\": \"%s\", \"rollout\": \"%s\", "
-      "\"obstacle_reward\": \"%s\", \"mean_discounted_reward\": %.1f, \"ci95\": %.1f, "
+      "\"obstacle_reward\": \"%s\", \"grid_sampling\": \"%s\", \"mean_discounted_reward\": %.1f, "
+      "\"ci95\": %.1f, "
       "\"mean_steps\": %.2f, "
       "\"ci95_steps\": %.2f, \"success_rate\": %.3f, \"median_sims_per_step\": %.1f, "
       "\"median_sims_per_second\": %.1f, \"median_sims_per_cpu_second\": %.1f, "
@@ -584,11 +595,11 @@ void PrintCell(const SearchBenchConfig& config, const BenchSetup& setup,
       config.time_ms, config.cpu_ms, static_cast<long long>(config.sims), scenario.robot.c_str(),
       static_cast<unsigned long long>(config.seed), config.threads, option_list.c_str(),
       JsonEscape(model_name).c_str(), config.rollout.c_str(), config.obstacle_reward.c_str(),
-      s.mean_return, s.ci95_return, s.mean_steps, s.ci95_steps, s.success_rate.value_or(0.0),
-      s.median_sims_per_step, s.median_sims_per_second, s.median_sims_per_cpu_second,
-      s.median_cpu_ms_per_step, s.median_first_step_sims_per_second, s.wall_seconds,
-      s.failed_episodes, rewards.c_str(), target_rewards.c_str(), steps.c_str(), successes.c_str(),
-      perception_ms.c_str(), s.first_error.empty() ? "" : ", \"error\": \"",
+      config.grid_sampling.c_str(), s.mean_return, s.ci95_return, s.mean_steps, s.ci95_steps,
+      s.success_rate.value_or(0.0), s.median_sims_per_step, s.median_sims_per_second,
+      s.median_sims_per_cpu_second, s.median_cpu_ms_per_step, s.median_first_step_sims_per_second,
+      s.wall_seconds, s.failed_episodes, rewards.c_str(), target_rewards.c_str(), steps.c_str(),
+      successes.c_str(), perception_ms.c_str(), s.first_error.empty() ? "" : ", \"error\": \"",
       JsonEscape(s.first_error).c_str(), s.first_error.empty() ? "" : "\"");
 }
 

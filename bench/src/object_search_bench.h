@@ -46,6 +46,9 @@ struct SearchBenchConfig {
   /// each) or "covers" (only for an obstacle hiding the particle's target; object_search::
   /// ObstacleReward). The simulator always pays the scenario's reward.
   std::string obstacle_reward = "every";
+  /// How the robot's grid world weighs its cells when the target is placed: "probability"
+  /// (sigmoid of the log-odds) or "odds" (the paper's; object_search::GridSampling).
+  std::string grid_sampling = "probability";
 };
 
 /// Runs every (scenario, planner) pair; prints one JSON line per pair (with every trial's reward,

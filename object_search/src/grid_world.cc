@@ -86,9 +86,15 @@ void GridWorld::RebuildSampler() {
   cumulative_.resize(log_odds_.size());
   double total = 0.0;
   for (size_t i = 0; i < log_odds_.size(); ++i) {
-    total += 1.0 / (1.0 + std::exp(-static_cast<double>(log_odds_[i])));
+    const double l = static_cast<double>(log_odds_[i]);
+    total += sampling_ == GridSampling::kOdds ? std::exp(l) : 1.0 / (1.0 + std::exp(-l));
     cumulative_[i] = total;
   }
+}
+
+void GridWorld::SetSampling(GridSampling sampling) {
+  sampling_ = sampling;
+  RebuildSampler();
 }
 
 Vec3 GridWorld::Sample(Rng& rng, double lift) const {

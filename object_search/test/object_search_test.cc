@@ -334,6 +334,20 @@ TEST(ObjectSearchModelTest, AimedRolloutLooksBeneathARemovedCoverOnly) {
   EXPECT_LT(aimed_standing, greedy + 0.04);
 }
 
+TEST(GridWorldTest, TheOddsRuleWeighsASeenCellLessThanTheProbabilityRule) {
+  // Two workspaces of one cell each; the second seen empty once (log-odds -2).
+  GridWorld grid({Workspace{"a", Vec2(0, 0), 0.0, 0.02, 0.02, 0.7},
+                  Workspace{"b", Vec2(1, 0), 0.0, 0.02, 0.02, 0.7}},
+                 0.02);
+  ASSERT_EQ(grid.num_cells(), 2);
+  grid.set_log_odds(1, -2.0f);
+  grid.RebuildSampler();
+  const double sigmoid = 1.0 / (1.0 + std::exp(2.0));
+  EXPECT_NEAR(grid.WorkspaceMass()[1], sigmoid / (0.5 + sigmoid), 1e-9);
+  grid.SetSampling(GridSampling::kOdds);
+  EXPECT_NEAR(grid.WorkspaceMass()[1], std::exp(-2.0) / (1.0 + std::exp(-2.0)), 1e-9);
+}
+
 TEST(GridWorldTest, ViewLowersVisibleCellsOnly) {
   World w = TestWorld();
   RobotConfig c;

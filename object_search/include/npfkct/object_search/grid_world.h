@@ -25,6 +25,12 @@ struct Workspace {
   bool ContainsXY(const Vec2& p, double margin = 0.0) const;
 };
 
+/// How a cell's log-odds l becomes its weight when the guessed target is placed.
+enum class GridSampling {
+  kProbability,  ///< sigmoid(l): a cell never weighs more than twice an unseen one.
+  kOdds,         ///< exp(l), the paper's rule (appendix A): in proportion to the odds.
+};
+
 /// Log-odds cells over all workspaces.
 class GridWorld {
  public:
@@ -54,9 +60,12 @@ class GridWorld {
   /// Replaces every cell value (sizes must match).
   Status SetAllLogOdds(const std::vector<float>& values);
 
-  /// Recomputes the sampling distribution after the odds changed: P(cell) proportional to
-  /// sigmoid(log-odds).
+  /// Recomputes the sampling distribution after the odds changed: P(cell) proportional to the
+  /// weight sampling() gives its log-odds.
   void RebuildSampler();
+  /// Sets the rule of the sampling distribution (default kProbability) and rebuilds it.
+  void SetSampling(GridSampling sampling);
+  GridSampling sampling() const { return sampling_; }
   /// A target position: a cell drawn from the sampling distribution, a point uniform inside it,
   /// `lift` metres above the surface. Requires RebuildSampler() after the last change.
   Vec3 Sample(Rng& rng, double lift) const;
@@ -78,6 +87,7 @@ class GridWorld {
   std::vector<int> offsets_;
   std::vector<float> log_odds_;
   std::vector<double> cumulative_;
+  GridSampling sampling_ = GridSampling::kProbability;
 };
 
 }  // namespace npfkct::object_search
