@@ -185,6 +185,60 @@ def test_mirror_pools_a_scene_with_its_mirror_image(tmp_path):
     assert pooled == f"| npfkct | 100.0 ± {half:.1f} |"
 
 
+def test_generated_gives_the_target_only_share_and_the_paired_difference_to_nbv(tmp_path):
+    runs = tmp_path / "run"
+    # npfkct earns 80 and 60 (of which 20 and 0 from obstacle declarations), nbv 50 and 40, the
+    # oracle 100 in both scenes: npfkct's target-only shares 0.6 and 0.6, its paired differences
+    # to nbv +0.3 and +0.2 (mean +25 points).
+    cells = {"gen-1": [("oracle", 100.0, 100.0), ("npfkct", 80.0, 60.0), ("nbv", 50.0, 50.0)],
+             "gen-2": [("oracle", 100.0, 100.0), ("npfkct", 60.0, 60.0), ("nbv", 40.0, 40.0)]}
+    for scene, rows in cells.items():
+        for planner, reward, target in rows:
+            os.makedirs(runs / scene, exist_ok=True)
+            record = {"scenario": scene, "planner": planner, "cpu_ms": 250, "trials": 1,
+                      "mean_discounted_reward": reward, "target_rewards": [target],
+                      "steps": [5], "successes": [1]}
+            (runs / scene / (planner + ".jsonl")).write_text(json.dumps(record) + "\n",
+                                                              encoding="utf-8")
+    out = subprocess.run([sys.executable, os.path.join(SCRIPTS, "results_table.py"), "generated",
+                          str(runs)], check=True, capture_output=True, text=True).stdout
+    rows = {line.split("|")[1].strip(): [c.strip() for c in line.split("|")[2:-1]]
+            for line in out.splitlines() if line.startswith("| ") and "---" not in line}
+    assert rows["Planner"][1] == "Target-only share" and rows["Planner"][4] == "vs nbv"
+    assert rows["npfkct"][0].startswith("70.0% ± ")
+    assert rows["npfkct"][1] == "60.0% ± 0.0"
+    assert rows["npfkct"][4].startswith("+25.0 ± ")
+    assert rows["nbv"][4] == ""
+
+
+def test_estimator_compares_share_and_steps_with_the_defaults(tmp_path):
+    root = str(tmp_path)
+    # Per scene (reward, steps): the defaults (50, 10) and (100, 20); "depth30" (60, 8) and
+    # (160, 12): +20 points and -5 steps on average against the defaults.
+    rows_in = {"oracle": [(100.0, 5), (200.0, 6)], "defaults": [(50.0, 10), (100.0, 20)],
+               "depth30": [(60.0, 8), (160.0, 12)]}
+    for row, cells in rows_in.items():
+        for scene, (reward, steps) in zip(["a", "b"], cells):
+            os.makedirs(os.path.join(root, row), exist_ok=True)
+            record = {"scenario": scene, "planner": "oracle" if row == "oracle" else "npfkct",
+                      "cpu_ms": 250, "trials": 1, "mean_discounted_reward": reward,
+                      "mean_steps": steps, "steps": [steps], "successes": [1],
+                      "options": ["search.max_depth=30"] if row == "depth30" else [],
+                      "rollout": "aimed", "grid_sampling": "odds" if row == "depth30" else
+                      "probability"}
+            with open(os.path.join(root, row, scene + ".jsonl"), "w", encoding="utf-8") as f:
+                f.write(json.dumps(record) + "\n")
+    out = subprocess.run([sys.executable, os.path.join(SCRIPTS, "results_table.py"),
+                          "estimator", root], check=True, capture_output=True, text=True).stdout
+    rows = {line.split("|")[1].strip(): [c.strip() for c in line.split("|")[2:-1]]
+            for line in out.splitlines() if line.startswith("| ") and "---" not in line}
+    assert rows["defaults"][2] == "–" and rows["defaults"][5] == "–"
+    assert rows["depth30"][2].startswith("+20.0 ± ")
+    assert rows["depth30"][5].startswith("-5.0 ± ")
+    assert "--grid-sampling odds" in rows["depth30"][0]
+    assert "search.max_depth=30" in rows["depth30"][0]
+
+
 def test_generated_groups_the_shares_by_the_placement_the_scene_names(tmp_path):
     runs, scenes = tmp_path / "run", tmp_path / "scenes"
     scenes.mkdir()

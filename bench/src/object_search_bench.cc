@@ -576,6 +576,8 @@ void PrintCell(const SearchBenchConfig& config, const BenchSetup& setup,
     steps.append(std::to_string(mine[k].steps));
     successes.append(mine[k].success ? "1" : "0");
   }
+  const std::string plan_r_co =
+      config.plan_r_co ? std::to_string(*config.plan_r_co) : std::string("null");
   const std::string model_name = setup.registry.Find(planner)->takes_sampler && setup.net
                                      ? std::filesystem::path(setup.net->path()).filename().string()
                                      : std::string();
@@ -583,7 +585,8 @@ void PrintCell(const SearchBenchConfig& config, const BenchSetup& setup,
       "{\"scenario\": \"%s\", \"planner\": \"%s\", \"observe\": \"%s\", \"trials\": %d, "
       "\"time_ms\": %g, \"cpu_ms\": %g, \"sims\": %lld, \"robot\": \"%s\", \"seed\": %llu, "
       "\"threads\": %d, \"options\": [%s], \"model\": \"%s\", \"rollout\": \"%s\", "
-      "\"obstacle_reward\": \"%s\", \"grid_sampling\": \"%s\", \"mean_discounted_reward\": %.1f, "
+      "\"obstacle_reward\": \"%s\", \"grid_sampling\": \"%s\", \"plan_r_co\": %s, "
+      "\"mean_discounted_reward\": %.1f, "
       "\"ci95\": %.1f, "
       "\"mean_steps\": %.2f, "
       "\"ci95_steps\": %.2f, \"success_rate\": %.3f, \"median_sims_per_step\": %.1f, "
@@ -595,8 +598,8 @@ void PrintCell(const SearchBenchConfig& config, const BenchSetup& setup,
       config.time_ms, config.cpu_ms, static_cast<long long>(config.sims), scenario.robot.c_str(),
       static_cast<unsigned long long>(config.seed), config.threads, option_list.c_str(),
       JsonEscape(model_name).c_str(), config.rollout.c_str(), config.obstacle_reward.c_str(),
-      config.grid_sampling.c_str(), s.mean_return, s.ci95_return, s.mean_steps, s.ci95_steps,
-      s.success_rate.value_or(0.0), s.median_sims_per_step, s.median_sims_per_second,
+      config.grid_sampling.c_str(), plan_r_co.c_str(), s.mean_return, s.ci95_return, s.mean_steps,
+      s.ci95_steps, s.success_rate.value_or(0.0), s.median_sims_per_step, s.median_sims_per_second,
       s.median_sims_per_cpu_second, s.median_cpu_ms_per_step, s.median_first_step_sims_per_second,
       s.wall_seconds, s.failed_episodes, rewards.c_str(), target_rewards.c_str(), steps.c_str(),
       successes.c_str(), perception_ms.c_str(), s.first_error.empty() ? "" : ", \"error\": \"",

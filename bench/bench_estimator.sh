@@ -1,0 +1,54 @@
+#!/usr/bin/env bash
+# The estimator experiments of issue 39 (docs/experiments.md, "Where do the steps go on the v2
+# scenes?"): npfkct with one change of its value estimate or belief per row, beside the references
+# (oracle, oracle-cover-unknown, nbv, kct), on the 30 v2 tuning scenes (npfkct-scenegen --version
+# 2, seeds 850001-850030; the held-out v2 set is 930001-930060), 3 trials per scene, 0.25 s of the
+# planning thread's CPU time per step, success within 50 steps. The table gives each row's share
+# of the oracle's reward, its target-only share, steps and success, and the changes against the
+# row "defaults" paired over the scenes (mean ± 95% t interval over the scenes).
+# Resumable: one file per row and scene, bench/results/estimator-v2/RUN/ROW/SEED.jsonl; finished
+# cells are skipped; --commit commits each. About 10 CPU-minutes per npfkct row.
+# Usage: bench/bench_estimator.sh [--run NAME] [--cpu-ms MS] [--trials N] [--commit]
+#        env: SEEDS (default: 850001 ... 850030), ROWS (default: every row below), BUILD_DIR
+set -euo pipefail
+NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+source "$NPFKCT_ROOT/scripts/deps.sh"
+npfkct_bench_args 250 3 12 "$@"
+npfkct_prepare npfkct-bench npfkct-scenegen
+SEEDS="${SEEDS:-$(seq 850001 850030)}"
+DEFAULT_ROWS="oracle oracle-cover-unknown nbv kct defaults depth30 rollout-clear r-co-0"
+DEFAULT_ROWS="$DEFAULT_ROWS target-only obstacle-covers grid-free-3 grid-odds"
+ROWS="${ROWS:-$DEFAULT_ROWS}"
+OUT="$NPFKCT_ROOT/bench/results/estimator-v2/$RUN"
+export SCENE_VERSION=2
+# shellcheck disable=SC2086  # one seed per word
+npfkct_generate_scenes "$BUILD_DIR/tuning-scenes-v2" $SEEDS
+TUNING_SCENES=("${SCENE_FILES[@]}")
+for row in $ROWS; do
+  SCENE_FILES=("${TUNING_SCENES[@]}")
+  case "$row" in
+    oracle | oracle-cover-unknown | nbv | kct) ARGS=(--planner "$row") ;;
+    defaults) ARGS=(--planner npfkct) ;;
+    depth30) ARGS=(--planner npfkct --opt search.max_depth=30) ;;
+    rollout-clear) ARGS=(--planner npfkct --rollout clear) ;;
+    r-co-0) ARGS=(--planner npfkct --plan-r-co 0) ;;
+    target-only) ARGS=(--planner npfkct --opt search.max_depth=30 --rollout clear --plan-r-co 0) ;;
+    obstacle-covers) ARGS=(--planner npfkct --rollout clear --obstacle-reward covers) ;;
+    grid-odds) ARGS=(--planner npfkct --grid-sampling odds) ;;
+    grid-free-3)
+      # The same scenes with the robot's grid update for a seen free cell at -3 instead of -1.
+      mkdir -p "$BUILD_DIR/tuning-scenes-v2-grid3"
+      SCENE_FILES=()
+      for file in "${TUNING_SCENES[@]}"; do
+        python3 -c "import json,sys; d=json.load(open(sys.argv[1])); \
+d['params']={'gridFreeDelta': -3.0}; json.dump(d, open(sys.argv[2], 'w'))" \
+          "$file" "$BUILD_DIR/tuning-scenes-v2-grid3/$(basename "$file")"
+        SCENE_FILES+=("$BUILD_DIR/tuning-scenes-v2-grid3/$(basename "$file")")
+      done
+      ARGS=(--planner npfkct) ;;
+    *) echo "bench_estimator.sh: unknown row $row" >&2; exit 2 ;;
+  esac
+  npfkct_bench_row "$OUT/$row" "${ARGS[@]}"
+done
+python3 "$NPFKCT_ROOT/bench/results_table.py" estimator "$OUT" "$BUILD_DIR/tuning-scenes-v2" |
+  tee "$OUT/estimator.md"
