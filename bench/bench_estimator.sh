@@ -17,8 +17,7 @@ npfkct_bench_args 250 3 12 "$@"
 npfkct_prepare npfkct-bench npfkct-scenegen
 SEEDS="${SEEDS:-$(seq 850001 850030)}"
 DEFAULT_ROWS="oracle oracle-cover-unknown nbv kct defaults depth30 rollout-clear r-co-0"
-DEFAULT_ROWS="$DEFAULT_ROWS target-only obstacle-covers grid-free-3 grid-odds clear-macro"
-DEFAULT_ROWS="$DEFAULT_ROWS clear-macro-rollout-clear"
+DEFAULT_ROWS="$DEFAULT_ROWS target-only obstacle-covers grid-free-3 grid-odds"
 ROWS="${ROWS:-$DEFAULT_ROWS}"
 OUT="$NPFKCT_ROOT/bench/results/estimator-v2/$RUN"
 export SCENE_VERSION=2
@@ -36,8 +35,6 @@ for row in $ROWS; do
     target-only) ARGS=(--planner npfkct --opt search.max_depth=30 --rollout clear --plan-r-co 0) ;;
     obstacle-covers) ARGS=(--planner npfkct --rollout clear --obstacle-reward covers) ;;
     grid-odds) ARGS=(--planner npfkct --grid-sampling odds) ;;
-    clear-macro) ARGS=(--planner npfkct --clear-macro) ;;
-    clear-macro-rollout-clear) ARGS=(--planner npfkct --clear-macro --rollout clear) ;;
     grid-free-3)
       # The same scenes with the robot's grid update for a seen free cell at -3 instead of -1.
       mkdir -p "$BUILD_DIR/tuning-scenes-v2-grid3"

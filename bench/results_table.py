@@ -417,8 +417,6 @@ def estimator_switches(r):
         parts.append(f"--obstacle-reward {r['obstacle_reward']}")
     if r.get("grid_sampling", "probability") != "probability":
         parts.append(f"--grid-sampling {r['grid_sampling']}")
-    if r.get("clear_macro"):
-        parts.append("--clear-macro")
     if r.get("plan_r_co") is not None:
         parts.append(f"--plan-r-co {r['plan_r_co']:g}")
     if r.get("min_cover_size"):

@@ -336,9 +336,6 @@ int main(int argc, char** argv) {
   app.add_option("--obstacle-reward", search.obstacle_reward,
                  "scenarios: what the planners' model pays for an obstacle declaration: every "
                  "(default, the paper's) | covers (only one hiding the target)");
-  app.add_flag("--clear-macro", search.clear_macro,
-               "scenarios: the planners' model offers clear(i) (views of box i, declare, remove) "
-               "as one action (npfkct, kct, pomcpow, vomcpow, advt)");
   app.add_option("--grid-sampling", search.grid_sampling,
                  "scenarios: how the grid world weighs a cell: probability (default, sigmoid of "
                  "its log-odds) | odds (the paper's)");

@@ -43,7 +43,6 @@ struct TrialContext {
   std::optional<double> plan_r_co;  // R_co of the planning model (the simulator pays the real one)
   object_search::ObstacleReward obstacle_reward = object_search::ObstacleReward::kEvery;
   object_search::GridSampling grid_sampling = object_search::GridSampling::kProbability;
-  bool clear_macro = false;
 };
 
 // The world the planners plan on: the robot's knowledge, with the planning model's R_co when the
@@ -243,7 +242,6 @@ EpisodeResult RunTrial(const TrialContext& ctx) {
   }
   ObjectSearchModel model(PlanningWorld(world, ctx.plan_r_co), ctx.rollout);
   model.SetObstacleReward(ctx.obstacle_reward);
-  model.SetClearMacro(ctx.clear_macro);
   // The oracles are told the true scene; every other planner plans on the robot's belief.
   const sim::SceneTruth truth(simulator);
   auto made = MakePlanner(*ctx.planners, ctx.planner, model, ctx.options, ctx.filter_options,
@@ -321,7 +319,6 @@ struct BenchSetup {
   object_search::SearchRollout rollout = object_search::SearchRollout::kAimed;
   object_search::ObstacleReward obstacle_reward = object_search::ObstacleReward::kEvery;
   object_search::GridSampling grid_sampling = object_search::GridSampling::kProbability;
-  bool clear_macro = false;
 };
 
 // The stages before any trial each take the config and fill their part of `setup`; on an
@@ -544,8 +541,7 @@ std::vector<EpisodeResult> RunAllTrials(const SearchBenchConfig& config, const B
                          setup.rollout,
                          config.plan_r_co,
                          setup.obstacle_reward,
-                         setup.grid_sampling,
-                         config.clear_macro};
+                         setup.grid_sampling};
         return RunTrial(ctx);
       },
       "object search");
@@ -589,8 +585,7 @@ void PrintCell(const SearchBenchConfig& config, const BenchSetup& setup,
       "{\"scenario\": \"%s\", \"planner\": \"%s\", \"observe\": \"%s\", \"trials\": %d, "
       "\"time_ms\": %g, \"cpu_ms\": %g, \"sims\": %lld, \"robot\": \"%s\", \"seed\": %llu, "
       "\"threads\": %d, \"options\": [%s], \"model\": \"%s\", \"rollout\": \"%s\", "
-      "\"obstacle_reward\": \"%s\", \"grid_sampling\": \"%s\", \"plan_r_co\": %s, \"clear_macro\": "
-      "%s, "
+      "\"obstacle_reward\": \"%s\", \"grid_sampling\": \"%s\", \"plan_r_co\": %s, "
       "\"mean_discounted_reward\": %.1f, "
       "\"ci95\": %.1f, "
       "\"mean_steps\": %.2f, "
@@ -603,12 +598,11 @@ void PrintCell(const SearchBenchConfig& config, const BenchSetup& setup,
       config.time_ms, config.cpu_ms, static_cast<long long>(config.sims), scenario.robot.c_str(),
       static_cast<unsigned long long>(config.seed), config.threads, option_list.c_str(),
       JsonEscape(model_name).c_str(), config.rollout.c_str(), config.obstacle_reward.c_str(),
-      config.grid_sampling.c_str(), plan_r_co.c_str(), config.clear_macro ? "true" : "false",
-      s.mean_return, s.ci95_return, s.mean_steps, s.ci95_steps, s.success_rate.value_or(0.0),
-      s.median_sims_per_step, s.median_sims_per_second, s.median_sims_per_cpu_second,
-      s.median_cpu_ms_per_step, s.median_first_step_sims_per_second, s.wall_seconds,
-      s.failed_episodes, rewards.c_str(), target_rewards.c_str(), steps.c_str(), successes.c_str(),
-      perception_ms.c_str(), s.first_error.empty() ? "" : ", \"error\": \"",
+      config.grid_sampling.c_str(), plan_r_co.c_str(), s.mean_return, s.ci95_return, s.mean_steps,
+      s.ci95_steps, s.success_rate.value_or(0.0), s.median_sims_per_step, s.median_sims_per_second,
+      s.median_sims_per_cpu_second, s.median_cpu_ms_per_step, s.median_first_step_sims_per_second,
+      s.wall_seconds, s.failed_episodes, rewards.c_str(), target_rewards.c_str(), steps.c_str(),
+      successes.c_str(), perception_ms.c_str(), s.first_error.empty() ? "" : ", \"error\": \"",
       JsonEscape(s.first_error).c_str(), s.first_error.empty() ? "" : "\"");
 }
 

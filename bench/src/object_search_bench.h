@@ -49,9 +49,6 @@ struct SearchBenchConfig {
   /// How the robot's grid world weighs its cells when the target is placed: "probability"
   /// (sigmoid of the log-odds) or "odds" (the paper's; object_search::GridSampling).
   std::string grid_sampling = "probability";
-  /// Whether the planners' model offers the clear macro (ObjectSearchModel::SetClearMacro); for
-  /// the planners behind HybridSearchPlanner (npfkct, kct, pomcpow, vomcpow, advt).
-  bool clear_macro = false;
 };
 
 /// Runs every (scenario, planner) pair; prints one JSON line per pair (with every trial's reward,

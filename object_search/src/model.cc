@@ -201,11 +201,6 @@ StepResult<State, Observation> ObjectSearchModel::Step(const State& s, const Act
       n.robot = c;
       outcome = ActionOutcome::kMoved;
     }
-  } else if (int views = 0; clear_macro_ && KindOffset(a.kind) == kRemoveOffset &&
-                            Clearable(s, KindObject(a.kind), &views)) {
-    r.reward = Clear(&n, KindObject(a.kind), rng) * s.reward_scale;
-    Observe(&n, rng, &r.observation);
-    return r;
   } else {
     const int i = KindObject(a.kind);
     if (a.kind >= 1 && i < static_cast<int>(s.objects.size())) {
@@ -238,81 +233,9 @@ StepResult<State, Observation> ObjectSearchModel::Step(const State& s, const Act
       !object_frames_[KindObject(a.kind)].Contains(s.target)) {
     r.reward = p.r_min;
   }
-  r.reward *= s.reward_scale;
   r.terminal = n.terminal;
   if (!n.terminal) Observe(&n, rng, &r.observation);
   return r;
-}
-
-bool ObjectSearchModel::Clearable(const State& s, int i, int* views) const {
-  const SearchParams& p = world_->params;
-  if (i < 1 || i >= static_cast<int>(s.objects.size())) return false;
-  const ObjectParticle& o = s.objects[i];
-  if (o.status != kUpdating || !o.moveable) return false;
-  double mean = 0.0;
-  for (float v : o.odds) mean += v;
-  if (mean / 8.0 > p.nu_p) return false;  // it looks like the target
-  // A view updates the four face grids nearest to the camera; two opposite views all eight.
-  const int past = CountPast(o.odds, false);
-  *views = past >= p.n_odds ? 0 : past + 4 >= p.n_odds ? 1 : 2;
-  return true;
-}
-
-double ObjectSearchModel::Clear(State* n, int i, Rng& rng) const {
-  const SearchParams& p = world_->params;
-  int views = 0;
-  Clearable(*n, i, &views);
-  const double gamma = p.discount;
-  double reward = 0.0, discount = 1.0;
-  for (int v = 0; v < views; ++v, discount *= gamma) reward += discount * p.r_min;
-  double declared = RewardOf(p, ActionOutcome::kDeclaredObstacle);
-  if (obstacle_reward_ == ObstacleReward::kCovers && !object_frames_[i].Contains(n->target)) {
-    declared = p.r_min;
-  }
-  reward += discount * declared;
-  discount *= gamma;
-  reward += discount * RewardOf(p, ActionOutcome::kRemovedObstacle);
-  ObjectParticle& o = n->objects[i];
-  o.odds.fill(static_cast<float>(-p.face_odds_limit));
-  o.status = kRemoved;
-  RobotConfig c;
-  if (AimAt(*world_, world_->objects[i].box.center, rng, &c)) n->robot = c;
-  // The macro took views + 2 real steps; the tree discounts it as one.
-  n->reward_scale *= discount;
-  return reward;
-}
-
-HybridAction ObjectSearchModel::Executable(const HybridAction& a, const State& s, Rng& rng) const {
-  // The state's moveability is a draw; what decides here is only whether the object is still
-  // being updated, as the real step would refuse removing it.
-  if (!clear_macro_ || a.kind < 1 || KindOffset(a.kind) != kRemoveOffset ||
-      KindObject(a.kind) < 1 || KindObject(a.kind) >= static_cast<int>(s.objects.size()) ||
-      s.objects[KindObject(a.kind)].status != kUpdating) {
-    return a;
-  }
-  const int i = KindObject(a.kind);
-  HybridAction step;
-  if (CountPast(s.objects[i].odds, false) >= world_->params.n_odds) {
-    step.kind = DeclareObstacleKind(i);
-    return step;
-  }
-  const double t = world_->params.declare_threshold;
-  std::array<std::array<int, 4>, kMaxObjects> nearest;
-  int best = -1;
-  for (int k = 0; k < 32; ++k) {
-    RobotConfig c;
-    if (!AimAt(*world_, world_->objects[i].box.center, rng, &c)) continue;
-    int unconfirmed = 0;
-    if (VisibleObjects(s, c, &nearest) >> i & 1u) {
-      for (int f : nearest[i]) unconfirmed += s.objects[i].odds[f] >= -t;
-    }
-    if (unconfirmed > best) {
-      best = unconfirmed;
-      step.kind = kMoveKind;
-      step.x = VecOf(c);
-    }
-  }
-  return best >= 0 ? step : RolloutAction(s, rng);
 }
 
 void ObjectSearchModel::ActionKinds(const State& s, std::vector<int>* out) const {
@@ -324,7 +247,6 @@ void ObjectSearchModel::ActionKinds(const State& s, std::vector<int>* out) const
     if (o.status == kUpdating) {
       if (CountPast(o.odds, true) >= p.n_odds) out->push_back(DeclareTargetKind(i));
       if (CountPast(o.odds, false) >= p.n_odds) out->push_back(DeclareObstacleKind(i));
-      if (int views = 0; clear_macro_ && Clearable(s, i, &views)) out->push_back(RemoveKind(i));
     } else if (o.status == kDeclaredTarget || o.status == kDeclaredObstacle) {
       out->push_back(RemoveKind(i));
     }
@@ -346,10 +268,6 @@ bool ObjectSearchModel::IsFeasible(const State& s, const Action& a) const {
   const int i = KindObject(a.kind);
   if (i < 1 || i >= static_cast<int>(s.objects.size())) return false;  // not the guessed target
   const int8_t status = s.objects[i].status;
-  if (int views = 0;
-      clear_macro_ && KindOffset(a.kind) == kRemoveOffset && Clearable(s, i, &views)) {
-    return true;
-  }
   return KindOffset(a.kind) == kRemoveOffset
              ? (status == kDeclaredTarget || status == kDeclaredObstacle)
              : status == kUpdating;

@@ -789,49 +789,6 @@ TEST(ObstacleRewardTest, CoversOnlyPaysForTheObstacleThatHidesTheParticlesTarget
   EXPECT_EQ(model.Step(s, declare_other, rng).reward, w.params.r_min);
 }
 
-TEST(ClearMacroTest, ClearsABoxInOneActionDiscountedAsItsRealSteps) {
-  World w = FourSidedWorld();
-  // A box confirmed an obstacle on every face, and one not yet seen (odds 0).
-  w.objects.push_back(Object("seen", Vec3(1.2, 0.2, 0.85), Vec3(0.2, 0.2, 0.2), -3.0f));
-  w.objects.push_back(Object("unseen", Vec3(1.2, -0.25, 0.85), Vec3(0.2, 0.2, 0.2), 0.0f));
-  ObjectSearchModel model(std::make_shared<World>(w));
-  Rng rng(11);
-  State s = model.SampleInitialState(rng);
-  for (auto& o : s.objects) o.moveable = true;
-  std::vector<int> kinds;
-  model.ActionKinds(s, &kinds);
-  EXPECT_EQ(std::count(kinds.begin(), kinds.end(), RemoveKind(2)), 0);  // off by default
-  model.SetClearMacro(true);
-  model.ActionKinds(s, &kinds);
-  EXPECT_EQ(std::count(kinds.begin(), kinds.end(), RemoveKind(2)), 1);
-  const SearchParams& p = w.params;
-  const double g = p.discount;
-  // The confirmed box: declare and remove, two steps.
-  HybridAction clear_seen, clear_unseen;
-  clear_seen.kind = RemoveKind(1);
-  clear_unseen.kind = RemoveKind(2);
-  auto seen = model.Step(s, clear_seen, rng);
-  EXPECT_NEAR(seen.reward, p.r_co + g * 2 * p.r_min, 1e-9);
-  EXPECT_EQ(seen.state.objects[1].status, kRemoved);
-  EXPECT_NEAR(seen.state.reward_scale, g, 1e-12);
-  // The unseen one: two views first, four steps; every later reward is scaled by gamma^3.
-  auto unseen = model.Step(s, clear_unseen, rng);
-  EXPECT_NEAR(unseen.reward, p.r_min + g * p.r_min + g * g * p.r_co + g * g * g * 2 * p.r_min,
-              1e-9);
-  EXPECT_NEAR(unseen.state.reward_scale, g * g * g, 1e-12);
-  HybridAction look;
-  look.kind = kMoveKind;
-  look.x = ObjectSearchModel::VecOf(unseen.state.robot);
-  EXPECT_NEAR(model.Step(unseen.state, look, rng).reward, g * g * g * p.r_min, 1e-9);
-  // Executed for real: the declaration of the confirmed box, a view of the unseen one.
-  EXPECT_EQ(model.Executable(clear_seen, s, rng).kind, DeclareObstacleKind(1));
-  const HybridAction view = model.Executable(clear_unseen, s, rng);
-  ASSERT_EQ(view.kind, kMoveKind);
-  EXPECT_TRUE(model.SeesObject(s, ObjectSearchModel::ConfigOf(view.x), 2));
-  // Anything else passes through.
-  EXPECT_EQ(model.Executable(look, s, rng).kind, kMoveKind);
-}
-
 TEST(NextBestViewTest, RemovesWhatWasDeclaredAndDeclaresAConfirmedTarget) {
   World w = FourSidedWorld();
   w.objects.push_back(Object("box", Vec3(1.0, 0.2, 0.8), Vec3(0.1, 0.1, 0.1), 0.0f));

@@ -33,13 +33,9 @@ struct State {
   Vec3 target = Vec3::Zero();
   std::vector<ObjectParticle> objects;
   bool terminal = false;
-  /// What every later reward of this state's future is multiplied by: the discount a clear macro
-  /// (SetClearMacro) owes beyond the one level the tree gives it, so that a macro of k real steps
-  /// is discounted by gamma^k. 1 in every state a belief starts from.
-  double reward_scale = 1.0;
   friend bool operator==(const State& a, const State& b) {
     return a.robot == b.robot && a.target == b.target && a.objects == b.objects &&
-           a.terminal == b.terminal && a.reward_scale == b.reward_scale;
+           a.terminal == b.terminal;
   }
 };
 
@@ -109,18 +105,6 @@ class ObjectSearchModel {
   void SetWorld(std::shared_ptr<const World> world);
   /// Sets what a simulated obstacle declaration pays (default kEvery).
   void SetObstacleReward(ObstacleReward r) { obstacle_reward_ = r; }
-  /// With `on`, "remove" is also an action on a movable object still being updated that does not
-  /// look like the target: a macro clear(i), simulated as the views that confirm its faces (one
-  /// or two), its declaration as an obstacle and its removal, discounted as those steps, the
-  /// robot left looking at where it stood. A planner's choice of it is executed as its first real
-  /// step (Executable). Off by default.
-  void SetClearMacro(bool on) { clear_macro_ = on; }
-  bool clear_macro() const { return clear_macro_; }
-  /// The primitive action a real step takes for `a` chosen in state `s` (the world's knowledge):
-  /// for a clear macro, the declaration when the object can be declared, else the view among 32
-  /// aimed at it whose four nearest face grids of it hold the most not yet confirmed; `a` itself
-  /// otherwise.
-  HybridAction Executable(const HybridAction& a, const State& s, Rng& rng) const;
   const World& world() const { return *world_; }
 
   State SampleInitialState(Rng& rng) const;
@@ -174,11 +158,6 @@ class ObjectSearchModel {
   double tan_half_horizontal_ = 0.0;        ///< Of world_->camera, likewise.
   SearchRollout rollout_;
   ObstacleReward obstacle_reward_ = ObstacleReward::kEvery;
-  bool clear_macro_ = false;
-  // Whether object i of s can be cleared by the macro, and the views it takes first.
-  bool Clearable(const State& s, int i, int* views) const;
-  // Applies the macro clear(i) to *n; returns its reward, discounted within the macro.
-  double Clear(State* n, int i, Rng& rng) const;
   BoxSpace move_space_;
   BoxSpace point_;
 };

@@ -70,7 +70,6 @@ class HybridSearchPlanner final : public SearchPlanner {
   HybridSearchPlanner(std::string name, const ObjectSearchModel& model, Options options,
                       OptionList used, Extra&&... extra)
       : name_(std::move(name)),
-        model_(model),
         planner_(model, options, std::forward<Extra>(extra)...),
         used_(std::move(used)),
         reuse_(options.search.reuse_tree),
@@ -80,11 +79,7 @@ class HybridSearchPlanner final : public SearchPlanner {
   void SetBelief(ParticleBelief<State> belief) override { planner_.SetBelief(std::move(belief)); }
   using SearchPlanner::Plan;
   Decision<HybridAction> Plan(const TerminationCondition& stop, Rng& rng) override {
-    Decision<HybridAction> d = planner_.Plan(stop, rng);
-    // A clear macro chosen by the search is executed one real step at a time.
-    if (model_.clear_macro())
-      d.action = model_.Executable(d.action, model_.SampleInitialState(rng), rng);
-    return d;
+    return planner_.Plan(stop, rng);
   }
   void AdvanceTo(const HybridAction& a, const Observation& o,
                  ParticleBelief<State> belief) override {
@@ -112,7 +107,6 @@ class HybridSearchPlanner final : public SearchPlanner {
 
  private:
   std::string name_;
-  const ObjectSearchModel& model_;
   P planner_;
   OptionList used_;
   bool reuse_;
