@@ -417,6 +417,8 @@ def estimator_switches(r):
         parts.append(f"--obstacle-reward {r['obstacle_reward']}")
     if r.get("grid_sampling", "probability") != "probability":
         parts.append(f"--grid-sampling {r['grid_sampling']}")
+    if r.get("clear_macro"):
+        parts.append("--clear-macro (not kept)")
     if r.get("plan_r_co") is not None:
         parts.append(f"--plan-r-co {r['plan_r_co']:g}")
     if r.get("min_cover_size"):
@@ -1099,7 +1101,7 @@ v2 tuning scenes (`npfkct-scenegen --version 2`, seeds 850001-850030, kept in
 `bench/results/estimator-v2/scenes`), 3 trials per scene, 0.25 s of CPU per step. Rows
 `r-co-0` and `obstacle-covers` were stopped after 5 scenes (both far below the defaults there);
 `min-cover-0.06` ran a patch that was not kept (a box with an extent under 6 cm neither covers nor
-shades the guessed target); `oracle`, `nbv`, `kct`, `defaults` and `depth30` ran at edca0cc, the
+shades the guessed target), the `clear-macro` rows the clear macro of 267939c, reverted; `oracle`, `nbv`, `kct`, `defaults` and `depth30` ran at edca0cc, the
 others at the commit each cell records. What the rows mean: docs/experiments.md.
 
     bench/bench_estimator.sh

@@ -185,6 +185,19 @@ class Generator {
     return t;
   }
 
+  // Adds the target and what hides it when all of them stand on furniture f, or after 100
+  // attempts (then as a target in the open, never reached in practice); whether it added them.
+  bool Commit(const GenFurniture& f, const GenObject& t, const std::vector<GenObject>& extra,
+              int attempt) {
+    bool fits = OnSurface(f, t);
+    for (const GenObject& e : extra) fits = fits && OnSurface(f, e);
+    if (!fits && attempt <= 100) return false;
+    objects_.push_back(t);
+    for (const GenObject& e : extra) objects_.push_back(e);
+    if (!fits) placement_ = TargetPlacement::kOpen;
+    return true;
+  }
+
   void PlaceTarget() {
     for (int attempt = 0;; ++attempt) {
       GenObject t = DrawTarget(placement_ == TargetPlacement::kOpen, 0.35);
@@ -223,14 +236,7 @@ class Generator {
           extra.push_back(wall);
         }
       }
-      bool fits = OnSurface(f, t);
-      for (const GenObject& e : extra) fits = fits && OnSurface(f, e);
-      if (fits || attempt > 100) {
-        objects_.push_back(t);
-        for (GenObject& e : extra) objects_.push_back(e);
-        if (!fits) placement_ = TargetPlacement::kOpen;  // never reached in practice
-        return;
-      }
+      if (Commit(f, t, extra, attempt)) return;
     }
   }
 
@@ -330,14 +336,7 @@ class Generator {
         placed.push_back(o);
         extra.push_back(o);
       }
-      bool fits = OnSurface(f, t);
-      for (const GenObject& e : extra) fits = fits && OnSurface(f, e);
-      if (fits || attempt > 100) {
-        objects_.push_back(t);
-        for (GenObject& e : extra) objects_.push_back(e);
-        if (!fits) placement_ = TargetPlacement::kOpen;  // never reached in practice
-        return;
-      }
+      if (Commit(f, t, extra, attempt)) return;
     }
   }
 
