@@ -1056,9 +1056,10 @@ The 60 held-out scenes of `npfkct-scenegen --version 2` (seeds 930001-930060: 20
 the open, 20 hidden behind walls or in pockets, 20 covered, among decoy covers, stacked covers and
 immovable boxes; the files are kept in `bench/results/generated-v2/scenes`), 0.25 s of CPU per
 step, 5 trials per scene and planner, aimed rollout, the shipped filter. `nbv` is the greedy
-next-best view over the same belief, with no tree.
+next-best view over the same belief, with no tree; `rollout` the model's rollout policy with no
+search.
 
-    SCENE_VERSION=2 PLANNERS="oracle nbv npfkct kct" bench/bench_generated.sh --run run1
+    SCENE_VERSION=2 bench/bench_generated.sh --run run1
     python3 bench/results_table.py generated bench/results/generated-v2/run1 \\
       bench/results/generated-v2/scenes
 """, [lambda r: generated(os.path.join(r, "generated-v2", "run1"),
