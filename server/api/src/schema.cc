@@ -289,6 +289,27 @@ Violation ConsequenceOf(const std::string& m, const Located& at, const Documents
   return {Join(at.path, key), why, at.depth + 1};
 }
 
+// valijson's messages of a bound, in a caller's words: `before`, then the bound (the number
+// ending the message) or, for a size, the count right after `prefix`, then `after`. A prefix
+// that another begins with comes after it.
+struct BoundWords {
+  std::string_view prefix;
+  bool count;
+  std::string_view before;
+  std::string_view after;
+};
+constexpr BoundWords kBoundWords[] = {
+    {"Expected number greater than or equal to", false, "must be >= ", ""},
+    {"Expected number greater than", false, "must be > ", ""},
+    {"Expected number less than or equal to", false, "must be <= ", ""},
+    {"Expected number less than", false, "must be < ", ""},
+    {"Array should contain no fewer than ", true, "expected at least ", " items"},
+    {"Array should contain no more than ", true, "expected at most ", " items"},
+    {"String should be no more than ", true, "expected at most ", " characters"},
+    {"String should be no fewer than ", true, "expected at least ", " characters"},
+    {"Object should have no more than ", true, "expected at most ", " entries"},
+};
+
 // valijson's message `m` about `at` in words a caller reads, into `out` (or, for an alternative
 // that failed as a whole, into `alternatives`).
 void Describe(const std::string& m, const Located& at, std::vector<Violation>* out,
@@ -296,6 +317,15 @@ void Describe(const std::string& m, const Located& at, std::vector<Violation>* o
   auto add = [&](std::string field, std::string description, int extra_depth = 0) {
     out->push_back({std::move(field), std::move(description), at.depth + extra_depth});
   };
+  for (const BoundWords& b : kBoundWords) {
+    if (StartsWith(m, b.prefix)) {
+      std::string words(b.before);
+      words += b.count ? CountAfter(m, b.prefix) : TrailingNumber(m);
+      words += b.after;
+      add(at.path, std::move(words));
+      return;
+    }
+  }
   if (StartsWith(m, "Failed to validate against any") ||
       StartsWith(m, "Failed to validate against exactly one")) {
     const json* s = at.here.schema;
@@ -324,29 +354,6 @@ void Describe(const std::string& m, const Located& at, std::vector<Violation>* o
     add(at.path, at.here.schema && at.here.schema->contains("const")
                      ? "expected " + Dump(at.here.schema->at("const"))
                      : "not the expected value");
-  } else if (StartsWith(m, "Expected number greater than or equal to")) {
-    add(at.path, "must be >= " + TrailingNumber(m));
-  } else if (StartsWith(m, "Expected number greater than")) {
-    add(at.path, "must be > " + TrailingNumber(m));
-  } else if (StartsWith(m, "Expected number less than or equal to")) {
-    add(at.path, "must be <= " + TrailingNumber(m));
-  } else if (StartsWith(m, "Expected number less than")) {
-    add(at.path, "must be < " + TrailingNumber(m));
-  } else if (StartsWith(m, "Array should contain no fewer than ")) {
-    add(at.path,
-        "expected at least " + CountAfter(m, "Array should contain no fewer than ") + " items");
-  } else if (StartsWith(m, "Array should contain no more than ")) {
-    add(at.path,
-        "expected at most " + CountAfter(m, "Array should contain no more than ") + " items");
-  } else if (StartsWith(m, "String should be no more than ")) {
-    add(at.path,
-        "expected at most " + CountAfter(m, "String should be no more than ") + " characters");
-  } else if (StartsWith(m, "String should be no fewer than ")) {
-    add(at.path,
-        "expected at least " + CountAfter(m, "String should be no fewer than ") + " characters");
-  } else if (StartsWith(m, "Object should have no more than ")) {
-    add(at.path,
-        "expected at most " + CountAfter(m, "Object should have no more than ") + " entries");
   } else if (StartsWith(m, "Target should not validate against schema specified in 'not'")) {
     const json* s = at.here.schema;
     const json* n = s && s->contains("not") ? &s->at("not") : nullptr;

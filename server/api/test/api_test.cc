@@ -86,6 +86,39 @@ TEST(ParseCreateSession, AcceptsAScenarioWorldAndBuildsIt) {
   EXPECT_EQ(world->objects.size(), 1u);  // the guessed target only
 }
 
+TEST(ParseCreateSession, EachKindOfBoundIsDescribedInWordsWithItsValue) {
+  // One body per bound the schemas use: minimum, exclusiveMinimum, maximum, exclusiveMaximum,
+  // minItems, maxItems and minLength; each is reported at its field with the bound's value.
+  auto described = [](json body, const std::string& field) -> std::string {
+    auto r = ParseCreateSession(body.dump(), kLimits);
+    if (r.ok()) return "<accepted>";
+    for (const auto& v : r.status().field_violations()) {
+      if (v.field == field) return v.description;
+    }
+    return "<not at " + field + ": " + r.status().ToString() + ">";
+  };
+  json body = CreateBody();
+  body["planner"]["particles"] = 0;
+  EXPECT_EQ(described(body, "planner.particles"), "must be >= 1");
+  body["planner"]["particles"] = 20000;
+  EXPECT_EQ(described(body, "planner.particles"), "must be <= 10000");
+  body = CreateBody();
+  body["ttlSeconds"] = 0;
+  EXPECT_EQ(described(body, "ttlSeconds"), "must be > 0");
+  body = CreateBody();
+  body["world"]["params"]["discount"] = 1;
+  EXPECT_EQ(described(body, "world.params.discount"), "must be < 1");
+  body = CreateBody();
+  body["world"]["furniture"] = json::array();
+  EXPECT_EQ(described(body, "world.furniture"), "expected at least 1 items");
+  body = CreateBody();
+  body["world"]["furniture"][0]["name"] = "";
+  EXPECT_EQ(described(body, "world.furniture[0].name"), "expected at least 1 characters");
+  body = CreateBody();
+  body["world"]["furniture"][0]["size"] = {1, 1, 1, 1};
+  EXPECT_EQ(described(body, "world.furniture[0].size"), "expected at most 3 items");
+}
+
 TEST(ParseCreateSession, SchemaViolationsNameTheFieldAsData) {
   struct Case {
     json body;
