@@ -139,6 +139,14 @@ def mean_ci(values):
     return m, t_quantile(0.975, n - 1) * sd / math.sqrt(n)
 
 
+def paired_difference(new, base):
+    """Per key both dicts have (a scene), new minus base: the mean, its 95% t interval, and how
+    many keys it is over."""
+    diffs = [new[k] - base[k] for k in new if k in base]
+    m, ci = mean_ci(diffs)
+    return m, ci, len(diffs)
+
+
 def load_cells(root, key=lambda path, r: (r["scenario"], r["planner"])):
     """{key(path, record): record} from ROOT/*/*.jsonl; by default keyed (scene, planner)."""
     cells = {}
@@ -313,15 +321,12 @@ def generated(root, scenes_dir=None):
                        if x["target_share"] == x["target_share"] else "")
         row += [f"{x['success']:.1f}%", f"{x['steps']:.1f} ± {x['steps_ci']:.1f}"]
         if with_nbv:
-            nbv = summary["nbv"]["shares"]
-            diff = [x["shares"][s] - nbv[s] for s in x["shares"] if s in nbv]
-            dm, dci = mean_ci(diff)
-            row.append(f"{100 * dm:+.1f} ± {100 * dci:.1f}" if diff and p != "nbv" else "")
+            dm, dci, n = paired_difference(x["shares"], summary["nbv"]["shares"])
+            row.append(f"{100 * dm:+.1f} ± {100 * dci:.1f}" if n and p != "nbv" else "")
         row.append(str(x["scenes"]))
         print(f"| {p} | " + " | ".join(row) + " |")
     if "npfkct" in summary and "kct" in summary:
-        a, b = summary["npfkct"]["shares"], summary["kct"]["shares"]
-        m, ci = mean_ci([a[s] - b[s] for s in a if s in b])
+        m, ci, _ = paired_difference(summary["npfkct"]["shares"], summary["kct"]["shares"])
         print(f"\nThe filter's worth, npfkct minus kct paired over the scenes: {100 * m:+.1f} ± "
               f"{100 * ci:.1f} points.")
     if scenes_dir is not None:
@@ -373,16 +378,14 @@ SHARE_HEADER = ("| Row | Planner and options | Share of the oracle's reward | Ch
                 "Steps | Scenes |\n|---|---|---|---|---|---|---|")
 
 
-def print_share_row(cells, summary, scenes, row, base, label):
+def print_share_row(cells, summary, row, base, label):
     """One row of a table over many scenes: its mean share of the oracle's reward and its change
     against the row `base` as a paired difference over the scenes both rows have."""
     x = summary[row]
     change = "–"
     if base is not None:
-        a, b = summary[base]["shares"], x["shares"]
-        diffs = [b[s] - a[s] for s in scenes if s in a and s in b]
-        m, ci = mean_ci(diffs)
-        if diffs:
+        m, ci, n = paired_difference(x["shares"], summary[base]["shares"])
+        if n:
             change = f"{100 * m:+.1f} ± {100 * ci:.1f}"
     print(f"| {label} | {row_planner(cells, row)} | {100 * x['share']:.1f}% ± "
           f"{100 * x['share_ci']:.1f} | {change} | {x['success']:.1f}% | "
@@ -403,7 +406,7 @@ def ablation_shares(cells, rows, scenes):
     for row in rows:
         if row == "oracle" or row in REJECTED_ROWS:
             continue
-        print_share_row(cells, summary, scenes, row, previous, row)
+        print_share_row(cells, summary, row, previous, row)
         previous = row
     rejected = [row for row in rows if row in REJECTED_ROWS]
     if rejected:
@@ -412,7 +415,7 @@ def ablation_shares(cells, rows, scenes):
         for row in rejected:
             base = REJECTED_ROWS[row] if REJECTED_ROWS[row] in summary else None
             label = f"{row} (against {REJECTED_ROWS[row]})"
-            print_share_row(cells, summary, scenes, row, base, label)
+            print_share_row(cells, summary, row, base, label)
 
 
 def estimator_switches(r):
@@ -460,11 +463,9 @@ def estimator(root, scenes_dir=None):
         x = summary[row]
         change = step_change = "–"
         if row != "defaults" and base_steps:
-            a, b = summary["defaults"]["shares"], x["shares"]
-            m, ci = mean_ci([b[s] - a[s] for s in b if s in a])
+            m, ci, _ = paired_difference(x["shares"], summary["defaults"]["shares"])
             change = f"{100 * m:+.1f} ± {100 * ci:.1f}"
-            mine = scene_steps(row)
-            m, ci = mean_ci([mine[s] - base_steps[s] for s in mine if s in base_steps])
+            m, ci, _ = paired_difference(scene_steps(row), base_steps)
             step_change = f"{m:+.1f} ± {ci:.1f}"
         first = next(r for (rw, _), r in cells.items() if rw == row)
         switches = estimator_switches(first)
@@ -493,7 +494,7 @@ def sensitivity(root):
     base = "defaults" if "defaults" in summary else None
     for row in rows:
         if row != "oracle":
-            print_share_row(cells, summary, scenes, row, None if row == base else base, row)
+            print_share_row(cells, summary, row, None if row == base else base, row)
 
 
 def first_view_hits(path):
