@@ -299,6 +299,26 @@ int ObjectSearchModel::CoverOf(const State& s) const {
   return -1;
 }
 
+namespace {
+
+// The first discrete kind of `kinds` with the highest rank(object, offset) above 0, or kMoveKind
+// when none ranks above 0.
+template <class Rank>
+int HighestRanked(const std::vector<int>& kinds, Rank rank) {
+  int best = kMoveKind, best_rank = 0;
+  for (int k : kinds) {
+    if (k == kMoveKind) continue;
+    const int r = rank(KindObject(k), KindOffset(k));
+    if (r > best_rank) {
+      best_rank = r;
+      best = k;
+    }
+  }
+  return best;
+}
+
+}  // namespace
+
 HybridAction ObjectSearchModel::RolloutAction(const State& s, Rng& rng) const {
   thread_local std::vector<int> kinds;
   ActionKinds(s, &kinds);
@@ -307,21 +327,13 @@ HybridAction ObjectSearchModel::RolloutAction(const State& s, Rng& rng) const {
     // Remove the declared target, declare the target, remove or declare the cover; nothing else
     // is declared.
     const int cover = CoverOf(s);
-    int best = -1, best_rank = 0;
-    for (int k : kinds) {
-      if (k == kMoveKind) continue;
-      const int i = KindObject(k), offset = KindOffset(k);
-      int rank = 0;
-      if (offset == kRemoveOffset && s.objects[i].status == kDeclaredTarget) rank = 4;
-      if (offset == kDeclareTargetOffset) rank = 3;
-      if (i == cover && offset == kRemoveOffset) rank = 2;
-      if (i == cover && offset == kDeclareObstacleOffset) rank = 1;
-      if (rank > best_rank) {
-        best_rank = rank;
-        best = k;
-      }
-    }
-    a.kind = best >= 0 ? best : kMoveKind;
+    a.kind = HighestRanked(kinds, [&](int i, int offset) {
+      if (offset == kRemoveOffset && s.objects[i].status == kDeclaredTarget) return 4;
+      if (offset == kDeclareTargetOffset) return 3;
+      if (i == cover && offset == kRemoveOffset) return 2;
+      if (i == cover && offset == kDeclareObstacleOffset) return 1;
+      return 0;
+    });
     if (a.kind != kMoveKind) return a;
     RobotConfig c;
     if (cover >= 0 && AimAt(*world_, world_->objects[cover].box.center, rng, &c)) {
@@ -329,24 +341,13 @@ HybridAction ObjectSearchModel::RolloutAction(const State& s, Rng& rng) const {
       return a;
     }
   } else if (rollout_ != SearchRollout::kRandom) {
-    int best = -1, best_rank = 0;
-    for (int k : kinds) {
-      if (k == kMoveKind) continue;
-      const int i = KindObject(k);
-      int rank = 0;
-      if (KindOffset(k) == kRemoveOffset && s.objects[i].status == kDeclaredTarget) rank = 3;
-      if (KindOffset(k) == kDeclareTargetOffset) rank = 2;
-      if (KindOffset(k) == kDeclareObstacleOffset) rank = 1;
-      if (rank > best_rank) {
-        best_rank = rank;
-        best = k;
-      }
-    }
-    if (best >= 0) {
-      a.kind = best;
-      return a;
-    }
-    a.kind = kMoveKind;
+    a.kind = HighestRanked(kinds, [&](int i, int offset) {
+      if (offset == kRemoveOffset && s.objects[i].status == kDeclaredTarget) return 3;
+      if (offset == kDeclareTargetOffset) return 2;
+      if (offset == kDeclareObstacleOffset) return 1;
+      return 0;
+    });
+    if (a.kind != kMoveKind) return a;
   } else {
     a.kind = kinds[rng.UniformInt(static_cast<int64_t>(kinds.size()))];
   }
