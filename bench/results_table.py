@@ -76,8 +76,8 @@ import statistics
 import sys
 
 PAPER_SCENES = ["Loose1", "Loose2", "Hidden1", "Covered1", "Complex1", "Fig16"]
-PLANNER_ORDER = ["oracle", "oracle-cover-unknown", "npfkct", "kct", "pomcp", "gpomcp",
-                 "pomcp-joint", "pomcpow", "vomcpow", "advt"]
+PLANNER_ORDER = ["oracle", "oracle-cover-unknown", "npfkct", "npfkct-paper", "kct", "pomcp",
+                 "gpomcp", "pomcp-joint", "pomcpow", "vomcpow", "advt"]
 
 
 def _beta_cf(x, a, b):

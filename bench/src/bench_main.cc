@@ -345,6 +345,9 @@ int main(int argc, char** argv) {
   app.add_option("--model", search.filter_model,
                  "scenarios: the neural filter model of the npfkct planner (default: the shipped "
                  "one; none: uniform candidates)");
+  app.add_option("--label", search.label,
+                 "scenarios: the name the records give the one planner run (a preset of a planner "
+                 "and its options, e.g. npfkct-paper); records keep the planner in base_planner");
   app.add_option("--robot", search.robot, "scenarios: override the robot (fetch | stretch)");
   app.add_option("--table", search.table_path, "scenarios: write a Markdown table (Table 1)");
   app.add_option("--observe", search.observe,

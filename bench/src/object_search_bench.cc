@@ -377,6 +377,12 @@ bool CheckPlanners(const SearchBenchConfig& config, BenchSetup* setup) {
       return false;
     }
   }
+  if (!config.label.empty() &&
+      (setup->planners.size() != 1 || !object_search::IsPlannerName(config.label))) {
+    std::cerr << "npfkct-bench: --label names the one planner of a run: 1-64 lower-case letters, "
+                 "digits and '-'\n";
+    return false;
+  }
   return true;
 }
 
@@ -478,9 +484,10 @@ bool LoadScenarios(const SearchBenchConfig& config, const BenchSetup& setup,
 class JobGrid {
  public:
   JobGrid(const std::vector<std::string>& planners, const std::vector<std::string>& modes,
-          int scenarios, int trials)
+          int scenarios, int trials, std::string label)
       : planners_(planners),
         modes_(modes),
+        label_(std::move(label)),
         variants_(static_cast<int>(planners.size() * modes.size())),
         per_trial_(scenarios * variants_),
         jobs_(trials * per_trial_) {}
@@ -497,14 +504,17 @@ class JobGrid {
   const std::string& mode(int variant) const {
     return modes_[variant % static_cast<int>(modes_.size())];
   }
-  // A row of the table: the planner, with the observation mode when several are compared.
+  // A row of the table: the planner (or its label), with the observation mode when several are
+  // compared.
   std::string RowName(int variant) const {
-    return modes_.size() == 1 ? planner(variant) : planner(variant) + " (" + mode(variant) + ")";
+    const std::string& name = label_.empty() ? planner(variant) : label_;
+    return modes_.size() == 1 ? name : name + " (" + mode(variant) + ")";
   }
   bool several_modes() const { return modes_.size() > 1; }
 
  private:
   const std::vector<std::string> planners_, modes_;
+  const std::string label_;
   const int variants_, per_trial_, jobs_;
 };
 
@@ -581,8 +591,10 @@ void PrintCell(const SearchBenchConfig& config, const BenchSetup& setup,
   const std::string model_name = setup.registry.Find(planner)->takes_sampler && setup.net
                                      ? std::filesystem::path(setup.net->path()).filename().string()
                                      : std::string();
+  const std::string name = config.label.empty() ? planner : config.label;
+  const std::string base = config.label.empty() ? "" : ", \"base_planner\": \"" + planner + "\"";
   std::printf(
-      "{\"scenario\": \"%s\", \"planner\": \"%s\", \"observe\": \"%s\", \"trials\": %d, "
+      "{\"scenario\": \"%s\", \"planner\": \"%s\"%s, \"observe\": \"%s\", \"trials\": %d, "
       "\"time_ms\": %g, \"cpu_ms\": %g, \"sims\": %lld, \"robot\": \"%s\", \"seed\": %llu, "
       "\"threads\": %d, \"options\": [%s], \"model\": \"%s\", \"rollout\": \"%s\", "
       "\"obstacle_reward\": \"%s\", \"grid_sampling\": \"%s\", \"plan_r_co\": %s, "
@@ -594,15 +606,16 @@ void PrintCell(const SearchBenchConfig& config, const BenchSetup& setup,
       "\"median_cpu_ms_per_step\": %.1f, \"median_first_step_sims_per_second\": %.1f, "
       "\"wall_seconds\": %.1f, \"failed_trials\": %d, \"rewards\": [%s], "
       "\"target_rewards\": [%s], \"steps\": [%s], \"successes\": [%s]%s%s%s%s}\n",
-      JsonEscape(scenario.name).c_str(), planner.c_str(), mode.c_str(), config.trials,
-      config.time_ms, config.cpu_ms, static_cast<long long>(config.sims), scenario.robot.c_str(),
-      static_cast<unsigned long long>(config.seed), config.threads, option_list.c_str(),
-      JsonEscape(model_name).c_str(), config.rollout.c_str(), config.obstacle_reward.c_str(),
-      config.grid_sampling.c_str(), plan_r_co.c_str(), s.mean_return, s.ci95_return, s.mean_steps,
-      s.ci95_steps, s.success_rate.value_or(0.0), s.median_sims_per_step, s.median_sims_per_second,
-      s.median_sims_per_cpu_second, s.median_cpu_ms_per_step, s.median_first_step_sims_per_second,
-      s.wall_seconds, s.failed_episodes, rewards.c_str(), target_rewards.c_str(), steps.c_str(),
-      successes.c_str(), perception_ms.c_str(), s.first_error.empty() ? "" : ", \"error\": \"",
+      JsonEscape(scenario.name).c_str(), JsonEscape(name).c_str(), base.c_str(), mode.c_str(),
+      config.trials, config.time_ms, config.cpu_ms, static_cast<long long>(config.sims),
+      scenario.robot.c_str(), static_cast<unsigned long long>(config.seed), config.threads,
+      option_list.c_str(), JsonEscape(model_name).c_str(), config.rollout.c_str(),
+      config.obstacle_reward.c_str(), config.grid_sampling.c_str(), plan_r_co.c_str(),
+      s.mean_return, s.ci95_return, s.mean_steps, s.ci95_steps, s.success_rate.value_or(0.0),
+      s.median_sims_per_step, s.median_sims_per_second, s.median_sims_per_cpu_second,
+      s.median_cpu_ms_per_step, s.median_first_step_sims_per_second, s.wall_seconds,
+      s.failed_episodes, rewards.c_str(), target_rewards.c_str(), steps.c_str(), successes.c_str(),
+      perception_ms.c_str(), s.first_error.empty() ? "" : ", \"error\": \"",
       JsonEscape(s.first_error).c_str(), s.first_error.empty() ? "" : "\"");
 }
 
@@ -674,7 +687,7 @@ int RunObjectSearchBench(const SearchBenchConfig& config) {
   if (!LoadScenarios(config, setup, &scenarios)) return 2;
   if (!config.render_dir.empty()) std::filesystem::create_directories(config.render_dir);
   const JobGrid grid(setup.planners, config.observe, static_cast<int>(scenarios.size()),
-                     config.trials);
+                     config.trials, config.label);
   const auto start = Clock::now();
   const std::vector<EpisodeResult> results = RunAllTrials(config, setup, scenarios, grid);
   const double wall = MillisSince(start) / 1000.0;

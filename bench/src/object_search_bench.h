@@ -49,6 +49,10 @@ struct SearchBenchConfig {
   /// How the robot's grid world weighs its cells when the target is placed: "probability"
   /// (sigmoid of the log-odds) or "odds" (the paper's; object_search::GridSampling).
   std::string grid_sampling = "probability";
+  /// The name the cells' records and the table give the planner, when one planner runs with
+  /// options that make it a preset of its own (e.g. "npfkct-paper": npfkct with the paper's
+  /// choices); empty: the planner's name. The records keep the planner run in "base_planner".
+  std::string label;
 };
 
 /// Runs every (scenario, planner) pair; prints one JSON line per pair (with every trial's reward,

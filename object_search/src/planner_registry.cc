@@ -338,14 +338,14 @@ PlannerRegistry MakeBuiltIn() {
   return r;
 }
 
+}  // namespace
+
 bool IsPlannerName(std::string_view name) {
   if (name.empty() || name.size() > 64) return false;
   return std::all_of(name.begin(), name.end(), [](char c) {
     return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '-';
   });
 }
-
-}  // namespace
 
 const PlannerRegistry& PlannerRegistry::BuiltIn() {
   static const auto* registry = new PlannerRegistry(MakeBuiltIn());

@@ -70,6 +70,9 @@ struct PlannerEntry {
   std::function<StatusOr<std::unique_ptr<SearchPlanner>>(const PlannerArgs&)> make;
 };
 
+/// Whether `name` is a well-formed planner name: 1-64 lower-case letters, digits and '-'.
+bool IsPlannerName(std::string_view name);
+
 /// A set of planners by name, in the order tables list them. Copyable; a server or a benchmark
 /// holds its own, so that a registry is never changed while another thread reads it.
 class PlannerRegistry {
