@@ -16,6 +16,10 @@ build/bin/npfkct-server; run the build of another commit to see the "before" fig
                       runs each time)
   view-spread N       as big-room (default 16 m), the corner in the map frame beside twelve points
                       5.9 m from the camera: the view as wide as registration_range allows
+  house N             N sessions (default 7) of the example world in a room 38.5 m wide (a 1.3 kB
+                      create), one raw frame each (the outside check of issue 40: 20-29 s of CPU
+                      and 220-350 MB kept per session when the first frame mapped the whole room),
+                      the server's resident memory after each
   nested-shells N     the example world in an 8 m room with N furniture shells 3 cm apart (default
                       28) and map-frame frames of a 22^3 lattice 3 cm apart beside them (RANSAC's
                       FPFH: neighbours per point are not bounded)
@@ -39,6 +43,13 @@ FAR = [(9999.0, 9999.0, 9999.0), (-9999.0, 9999.0, 0.5), (0.001, -9999.0, 9999.0
 def peak_mb(pid):
     for line in open(f"/proc/{pid}/status"):
         if line.startswith("VmHWM"):
+            return int(line.split()[1]) / 1024
+    return 0.0
+
+
+def rss_mb(pid):
+    for line in open(f"/proc/{pid}/status"):
+        if line.startswith("VmRSS"):
             return int(line.split()[1]) / 1024
     return 0.0
 
@@ -114,6 +125,10 @@ def main():
             half = (n or (39 if attack == "big-room" else 16)) / 2
             world["room"] = {"min": [-half, -half], "max": [half, half]}
             sid = create(url, None, world=world)
+        elif attack == "house":
+            world = example("create_session_request.json")["world"]
+            world["room"] = {"min": [-19.25, -19.25], "max": [19.25, 19.25]}
+            sid = None
         elif attack == "nested-shells":
             world = example("create_session_request.json")["world"]
             world["room"] = {"min": [-4, -4], "max": [4, 4]}
@@ -181,6 +196,17 @@ def main():
                 body = raw_observation(action(), points)
                 body["robotState"] = robot_state
                 observe(server, sid, body, f"{attack} {label}")
+        elif attack == "house":
+            points = three_squares(-0.3, -0.3, 2.0)  # in the camera frame
+            robot_state = example("observe_request_raw.json")["robotState"]
+            print(f"house: server before any session: {rss_mb(server.proc.pid):.0f} MB resident")
+            for i in range(n or 7):
+                sid = create(url, None, world=world)
+                body = raw_observation(action(), points)
+                body["robotState"] = robot_state
+                observe(server, sid, body, f"house session {i + 1}, its first frame")
+                print(f"house: {i + 1} sessions, server {rss_mb(server.proc.pid):.0f} MB resident",
+                      flush=True)
         elif attack == "view-spread":
             corner, spread = three_squares(1.2, -1.2, 1.6), registration_edge_points()
             observe(server, sid, raw_observation(action(), corner, "map"),

@@ -1327,17 +1327,30 @@ def test_a_growing_search_tree_stops_at_the_heap_bound(tmp_path):
         assert r.status_code == 200, r.text
     r = http("POST", f"{url}/v1/sessions/{other}:plan", rec, json={"budget": {"timeMs": 200}})
     assert r.status_code == 200, r.text
-    # A perception map of a 36 m room holds the heap past the bound: nothing that grows the heap
-    # starts (plans, observations, new sessions), and each 429 says when to retry (the plan's
-    # and the observation's said nothing).
+    # Sessions of 10,000 particles in a 36 m room, each with the prior map of a frame as wide as
+    # registration_range allows (30-110 MB each), hold the heap past the bound (one such map of
+    # the whole room did, before perception built its map around the views): nothing that grows
+    # the heap starts (plans, observations, new sessions), and each 429 says when to retry (the
+    # plan's and the observation's said nothing).
     world = example("create_session_request.json")["world"]
-    raw = example("observe_request_raw.json")
     world["room"] = {"min": [-18, -18], "max": [18, 18]}
     fresh = create(url, rec)
-    holder, action = planned(url, rec, world=world)
-    r = http("POST", f"{url}/v1/sessions/{holder}:observe", rec, json=dict(raw, actionId=action),
-             timeout=120)
-    assert r.status_code == 200, r.text
+    holders, view = [], three_squares(1.2, -1.2, 1.6) + registration_edge_points()
+    for _ in range(12):
+        r = http("POST", url + "/v1/sessions", rec,
+                 json={"world": world, "seed": 1, "planner": {"name": "kct", "particles": 10000}})
+        if r.status_code == 429:
+            break
+        assert r.status_code == 200, r.text
+        holders.append(r.json()["id"])
+        action = http("POST", f"{url}/v1/sessions/{holders[-1]}:plan", rec,
+                      json={"budget": {"simulations": 20}}).json()["actionId"]
+        r = http("POST", f"{url}/v1/sessions/{holders[-1]}:observe", rec,
+                 json=raw_observation(action, view, "map"), timeout=120)
+        if r.status_code == 429:
+            break
+        assert r.status_code == 200, r.text
+    assert 2 <= len(holders) < 12, len(holders)
     for method, path, body in [("POST", f"/v1/sessions/{fresh}:plan", {"budget": {"timeMs": 200}}),
                                ("POST", f"/v1/sessions/{pending[0]}:observe",
                                 observation(pending[1])),
@@ -1346,7 +1359,8 @@ def test_a_growing_search_tree_stops_at_the_heap_bound(tmp_path):
         assert r.status_code == 429 and "max-heap-mb" in r.json()["error"]["message"], r.text
         assert r.headers["Retry-After"] == "5", (path, r.headers)
         assert any(d.get("retryDelay") == "5s" for d in r.json()["error"]["details"]), r.text
-    assert http("DELETE", f"{url}/v1/sessions/{holder}", rec).status_code == 200
+    for holder in holders:
+        assert http("DELETE", f"{url}/v1/sessions/{holder}", rec).status_code == 200
     r = http("POST", f"{url}/v1/sessions/{fresh}:plan", rec, json={"budget": {"timeMs": 200}})
     assert r.status_code == 200, r.text
     r = http("POST", f"{url}/v1/sessions/{pending[0]}:observe", rec, json=observation(pending[1]))
@@ -1690,16 +1704,17 @@ def frame_cpu_seconds(server, rec, sid, body_for, timeout):
 
 
 def test_a_frame_in_a_large_room_costs_what_the_view_covers(hostile_server):
-    # The example session's world in a 20 m room (a 1.3 kB create) and frames of three 0.6 m
+    # The example session's world in a 38.5 m room (a 1.3 kB create) and frames of three 0.6 m
     # squares that ICP cannot fit from the reported pose: RANSAC computed features over the
     # whole prior map and ICP built a k-d tree over it for every frame (in a 39 m room 60 s for
     # the first frame and 20 s for each later one; bench/perception_attacks.py big-room).
-    # Registration now uses the map within reach of the view. The first frame builds the
-    # session's prior map, which still grows with the room (up to its 4,000,000-point bound).
+    # Registration now uses the map within reach of the view, and the map itself is built in
+    # tiles around the views: the first frame cost 7-8 s and kept 250-340 MB in this room while
+    # it mapped the whole floor (bench/perception_attacks.py house), 0.5 s and 15 MB now.
     url, rec = hostile_server.url, Recorder()
     world = example("create_session_request.json")["world"]
     robot_state = example("observe_request_raw.json")["robotState"]
-    world["room"] = {"min": [-10, -10], "max": [10, 10]}
+    world["room"] = {"min": [-19.25, -19.25], "max": [19.25, 19.25]}
     sid = create(url, rec, world=world)
     points = three_squares(-0.3, -0.3, 2.0)  # in the camera frame
     # A few points at the edges of registration_range (6 m) widen the view to its largest: the
@@ -1714,7 +1729,7 @@ def test_a_frame_in_a_large_room_costs_what_the_view_covers(hostile_server):
             return dict(raw_observation(action_id, points), robotState=robot_state)
 
         used = frame_cpu_seconds(hostile_server, rec, sid, body_for, timeout=120)
-        assert frame == "first" or used < limit, f"the {frame} frame took {used:.1f} s of CPU"
+        assert used < limit, f"the {frame} frame took {used:.1f} s of CPU"
     rec.check()
 
 

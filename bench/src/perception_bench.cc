@@ -3,7 +3,11 @@
 // Prints one JSON object with the median milliseconds of each stage, and how well the target was
 // told apart: the share of the target's detections scored above 0.5 (recall) and of the other
 // objects' scored below (rejected), each detection matched to the scene object at its box.
+// With --room SIDE every scenario's room is grown to a square of that side around its own
+// centre (a house map), to measure what perception's prior map costs as the room grows: the
+// CPU time of building the pipeline, of its most expensive frame, and the process's peak memory.
 #include <pcl/console/print.h>
+#include <sys/resource.h>
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
@@ -15,6 +19,7 @@
 #include "npfkct/perception/perception.h"
 #include "npfkct/sim/frame_io.h"
 #include "npfkct/sim/simulator.h"
+#include "npfkct/solver/planner.h"
 
 namespace {
 
@@ -23,18 +28,33 @@ double Median(std::vector<double> v) {
   return v.empty() ? 0.0 : v[v.size() / 2];
 }
 
+double Max(const std::vector<double>& v) {
+  return v.empty() ? 0.0 : *std::max_element(v.begin(), v.end());
+}
+
+// The process's peak resident memory (getrusage's ru_maxrss, in KiB on Linux), in MB.
+double PeakRssMb() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return static_cast<double>(usage.ru_maxrss) / 1024.0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   std::vector<std::string> scenarios = {"loose1", "hidden1", "complex1"};
   int repeats = 1;
+  double room = 0.0;
   CLI::App app{"npfkct-perception-bench: per-stage time of the perception pipeline"};
   app.add_option("--scenario", scenarios, "scenario names in scenarios")->delimiter(',');
   app.add_option("--repeats", repeats, "passes over the frames");
+  app.add_option("--room", room,
+                 "grow each scenario's room to a square of this side (m) around its centre")
+      ->check(CLI::Range(0.0, 100.0));
   CLI11_PARSE(app, argc, argv);
   cv::setNumThreads(1);
   pcl::console::setVerbosityLevel(pcl::console::L_ERROR);
-  std::vector<double> reg, seg, assoc, det, total;
+  std::vector<double> reg, seg, assoc, det, total, setup_cpu, frame_cpu;
   int frames = 0;
   int target_views = 0, target_hits = 0, other_views = 0, other_hits = 0;
   for (const std::string& name : scenarios) {
@@ -43,6 +63,12 @@ int main(int argc, char** argv) {
     if (!scenario.ok()) {
       std::fprintf(stderr, "%s\n", scenario.status().ToString().c_str());
       return 2;
+    }
+    if (room > 0.0) {
+      const npfkct::object_search::Vec2 centre = 0.5 * (scenario->room_min + scenario->room_max);
+      const npfkct::object_search::Vec2 half(0.5 * room, 0.5 * room);
+      scenario->room_min = scenario->room_min.cwiseMin(centre - half);
+      scenario->room_max = scenario->room_max.cwiseMax(centre + half);
     }
     npfkct::sim::Simulator sim(*scenario, 1);
     const auto world = sim.InitialWorld().value();
@@ -56,8 +82,10 @@ int main(int argc, char** argv) {
       poses.push_back(sim.robot());
     }
     for (int r = 0; r < repeats; ++r) {
+      const double setup_start = npfkct::ThreadCpuMillis();
       npfkct::perception::Perception p(
           world, {npfkct::sim::ObjectPhotos(sim.objects()[sim.target_index()])}, {});
+      setup_cpu.push_back(npfkct::ThreadCpuMillis() - setup_start);
       for (size_t v = 0; v < views.size(); ++v) {
         const auto& f = views[v];
         npfkct::perception::SensorFrame frame;
@@ -66,7 +94,9 @@ int main(int argc, char** argv) {
         frame.intrinsics = {f.width, f.height, f.fx, f.fy, f.cx, f.cy};
         // The camera pose of the rendered frame, as the robot reports it.
         frame.reported = poses[v];
+        const double frame_start = npfkct::ThreadCpuMillis();
         auto result = p.Process(frame);
+        frame_cpu.push_back(npfkct::ThreadCpuMillis() - frame_start);
         if (!result.ok()) {
           std::fprintf(stderr, "%s\n", result.status().ToString().c_str());
           return 1;
@@ -98,9 +128,12 @@ int main(int argc, char** argv) {
       "\"median_ms\": {\"registration\": %.2f, \"segmentation\": %.2f, \"association\": %.2f, "
       "\"detection\": %.2f, \"total\": %.2f}, "
       "\"target_detections\": %d, \"target_recall\": %.3f, \"other_detections\": %d, "
-      "\"other_rejected\": %.3f}\n",
+      "\"other_rejected\": %.3f, \"room_side_m\": %g, \"median_setup_cpu_ms\": %.1f, "
+      "\"max_setup_cpu_ms\": %.1f, \"median_frame_cpu_ms\": %.1f, \"max_frame_cpu_ms\": %.1f, "
+      "\"peak_rss_mb\": %.1f}\n",
       frames, Median(reg), Median(seg), Median(assoc), Median(det), Median(total), target_views,
       target_views ? static_cast<double>(target_hits) / target_views : 0.0, other_views,
-      other_views ? static_cast<double>(other_hits) / other_views : 0.0);
+      other_views ? static_cast<double>(other_hits) / other_views : 0.0, room, Median(setup_cpu),
+      Max(setup_cpu), Median(frame_cpu), Max(frame_cpu), PeakRssMb());
   return 0;
 }

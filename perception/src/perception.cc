@@ -205,24 +205,61 @@ CloudXYZ::Ptr ToXYZ(const Cloud& in) {
   return out;
 }
 
-// Samples the surface of an upright box (top and four sides) on a grid of `step`.
-void SampleBox(const Box& b, double step, CloudXYZ* out) {
+// The grid values lo + k step (k >= 0, up to hi) that may fall in [from, to]: the first and last
+// k, a range that is empty when first > last.
+void GridRange(double lo, double hi, double step, double from, double to, int64_t* first,
+               int64_t* last) {
+  const double top = std::min(hi, to);
+  *first = static_cast<int64_t>(std::max(0.0, std::ceil((from - lo) / step - 1e-9)));
+  *last = top < lo ? -1 : static_cast<int64_t>(std::floor((top - lo) / step + 1e-9));
+}
+
+// Samples the surface of an upright box (top and four sides) on a grid of `step` (the grid of
+// the whole box, from its corners), keeping the points inside `region` (x-y) and visiting only
+// the part of each face that can reach it, so that a wall many tiles long costs each tile its
+// own share.
+void SampleBoxWithin(const Box& b, double step, const Eigen::AlignedBox2d& region, CloudXYZ* out) {
   const double c = std::cos(b.yaw), s = std::sin(b.yaw);
   auto emit = [&](double lx, double ly, double lz) {
-    out->push_back(PointXYZ(static_cast<float>(b.center.x() + c * lx - s * ly),
-                            static_cast<float>(b.center.y() + s * lx + c * ly),
-                            static_cast<float>(b.center.z() + lz)));
+    const double x = b.center.x() + c * lx - s * ly, y = b.center.y() + s * lx + c * ly;
+    if (region.contains(Eigen::Vector2d(x, y))) {
+      out->push_back(PointXYZ(static_cast<float>(x), static_cast<float>(y),
+                              static_cast<float>(b.center.z() + lz)));
+    }
   };
+  // The region in the box's frame: the box of its corners turned by -yaw (covers it).
+  Eigen::AlignedBox2d local;
+  for (int k = 0; k < 4; ++k) {
+    const Eigen::Vector2d corner = region.corner(static_cast<Eigen::AlignedBox2d::CornerType>(k));
+    const double dx = corner.x() - b.center.x(), dy = corner.y() - b.center.y();
+    local.extend(Eigen::Vector2d(c * dx + s * dy, -s * dx + c * dy));
+  }
   const Vec3 h = 0.5 * b.size;
-  for (double u = -h.x(); u <= h.x() + 1e-9; u += step) {
-    for (double v = -h.y(); v <= h.y() + 1e-9; v += step) emit(u, v, h.z());
-    for (double w = -h.z(); w <= h.z() + 1e-9; w += step) {
+  int64_t u0, u1, v0, v1, w0, w1;
+  GridRange(-h.x(), h.x(), step, local.min().x(), local.max().x(), &u0, &u1);
+  GridRange(-h.y(), h.y(), step, local.min().y(), local.max().y(), &v0, &v1);
+  GridRange(-h.z(), h.z(), step, -h.z(), h.z(), &w0, &w1);
+  // Whether the region reaches the sides at +-h.y (+-h.x).
+  auto reaches = [](double lo, double hi, double half) {
+    return (lo <= -half + 1e-9 && -half - 1e-9 <= hi) || (lo <= half + 1e-9 && half - 1e-9 <= hi);
+  };
+  const bool near_y = reaches(local.min().y(), local.max().y(), h.y());
+  const bool near_x = reaches(local.min().x(), local.max().x(), h.x());
+  for (int64_t i = u0; i <= u1; ++i) {
+    const double u = -h.x() + static_cast<double>(i) * step;
+    for (int64_t j = v0; j <= v1; ++j) emit(u, -h.y() + static_cast<double>(j) * step, h.z());
+    if (!near_y) continue;
+    for (int64_t k = w0; k <= w1; ++k) {
+      const double w = -h.z() + static_cast<double>(k) * step;
       emit(u, -h.y(), w);
       emit(u, h.y(), w);
     }
   }
-  for (double v = -h.y(); v <= h.y() + 1e-9; v += step) {
-    for (double w = -h.z(); w <= h.z() + 1e-9; w += step) {
+  if (!near_x) return;
+  for (int64_t j = v0; j <= v1; ++j) {
+    const double v = -h.y() + static_cast<double>(j) * step;
+    for (int64_t k = w0; k <= w1; ++k) {
+      const double w = -h.z() + static_cast<double>(k) * step;
       emit(-h.x(), v, w);
       emit(h.x(), v, w);
     }
@@ -322,9 +359,64 @@ double DistanceToBox(const Box& b, const PointXYZ& p) {
   return outside.norm();
 }
 
+// The prior map is built in square tiles of this side (m), each when a frame first needs it,
+// from the furniture and the floor around it (sampled this far past its edges, so that the
+// normals of its edge points see all their neighbours).
+constexpr double kTileSide = 2.0;
+constexpr double kTilePad = 0.1;
+
+// The tile of a map coordinate (tiles are aligned with the map's origin).
+int64_t TileIndex(double v) { return static_cast<int64_t>(std::floor(v / kTileSide)); }
+
+// One tile of the prior map: the furniture surfaces and the floor inside it, voxelised; their
+// normals at twice the voxel (ICP's target); and those of its points high enough for
+// segmentation to compare object points with.
+struct MapTile {
+  CloudXYZ::Ptr points;
+  NormalCloud::Ptr normals;
+  CloudXYZ::Ptr upper;
+  std::unique_ptr<pcl::KdTreeFLANN<PointXYZ>> upper_tree;  // null when `upper` is empty
+  int64_t last_used = 0;                                   // the frame that needed it last
+  // What it counts against max_map_points: its points (the upper ones twice, for their tree),
+  // and at least 1,000 for the tile itself, so that the tiles kept are bounded too.
+  int64_t size() const {
+    return std::max<int64_t>(
+        1000, static_cast<int64_t>(points->size() + normals->size() + 2 * upper->size()));
+  }
+};
+
+// The part of the prior map one frame needs, gathered from the tiles.
+struct LocalMap {
+  // The tiles it was gathered from, by index (valid until the next frame's map is gathered).
+  std::map<std::pair<int64_t, int64_t>, const MapTile*> tiles;
+  NormalCloud::Ptr normals = pcl::make_shared<NormalCloud>();  // within the registration reach
+  // Object points are looked for within this x-y box (the frame's workspace points near the
+  // camera), whose tiles it holds.
+  Eigen::AlignedBox2d segmentation_region;
+
+  // Whether a map point high enough for segmentation lies within `distance` of p (which is
+  // inside the segmentation region): asks the tiles within `distance` of it.
+  bool NearMap(const PointXYZ& p, double distance) const {
+    thread_local std::vector<int> nearest(1);
+    thread_local std::vector<float> squared(1);
+    for (int64_t ix = TileIndex(p.x - distance); ix <= TileIndex(p.x + distance); ++ix) {
+      for (int64_t iy = TileIndex(p.y - distance); iy <= TileIndex(p.y + distance); ++iy) {
+        const auto it = tiles.find({ix, iy});
+        if (it == tiles.end() || !it->second->upper_tree) continue;
+        if (it->second->upper_tree->nearestKSearch(p, 1, nearest, squared) > 0 &&
+            squared[0] < distance * distance) {
+          return true;
+        }
+      }
+    }
+    return false;
+  }
+};
+
 // What registration (stage 1) gives the later stages.
 struct Registration {
-  CloudXYZ::Ptr in_map;  // the frame's points in the map frame, at the reported pose
+  CloudXYZ::Ptr in_map;                 // the frame's points in the map frame, at the reported pose
+  std::shared_ptr<const LocalMap> map;  // the prior map around the frame
   Eigen::Matrix4d correction = Eigen::Matrix4d::Identity();     // of the reported pose
   Eigen::Matrix4d camera_to_map = Eigen::Matrix4d::Identity();  // the corrected camera pose
 };
@@ -362,8 +454,8 @@ Status PerceptionOptions::Validate() const {
   if (icp_iterations < 1 || min_cluster_points < 1 || max_cluster_points < min_cluster_points ||
       min_features < 1 || min_inliers < 4 || max_clusters < 1 || max_track_points < 1 ||
       max_total_track_points < 1 || max_ransac_points < 1 || max_ransac_map_points < 1 ||
-      max_ransac_pairs < 1 || max_icp_points < 1 || max_features < 1 || max_sift_pixels < 16 ||
-      max_sift_frame_pixels < 0 || max_sift_pairs < 0) {
+      max_map_points < 1 || max_ransac_pairs < 1 || max_icp_points < 1 || max_features < 1 ||
+      max_sift_pixels < 16 || max_sift_frame_pixels < 0 || max_sift_pairs < 0) {
     return InvalidArgumentError("perception options: bad counts");
   }
   return OkStatus();
@@ -384,9 +476,16 @@ struct Perception::Impl {
   object_search::World world;
   TargetModel target;
   PerceptionOptions options;
-  CloudXYZ::Ptr map = pcl::make_shared<CloudXYZ>();
-  NormalCloud::Ptr map_normals;
-  pcl::KdTreeFLANN<PointXYZ> map_tree;
+  // The prior map's tiles built so far (by index), the points they hold together, and the
+  // frames registered (the tiles' clock). Least recently used tiles past
+  // options.max_map_points are dropped and built again when a frame needs them.
+  std::map<std::pair<int64_t, int64_t>, MapTile> tiles;
+  int64_t tile_points = 0;
+  int64_t frames = 0;
+  // Segmentation asks only whether a point standing on a workspace (higher than its surface by
+  // 5 mm) lies within map_distance of the map: map points lower than this never answer, and the
+  // floor is most of a room's map.
+  double upper_min_z = 0.0;
   std::vector<Track> tracks;
   int next_id = 0;
   cv::Ptr<cv::SIFT> sift;  // keeps options.max_features keypoints
@@ -452,30 +551,39 @@ struct Perception::Impl {
 
   // The stages of Process, in pipeline order (defined with it, below).
 
-  // Stage 1, registration: takes the checked frame, gives its points in the map frame and the
-  // corrected pose; sets `result`'s correction, fitness, used_ransac and achieved pose.
-  Registration Register(const SensorFrame& frame, PerceptionResult* result) const;
+  // Stage 1, registration: takes the checked frame, gives its points in the map frame, the
+  // prior map around them and the corrected pose; sets `result`'s correction, fitness,
+  // used_ransac and achieved pose.
+  Registration Register(const SensorFrame& frame, PerceptionResult* result);
+  // Takes a tile's index, gives the tile (built when missing), marked used by this frame.
+  const MapTile& Tile(int64_t ix, int64_t iy);
+  // Takes the registration reach and segmentation's region, gives the prior map a frame needs
+  // there (building the tiles it lacks, then dropping old ones past the bound).
+  std::shared_ptr<const LocalMap> MapFor(const Eigen::AlignedBox2d& reach,
+                                         const Eigen::AlignedBox2d& segmentation);
   // Takes a map-frame point, gives whether it stands on a workspace (within `margin` of it in
   // x-y, below max_object_height above it) and which one in *which (when not null).
   bool OnWorkspace(const PointXYZ& p, double margin, int* which) const;
-  // Takes the frame's map-frame points, gives those to register with: the static structure.
-  CloudXYZ::Ptr StaticStructure(const CloudXYZ::Ptr& in_map) const;
+  // Takes the frame's map-frame points, gives those to register with: the static structure;
+  // extends *on_workspaces by the x-y of the points that may stand on a workspace.
+  CloudXYZ::Ptr StaticStructure(const CloudXYZ::Ptr& in_map,
+                                Eigen::AlignedBox2d* on_workspaces) const;
   // Takes the structure and the camera position, gives the x-y box of the map to align with.
   Eigen::AlignedBox2d RegistrationReach(const CloudXYZ& structure,
                                         const Eigen::Vector3d& camera) const;
   // Takes the structure and the reach, gives ICP's correction (RANSAC-initialised when ICP from
   // the reported pose fits poorly), its fitness in *fitness, and *used_ransac when RANSAC's
   // alignment was kept.
-  Eigen::Matrix4d Align(const CloudXYZ::Ptr& structure, const Eigen::AlignedBox2d& reach,
-                        double* fitness, bool* used_ransac) const;
+  Eigen::Matrix4d Align(const CloudXYZ::Ptr& structure, const LocalMap& map,
+                        const Eigen::AlignedBox2d& reach, double* fitness, bool* used_ransac) const;
   // Takes the structure and the reach, gives RANSAC's global alignment on FPFH features in
   // *guess; false when it has none worth refining.
-  bool RansacGuess(const CloudXYZ::Ptr& structure, const Eigen::AlignedBox2d& reach,
-                   Eigen::Matrix4f* guess) const;
+  bool RansacGuess(const CloudXYZ::Ptr& structure, const LocalMap& map,
+                   const Eigen::AlignedBox2d& reach, Eigen::Matrix4f* guess) const;
 
-  // Stage 2, map-point removal: takes the frame's map-frame points and the correction, gives
-  // the object points (without clusters).
-  Segments ObjectPoints(const CloudXYZ& in_map, const Eigen::Matrix4d& correction) const;
+  // Stage 2, map-point removal: takes the frame's registration, gives the object points
+  // (without clusters).
+  Segments ObjectPoints(const Registration& reg) const;
   // Stage 2, segmentation: takes the object points, gives their Euclidean clusters.
   std::vector<pcl::PointIndices> EuclideanClusters(const CloudXYZ::Ptr& objects) const;
 
@@ -545,26 +653,10 @@ Perception::Perception(const object_search::World& world, TargetModel target,
   im.target = std::move(target);
   im.options = options;
   im.sift = cv::SIFT::create(options.max_features);
-  for (const Box& b : world.furniture) SampleBox(b, 0.5 * options.voxel, im.map.get());
-  const auto& occ = world.occupancy;
-  const double floor_step = 2.0 * options.voxel;
-  for (double x = occ.min().x(); x <= occ.max().x(); x += floor_step) {
-    for (double y = occ.min().y(); y <= occ.max().y(); y += floor_step) {
-      im.map->push_back(PointXYZ(static_cast<float>(x), static_cast<float>(y), 0.0f));
-    }
-  }
-  im.map = Downsample(im.map, options.voxel);
-  // Segmentation asks only whether a point standing on a workspace (higher than its surface by
-  // 5 mm) lies within map_distance of the map: map points lower than that below every workspace
-  // never answer, and the floor is most of a large room's map.
+  // The prior map is built tile by tile as frames need it (Impl::MapFor).
   double lowest = std::numeric_limits<double>::infinity();
   for (const auto& ws : world.grid.workspaces()) lowest = std::min(lowest, ws.height);
-  auto upper = pcl::make_shared<CloudXYZ>();
-  for (const auto& p : *im.map) {
-    if (p.z > lowest + 0.005 - options.map_distance - 1e-3) upper->push_back(p);
-  }
-  if (!upper->empty()) im.map_tree.setInputCloud(upper);
-  im.map_normals = WithNormals(Downsample(im.map, 2.0 * options.voxel), 3.0 * options.voxel);
+  im.upper_min_z = lowest + 0.005 - options.map_distance - 1e-3;
   for (const cv::Mat& photo : im.target.photos) {
     if (photo.empty()) continue;
     std::vector<cv::KeyPoint> keypoints;
@@ -653,14 +745,105 @@ bool Perception::DropTrack(const std::string& id) {
 
 Cloud::ConstPtr Perception::map() const {
   auto out = pcl::make_shared<Cloud>();
-  for (const auto& p : *impl_->map) {
-    pcl::PointXYZRGB q;
-    q.x = p.x;
-    q.y = p.y;
-    q.z = p.z;
-    out->push_back(q);
+  for (const auto& [index, tile] : impl_->tiles) {
+    for (const auto& p : *tile.points) {
+      pcl::PointXYZRGB q;
+      q.x = p.x;
+      q.y = p.y;
+      q.z = p.z;
+      out->push_back(q);
+    }
   }
   return out;
+}
+
+int64_t Perception::map_tiles() const { return static_cast<int64_t>(impl_->tiles.size()); }
+
+// ---- the prior map, by tiles ----
+
+const MapTile& Perception::Impl::Tile(int64_t ix, int64_t iy) {
+  auto [it, missing] = tiles.try_emplace({ix, iy});
+  MapTile& t = it->second;
+  t.last_used = frames;
+  if (!missing) return t;
+  const Eigen::AlignedBox2d padded =
+      Widened(Eigen::AlignedBox2d(Eigen::Vector2d(ix * kTileSide, iy * kTileSide),
+                                  Eigen::Vector2d((ix + 1) * kTileSide, (iy + 1) * kTileSide)),
+              kTilePad);
+  // The furniture's surfaces and the floor on the same grids as if the whole map were sampled
+  // at once, so that a voxel (aligned with the origin, as the tiles are) gets the same points.
+  auto raw = pcl::make_shared<CloudXYZ>();
+  for (const Box& b : world.furniture) SampleBoxWithin(b, 0.5 * options.voxel, padded, raw.get());
+  const auto& occ = world.occupancy;
+  const double step = 2.0 * options.voxel;
+  int64_t x0, x1, y0, y1;
+  GridRange(occ.min().x(), occ.max().x(), step, padded.min().x(), padded.max().x(), &x0, &x1);
+  GridRange(occ.min().y(), occ.max().y(), step, padded.min().y(), padded.max().y(), &y0, &y1);
+  for (int64_t i = x0; i <= x1; ++i) {
+    for (int64_t j = y0; j <= y1; ++j) {
+      raw->push_back(PointXYZ(static_cast<float>(occ.min().x() + static_cast<double>(i) * step),
+                              static_cast<float>(occ.min().y() + static_cast<double>(j) * step),
+                              0.0f));
+    }
+  }
+  const CloudXYZ::Ptr around = Downsample(raw, options.voxel);
+  const NormalCloud::Ptr normals =
+      WithNormals(Downsample(around, 2.0 * options.voxel), 3.0 * options.voxel);
+  auto own = [&](const auto& p) { return TileIndex(p.x) == ix && TileIndex(p.y) == iy; };
+  t.points = pcl::make_shared<CloudXYZ>();
+  t.upper = pcl::make_shared<CloudXYZ>();
+  t.normals = pcl::make_shared<NormalCloud>();
+  for (const auto& p : *around) {
+    if (!own(p)) continue;
+    t.points->push_back(p);
+    if (p.z > upper_min_z) t.upper->push_back(p);
+  }
+  for (const auto& p : *normals) {
+    if (own(p)) t.normals->push_back(p);
+  }
+  if (!t.upper->empty()) {
+    t.upper_tree = std::make_unique<pcl::KdTreeFLANN<PointXYZ>>();
+    t.upper_tree->setInputCloud(t.upper);
+  }
+  tile_points += t.size();
+  return t;
+}
+
+std::shared_ptr<const LocalMap> Perception::Impl::MapFor(const Eigen::AlignedBox2d& reach,
+                                                         const Eigen::AlignedBox2d& segmentation) {
+  ++frames;
+  auto local = std::make_shared<LocalMap>();
+  // RANSAC's map features need the points this far past the reach (RansacGuess gathers them).
+  const Eigen::AlignedBox2d features = Widened(reach, 8.0 * options.ransac_voxel);
+  const Eigen::AlignedBox2d near = Widened(segmentation, options.map_distance);
+  const Eigen::AlignedBox2d bounds(world.occupancy.min(), world.occupancy.max());
+  const Eigen::AlignedBox2d needed = Widened(features.merged(near).intersection(bounds), 1e-6);
+  if (!needed.isEmpty()) {
+    for (int64_t ix = TileIndex(needed.min().x()); ix <= TileIndex(needed.max().x()); ++ix) {
+      for (int64_t iy = TileIndex(needed.min().y()); iy <= TileIndex(needed.max().y()); ++iy) {
+        const MapTile& t = Tile(ix, iy);
+        local->tiles[{ix, iy}] = &t;
+        for (const auto& p : *t.normals) {
+          if (reach.contains(Eigen::Vector2d(p.x, p.y))) local->normals->push_back(p);
+        }
+      }
+    }
+  }
+  local->segmentation_region = segmentation;
+  // Past the bound, the tiles this frame did not need go, the least recently used first.
+  while (tile_points > options.max_map_points) {
+    auto oldest = tiles.end();
+    for (auto it = tiles.begin(); it != tiles.end(); ++it) {
+      if (it->second.last_used < frames &&
+          (oldest == tiles.end() || it->second.last_used < oldest->second.last_used)) {
+        oldest = it;
+      }
+    }
+    if (oldest == tiles.end()) break;
+    tile_points -= oldest->second.size();
+    tiles.erase(oldest);
+  }
+  return local;
 }
 
 double Perception::TargetScore(const cv::Mat& region, bool* used_colour,
@@ -890,7 +1073,7 @@ std::vector<object_search::FaceDetection> VisibleFaces(const std::vector<Box>& b
 
 // ---- 1. registration ----
 
-Registration Perception::Impl::Register(const SensorFrame& frame, PerceptionResult* result) const {
+Registration Perception::Impl::Register(const SensorFrame& frame, PerceptionResult* result) {
   const Eigen::Matrix4d reported = CameraToMap(world.robot, frame.reported);
   Registration reg;
   CloudXYZ::Ptr xyz = ToXYZ(*frame.cloud);
@@ -900,10 +1083,19 @@ Registration Perception::Impl::Register(const SensorFrame& frame, PerceptionResu
   } else {
     pcl::transformPointCloud(*xyz, *reg.in_map, reported.cast<float>());
   }
-  const CloudXYZ::Ptr structure = StaticStructure(reg.in_map);
-  const Eigen::AlignedBox2d reach = RegistrationReach(*structure, reported.block<3, 1>(0, 3));
+  Eigen::AlignedBox2d on_workspaces;
+  const CloudXYZ::Ptr structure = StaticStructure(reg.in_map, &on_workspaces);
+  const Eigen::Vector3d camera = reported.block<3, 1>(0, 3);
+  const Eigen::AlignedBox2d reach = RegistrationReach(*structure, camera);
+  // Objects are looked for where the frame shows a workspace within registration_range of the
+  // camera, give or take a correction: the map is built there and no farther.
+  const Eigen::AlignedBox2d segmentation =
+      Widened(on_workspaces, options.max_correction)
+          .intersection(Widened(Eigen::AlignedBox2d(camera.head<2>(), camera.head<2>()),
+                                options.registration_range + options.max_correction));
+  reg.map = MapFor(reach, segmentation);
   double fitness = std::numeric_limits<double>::quiet_NaN();
-  Eigen::Matrix4d correction = Align(structure, reach, &fitness, &result->used_ransac);
+  Eigen::Matrix4d correction = Align(structure, *reg.map, reach, &fitness, &result->used_ransac);
   if (correction.block<3, 1>(0, 3).norm() > options.max_correction || !correction.allFinite()) {
     correction.setIdentity();  // implausible: keep the reported pose
   }
@@ -928,18 +1120,21 @@ bool Perception::Impl::OnWorkspace(const PointXYZ& p, double margin, int* which)
   return false;
 }
 
-CloudXYZ::Ptr Perception::Impl::StaticStructure(const CloudXYZ::Ptr& in_map) const {
+CloudXYZ::Ptr Perception::Impl::StaticStructure(const CloudXYZ::Ptr& in_map,
+                                                Eigen::AlignedBox2d* on_workspaces) const {
   // Register with the static structure only: points standing on a workspace are probably the
   // unknown objects, which the map lacks and which would drag the alignment. Points outside the
   // mapped area have nothing to match and would drag it too.
   const auto& bounds = world.occupancy;
   CloudXYZ::Ptr structure = pcl::make_shared<CloudXYZ>();
   for (const auto& p : *in_map) {
+    const bool on_workspace = OnWorkspace(p, 0.05, nullptr);
+    if (on_workspace) on_workspaces->extend(Eigen::Vector2d(p.x, p.y));
     if (p.x < bounds.min().x() + 0.2 || p.y < bounds.min().y() + 0.2 ||
         p.x > bounds.max().x() - 0.2 || p.y > bounds.max().y() - 0.2) {
       continue;
     }
-    if (!OnWorkspace(p, 0.05, nullptr)) structure->push_back(p);
+    if (!on_workspace) structure->push_back(p);
   }
   if (structure->size() < 100) structure = in_map;
   return structure;
@@ -958,11 +1153,11 @@ Eigen::AlignedBox2d Perception::Impl::RegistrationReach(const CloudXYZ& structur
   return Widened(view, options.max_correction + options.icp_max_distance);
 }
 
-Eigen::Matrix4d Perception::Impl::Align(const CloudXYZ::Ptr& structure,
+Eigen::Matrix4d Perception::Impl::Align(const CloudXYZ::Ptr& structure, const LocalMap& map,
                                         const Eigen::AlignedBox2d& reach, double* fitness_out,
                                         bool* used_ransac) const {
   const PerceptionOptions& o = options;
-  const NormalCloud::Ptr target = CropXY<PointNormal>(map_normals, reach);
+  const NormalCloud::Ptr& target = map.normals;  // the map's within reach
   // Point-to-plane ICP: the scene is mostly planes (floor, table tops, sides), along which
   // point-to-point ICP slides.
   // Thinned to max_icp_points: each ICP iteration searches the map for every source point.
@@ -988,7 +1183,7 @@ Eigen::Matrix4d Perception::Impl::Align(const CloudXYZ::Ptr& structure,
   // Poor fit from the reported pose: a global alignment first (RANSAC on FPFH features), which
   // ICP refines.
   Eigen::Matrix4f guess;
-  if (observable && fitness > o.icp_good_fitness && RansacGuess(structure, reach, &guess)) {
+  if (observable && fitness > o.icp_good_fitness && RansacGuess(structure, map, reach, &guess)) {
     icp.align(aligned, guess);
     const double f2 = icp.hasConverged() ? icp.getFitnessScore(o.icp_max_distance) : 1e9;
     const Eigen::Matrix4d refined = icp.getFinalTransformation().cast<double>();
@@ -1005,16 +1200,22 @@ Eigen::Matrix4d Perception::Impl::Align(const CloudXYZ::Ptr& structure,
   return correction;
 }
 
-bool Perception::Impl::RansacGuess(const CloudXYZ::Ptr& structure, const Eigen::AlignedBox2d& reach,
-                                   Eigen::Matrix4f* guess) const {
+bool Perception::Impl::RansacGuess(const CloudXYZ::Ptr& structure, const LocalMap& map,
+                                   const Eigen::AlignedBox2d& reach, Eigen::Matrix4f* guess) const {
   const PerceptionOptions& o = options;
   // The map's features within reach, each computed from all its neighbours (the crop is
   // widened by the normals' and features' radii, then cut back).
   CloudXYZ::Ptr around, map_ransac = pcl::make_shared<CloudXYZ>();
   pcl::PointCloud<pcl::FPFHSignature33>::Ptr around_features;
   auto map_features = pcl::make_shared<pcl::PointCloud<pcl::FPFHSignature33>>();
-  ComputeRansacFeatures(CropXY<PointXYZ>(map, Widened(reach, 8.0 * o.ransac_voxel)),
-                        o.max_ransac_map_points, &around, &around_features);
+  const Eigen::AlignedBox2d features = Widened(reach, 8.0 * o.ransac_voxel);
+  auto points = pcl::make_shared<CloudXYZ>();
+  for (const auto& [index, t] : map.tiles) {
+    for (const auto& p : *t->points) {
+      if (features.contains(Eigen::Vector2d(p.x, p.y))) points->push_back(p);
+    }
+  }
+  ComputeRansacFeatures(points, o.max_ransac_map_points, &around, &around_features);
   for (size_t i = 0; i < around->size(); ++i) {
     if (reach.contains(Eigen::Vector2d((*around)[i].x, (*around)[i].y))) {
       map_ransac->push_back((*around)[i]);
@@ -1054,22 +1255,19 @@ bool Perception::Impl::RansacGuess(const CloudXYZ::Ptr& structure, const Eigen::
 
 // ---- 2. segmentation ----
 
-Segments Perception::Impl::ObjectPoints(const CloudXYZ& in_map,
-                                        const Eigen::Matrix4d& correction) const {
-  // The corrected frame's points that stand on a workspace and are not the map's.
+Segments Perception::Impl::ObjectPoints(const Registration& reg) const {
+  // The corrected frame's points that stand on a workspace (near the camera) and are not the
+  // map's.
   Segments out;
   CloudXYZ::Ptr points = pcl::make_shared<CloudXYZ>();
-  pcl::transformPointCloud(in_map, *points, correction.cast<float>());
+  pcl::transformPointCloud(*reg.in_map, *points, reg.correction.cast<float>());
   points = Downsample(points, options.voxel);
-  std::vector<int> nearest(1);
-  std::vector<float> distance(1);
+  const LocalMap& map = *reg.map;
   for (const auto& p : *points) {
     int surface = -1;
     if (!OnWorkspace(p, options.workspace_margin, &surface)) continue;
-    if (map_tree.getInputCloud() && map_tree.nearestKSearch(p, 1, nearest, distance) > 0 &&
-        distance[0] < options.map_distance * options.map_distance) {
-      continue;
-    }
+    if (!map.segmentation_region.contains(Eigen::Vector2d(p.x, p.y))) continue;
+    if (map.NearMap(p, options.map_distance)) continue;
     out.objects->push_back(p);
     out.surface_of.push_back(surface);
   }
@@ -1275,7 +1473,7 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
 
   // ---- 2. segmentation: map-point removal, then Euclidean clusters ----
   t0 = Clock::now();
-  Segments segments = im.ObjectPoints(*reg.in_map, reg.correction);
+  Segments segments = im.ObjectPoints(reg);
   segments.clusters = im.EuclideanClusters(segments.objects);
   result.clusters = static_cast<int>(segments.clusters.size());
   if (result.clusters > im.options.max_clusters) {  // before any track changes
@@ -1299,19 +1497,27 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
 }
 
 int64_t PriorMapPoints(const object_search::World& world, const PerceptionOptions& options) {
-  // The counts of SampleBox (step voxel / 2) and of the floor loop (step 2 voxel) in the
-  // constructor, in floating point so that nothing overflows.
+  // The largest x-y square a frame's map can span: the registration reach (registration_range
+  // around the camera, widened by a correction, ICP's reach and RANSAC's feature margin) rounded
+  // out to whole tiles with their padding; segmentation's region lies inside it.
+  const double side = 2.0 * (options.registration_range + options.max_correction +
+                             options.icp_max_distance + 8.0 * options.ransac_voxel) +
+                      2.0 * (kTileSide + kTilePad);
+  // Counts of SampleBoxWithin (step voxel / 2) and of the floor grid (step 2 voxel), in floating
+  // point so that nothing overflows; a box side is counted up to the square's diagonal.
   const double step = 0.5 * options.voxel;
   auto count = [](double extent, double s) { return std::floor(std::max(0.0, extent) / s) + 1.0; };
+  const double diagonal = std::sqrt(2.0) * side;
   double total = 0.0;
   for (const Box& b : world.furniture) {
-    const double nu = count(b.size.x(), step), nv = count(b.size.y(), step);
+    const double nu = count(std::min(b.size.x(), diagonal), step);
+    const double nv = count(std::min(b.size.y(), diagonal), step);
     const double nw = count(b.size.z(), step);
     total += nu * (nv + 2.0 * nw) + 2.0 * nv * nw;
   }
   const auto& occ = world.occupancy;
-  total += count(occ.max().x() - occ.min().x(), 2.0 * options.voxel) *
-           count(occ.max().y() - occ.min().y(), 2.0 * options.voxel);
+  total += count(std::min(occ.max().x() - occ.min().x(), side), 2.0 * options.voxel) *
+           count(std::min(occ.max().y() - occ.min().y(), side), 2.0 * options.voxel);
   return total > 9e18 ? INT64_MAX : static_cast<int64_t>(total);
 }
 

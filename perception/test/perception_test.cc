@@ -549,12 +549,61 @@ TEST(PerceptionTest, PriorMapPointsBoundsTheMapBeforeItIsBuilt) {
   const auto world = sim.InitialWorld().value();
   const int64_t estimate = PriorMapPoints(world, {});
   Perception p(world, TargetOf(sim), {});
+  EXPECT_EQ(p.map_tiles(), 0);  // nothing is built before a frame needs it
+  ASSERT_TRUE(p.Process(FrontView(&sim)).ok());
+  EXPECT_GT(p.map()->size(), 0u);
   EXPECT_GE(estimate, static_cast<int64_t>(p.map()->size()));
   EXPECT_LT(estimate, 4'000'000);  // the scenarios fit the documented limit
-  // A 200 m room would need 1e8 floor points: known without sampling them.
+  // A 200 m room costs no more than the largest square a frame can need.
   auto big = world;
   big.occupancy = object_search::OccupancyMap({-100, -100}, {100, 100}, 1.0);
-  EXPECT_GT(PriorMapPoints(big, {}), 90'000'000);
+  auto wide = world;
+  wide.occupancy = object_search::OccupancyMap({-30, -30}, {30, 30}, 1.0);
+  EXPECT_EQ(PriorMapPoints(big, {}), PriorMapPoints(wide, {}));
+  EXPECT_LT(PriorMapPoints(big, {}), 4'000'000);
+  // A box is counted up to that square's diagonal (about 26 m): a 200 m wall 2 m high adds the
+  // points of 26 m of it (4.2 million), not of all of it (33 million).
+  auto walled = world;
+  walled.furniture.push_back({object_search::Vec3(0, 0, 1), 0.0, object_search::Vec3(200, 0.1, 2)});
+  const int64_t wall = PriorMapPoints(walled, {}) - PriorMapPoints(world, {});
+  EXPECT_GT(wall, 4'000'000);
+  EXPECT_LT(wall, 5'000'000);
+}
+
+TEST(PerceptionTest, AHouseSizedRoomCostsWhatTheCameraSees) {
+  // The same frame in Loose1 and in Loose1 grown to a 40 m x 40 m house: the same objects, and
+  // only the tiles of the prior map around the view are built (a whole-room map was 4 million
+  // floor points and 7 s of CPU before the first frame).
+  Simulator sim(Load("loose1"), 1);
+  const auto world = sim.InitialWorld().value();
+  auto house = world;
+  house.occupancy = object_search::OccupancyMap({-20, -20}, {20, 20}, 0.05);
+  const SensorFrame frame = FrontView(&sim);
+  Perception room(world, TargetOf(sim), {}), grown(house, TargetOf(sim), {});
+  const PerceptionResult a = room.Process(frame).value();
+  const PerceptionResult b = grown.Process(frame).value();
+  EXPECT_GT(a.clusters, 0);
+  EXPECT_EQ(a.clusters, b.clusters);
+  ASSERT_EQ(a.observation.objects.size(), b.observation.objects.size());
+  for (size_t i = 0; i < a.observation.objects.size(); ++i) {
+    EXPECT_LT((a.observation.objects[i].box.center - b.observation.objects[i].box.center).norm(),
+              0.01);
+  }
+  // At most the tiles of a registration reach (2 m tiles; 400 in the house).
+  EXPECT_LE(grown.map_tiles(), 64);
+  EXPECT_LT(grown.map()->size(), 2'000'000u);
+  // A bound on the tiles kept: past it the least recently used go, the frame's own stay.
+  PerceptionOptions small;
+  small.max_map_points = 1;
+  Perception bounded(house, TargetOf(sim), small);
+  ASSERT_TRUE(bounded.Process(frame).ok());
+  const int64_t needed = bounded.map_tiles();
+  EXPECT_GT(needed, 0);
+  SensorFrame elsewhere = frame;
+  elsewhere.reported.x += 8.0;  // a view of the empty floor 8 m away
+  ASSERT_TRUE(bounded.Process(elsewhere).ok());
+  ASSERT_TRUE(bounded.Process(frame).ok());
+  EXPECT_EQ(bounded.map_tiles(), needed);
 }
 
 }  // namespace

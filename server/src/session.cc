@@ -357,10 +357,10 @@ Status Session::EnsurePerception(const World& world) {
   const int64_t points = perception::PriorMapPoints(world, {});
   if (points > limits_.max_perception_map_points) {
     return FieldError(StatusCode::kFailedPrecondition, "point_cloud",
-                      "perception would map this world with " + std::to_string(points) +
-                          " points, more than " +
+                      "one frame could make perception map " + std::to_string(points) +
+                          " points of this world around the camera, more than " +
                           std::to_string(limits_.max_perception_map_points) +
-                          " (a smaller room or less furniture); send detections instead");
+                          " (less or smaller furniture); send detections instead");
   }
   perception::TargetModel target;
   for (size_t i = 0; i < target_.photos.size(); ++i) {

@@ -102,6 +102,10 @@ struct PerceptionOptions {
   /// Its map points within reach of the view, after downsampling, are thinned to this many (a
   /// frame spread to the edges of registration_range reaches about 240,000).
   int64_t max_ransac_map_points = 60'000;
+  /// The prior map is built lazily, in 2 m tiles around what each frame needs; the tiles kept
+  /// between frames hold at most this many points together (the least recently used go first,
+  /// and are built again when needed). One frame's own tiles are always kept.
+  int64_t max_map_points = 2'000'000;
   /// Either cloud of RANSAC's features is thinned further (every k-th point) until a bound on
   /// its points' neighbour pairs within the features' radius (points in the 27 cells of that
   /// size around each point) is at most this: a depth camera sees surfaces (about 80 neighbours
@@ -170,8 +174,11 @@ class Perception {
   Status RestoreTracks(const std::vector<TrackState>& tracks, int next_id);
   /// Forgets the track `id` (the robot removed that object); false when there is none.
   bool DropTrack(const std::string& id);
-  /// The prior map cloud (for tests and visualisation).
+  /// The prior map built so far (for tests and visualisation): the tiles around what frames
+  /// have needed, not the whole room.
   Cloud::ConstPtr map() const;
+  /// The prior map's tiles held now.
+  int64_t map_tiles() const;
 
   /// Probability in [0.05, 0.95] that an image region (BGR; `mask`, 8-bit of the same size,
   /// selects the object's pixels) shows the target: SIFT matches against the photos that agree
@@ -195,9 +202,11 @@ class Perception {
 Eigen::Matrix4d CameraToMap(const object_search::RobotPreset& robot,
                             const object_search::RobotConfig& config);
 
-/// Points of the prior point-cloud map Perception's constructor would build for `world` (floor
-/// and furniture surfaces sampled at the options' voxel size), computed without building it, so
-/// that a caller can refuse a world too large to map.
+/// A bound on the points of the prior point-cloud map one frame can make Perception build for
+/// `world` (floor and furniture surfaces sampled at the options' voxel size, within the largest
+/// region registration and segmentation may need around the camera), computed without building
+/// it, so that a caller can refuse a world too dense to map. It grows with the room only up to
+/// that region: a house costs what the camera sees.
 int64_t PriorMapPoints(const object_search::World& world, const PerceptionOptions& options);
 
 /// Checks saved tracks (Perception::SaveTracks) against `world` without building a perception:

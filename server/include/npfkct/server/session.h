@@ -43,7 +43,8 @@ struct SessionLimits {
   /// Heap in use (bytes) past which a running plan stops with its best action so far, and
   /// plans, observations and new sessions are refused (RESOURCE_EXHAUSTED).
   int64_t max_heap_bytes = int64_t{4096} << 20;
-  /// Points of the prior map perception would build; larger worlds cannot take raw data.
+  /// Points of the prior map one frame can make perception build (perception::PriorMapPoints);
+  /// denser worlds cannot take raw data.
   int64_t max_perception_map_points = 4'000'000;
   /// Pixels of a target photo (checked again from the header when perception decodes them).
   int64_t max_photo_pixels = 4'194'304;

@@ -69,8 +69,9 @@ struct Limits {
   /// Target photos, and pixels of each (checked from the image header before decoding).
   int max_photos = 8;
   int64_t max_photo_pixels = 4'194'304;
-  /// Points of the prior point-cloud map perception builds from the world (floor and furniture
-  /// surfaces); a world beyond it cannot take raw sensor data.
+  /// Points of the prior point-cloud map (floor and furniture surfaces) one frame can make
+  /// perception build around the camera (it builds the map lazily, in tiles around the views:
+  /// a house costs what the camera sees); a world denser than that cannot take raw sensor data.
   int64_t max_perception_map_points = 4'000'000;
   /// Scores of an external detector per observation.
   int max_semantic_scores = 256;
