@@ -6,9 +6,10 @@
 #   bin/      npfkct-server npfkct-drive npfkct-bench npfkct-train npfkct-sim-robot
 #             npfkct-scenegen, npfkct-client (the Python client's CLI)
 #   lib/      libnpfkct_common.a libnpfkct_solver.a libnpfkct_object_search.a
-#             libnpfkct_render.a libnpfkct_perception.a libnpfkct_api.a libnpfkct_client.a
+#             libnpfkct_render.a libnpfkct_perception.a libnpfkct_robot.a libnpfkct_api.a
+#             libnpfkct_client.a
 #   lib/cmake/npfkct/   npfkctConfig.cmake, npfkctConfigVersion.cmake, npfkctTargets.cmake
-#   include/npfkct/{common,solver,object_search,render,perception,api,client}/
+#   include/npfkct/{common,solver,object_search,render,perception,robot,api,client}/
 #   share/npfkct/models/      the shipped filter model (npfkct-server's default --model-dir)
 #   share/npfkct/scenarios/   the scenario files (npfkct-drive --scenario)
 #   share/npfkct/schemas/     JSON Schemas and openapi.yaml
@@ -31,16 +32,18 @@ set_target_properties(npfkct_solver PROPERTIES EXPORT_NAME solver)
 set_target_properties(npfkct_object_search PROPERTIES EXPORT_NAME object_search)
 set_target_properties(npfkct_render PROPERTIES EXPORT_NAME render)
 set_target_properties(npfkct_perception PROPERTIES EXPORT_NAME perception)
+set_target_properties(npfkct_robot PROPERTIES EXPORT_NAME robot)
 set_target_properties(npfkct_api PROPERTIES EXPORT_NAME api)
 set_target_properties(npfkct_client PROPERTIES EXPORT_NAME client)
 install(TARGETS npfkct_common npfkct_solver npfkct_object_search npfkct_render npfkct_perception
-                npfkct_api npfkct_client
+                npfkct_robot npfkct_api npfkct_client
   EXPORT npfkctTargets
   ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
   LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
   INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
 install(DIRECTORY common/include/npfkct solver/include/npfkct object_search/include/npfkct
-                  render/include/npfkct perception/include/npfkct server/api/include/npfkct
+                  render/include/npfkct perception/include/npfkct robot/include/npfkct
+                  server/api/include/npfkct
                   clients/cpp/include/npfkct
   DESTINATION ${CMAKE_INSTALL_INCLUDEDIR} FILES_MATCHING PATTERN "*.h")
 install(EXPORT npfkctTargets NAMESPACE npfkct:: DESTINATION ${NPFKCT_INSTALL_CMAKEDIR})

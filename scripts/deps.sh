@@ -11,6 +11,7 @@ NPFKCT_BUILD_PACKAGES=(
   nlohmann-json3-dev libcpp-httplib-dev libcurl4-openssl-dev libspdlog-dev libvalijson-dev
   zlib1g-dev libbrotli-dev
   libopencv-dev libpcl-dev libtorch-dev libopenblas0-pthread
+  liburdfdom-dev liborocos-kdl-dev
 )
 # What a built npfkct-server needs to run: the shared libraries it links (readelf -d) and curl
 # for the health check (the Docker images' runtime stage: no compiler, no -dev package, no ROS,
@@ -21,6 +22,7 @@ NPFKCT_RUNTIME_PACKAGES=(
   libopencv-calib3d406
   libpcl-common1.13 libpcl-kdtree1.13 libpcl-search1.13 libpcl-filters1.13 libpcl-features1.13
   libpcl-segmentation1.13
+  liburdfdom-model3.0 libconsole-bridge1.0 liborocos-kdl1.5
   curl ca-certificates
 )
 NPFKCT_PACKAGES=(

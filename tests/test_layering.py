@@ -26,7 +26,8 @@ LAYERS = [
     ("render", "render", _MODEL),
     ("filter", "filter", _MODEL),
     ("perception", "perception", _MODEL),
-    ("server/api", "api", _MODEL + ["render", "perception"]),
+    ("robot", "robot", _MODEL),
+    ("server/api", "api", _MODEL + ["render", "perception", "robot"]),
     ("server", "server", _MODEL + ["render", "filter", "perception", "api"]),
     ("sim", "sim", _MODEL + ["render", "api"]),
     ("clients", "client", _MODEL + ["render", "perception", "api", "sim"]),
@@ -46,6 +47,8 @@ THIRD_PARTY = {
     "pcl/": {"perception", "server/api", "server", "sim", "clients", "tools", "bench", "tests"},
     "opencv2/": {"render", "perception", "server/api", "server", "sim", "clients", "tools",
                  "bench", "tests"},
+    "urdf_": {"robot"},
+    "kdl/": {"robot"},
 }
 SKIP = {".git", "build", "node_modules"}
 

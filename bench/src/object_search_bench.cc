@@ -456,7 +456,14 @@ bool LoadScenarios(const SearchBenchConfig& config, const BenchSetup& setup,
       return false;
     }
     sim::Scenario scenario = *loaded;
-    if (!config.robot.empty()) scenario.robot = config.robot;
+    if (!config.robot.empty()) {
+      auto robot = object_search::RobotDescription::ByName(config.robot);
+      if (!robot.ok()) {
+        std::cerr << "npfkct-bench: --robot: " << robot.status().message() << "\n";
+        return false;
+      }
+      scenario.robot = *robot;
+    }
     // Validate the map, the planner names and the options once before spending time.
     auto world = sim::InitialWorld(scenario);
     if (!world.ok()) {
@@ -608,8 +615,8 @@ void PrintCell(const SearchBenchConfig& config, const BenchSetup& setup,
       "\"target_rewards\": [%s], \"steps\": [%s], \"successes\": [%s]%s%s%s%s}\n",
       JsonEscape(scenario.name).c_str(), JsonEscape(name).c_str(), base.c_str(), mode.c_str(),
       config.trials, config.time_ms, config.cpu_ms, static_cast<long long>(config.sims),
-      scenario.robot.c_str(), static_cast<unsigned long long>(config.seed), config.threads,
-      option_list.c_str(), JsonEscape(model_name).c_str(), config.rollout.c_str(),
+      JsonEscape(scenario.robot.name).c_str(), static_cast<unsigned long long>(config.seed),
+      config.threads, option_list.c_str(), JsonEscape(model_name).c_str(), config.rollout.c_str(),
       config.obstacle_reward.c_str(), config.grid_sampling.c_str(), plan_r_co.c_str(),
       s.mean_return, s.ci95_return, s.mean_steps, s.ci95_steps, s.success_rate.value_or(0.0),
       s.median_sims_per_step, s.median_sims_per_second, s.median_sims_per_cpu_second,

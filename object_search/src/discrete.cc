@@ -10,16 +10,19 @@ DiscreteObjectSearch::DiscreteObjectSearch(const ObjectSearchModel& model, Discr
 }
 
 void DiscreteObjectSearch::Refresh() {
-  poses_ = model_.world().ManualPoses();
-  const int p = static_cast<int>(poses_.size());
-  num_moves_ = set_ == DiscreteActionSet::kPrimitive ? p + 3 + 9 : p * 3 * 9;
+  const World& w = model_.world();
+  poses_ = w.ManualPoses();
+  lifts_ = w.ManualLifts();
+  heads_ = w.ManualHeads();
+  const int p = static_cast<int>(poses_.size()), l = static_cast<int>(lifts_.size());
+  const int h = static_cast<int>(heads_.size());
+  num_moves_ = set_ == DiscreteActionSet::kPrimitive ? p + l + h : p * l * h;
 }
 
 RobotConfig DiscreteObjectSearch::MoveTarget(int a, const RobotConfig& from) const {
   const World& w = model_.world();
-  const int p = static_cast<int>(poses_.size());
-  const auto lifts = w.ManualLifts();
-  const auto heads = w.ManualHeads();
+  const int p = static_cast<int>(poses_.size()), l = static_cast<int>(lifts_.size());
+  const int h = static_cast<int>(heads_.size());
   RobotConfig c = from;
   // The joints a primitive move keeps are the robot's as reported, within its limits: a move
   // never asks for a lift or head angle the robot cannot take.
@@ -27,22 +30,22 @@ RobotConfig DiscreteObjectSearch::MoveTarget(int a, const RobotConfig& from) con
   c.pan = std::clamp(c.pan, w.robot.pan_min, w.robot.pan_max);
   c.tilt = std::clamp(c.tilt, w.robot.tilt_min, w.robot.tilt_max);
   if (set_ == DiscreteActionSet::kJoint) {
-    const RobotConfig& pose = poses_[a / 27];
+    const RobotConfig& pose = poses_[a / (l * h)];
     c.x = pose.x;
     c.y = pose.y;
     c.yaw = pose.yaw;
-    c.lift = lifts[(a % 27) / 9];
-    c.pan = heads[a % 9].first;
-    c.tilt = heads[a % 9].second;
+    c.lift = lifts_[(a % (l * h)) / h];
+    c.pan = heads_[a % h].first;
+    c.tilt = heads_[a % h].second;
   } else if (a < p) {
     c.x = poses_[a].x;
     c.y = poses_[a].y;
     c.yaw = poses_[a].yaw;
-  } else if (a < p + 3) {
-    c.lift = lifts[a - p];
+  } else if (a < p + l) {
+    c.lift = lifts_[a - p];
   } else {
-    c.pan = heads[a - p - 3].first;
-    c.tilt = heads[a - p - 3].second;
+    c.pan = heads_[a - p - l].first;
+    c.tilt = heads_[a - p - l].second;
   }
   return c;
 }

@@ -92,34 +92,139 @@ bool BoxFrame::BlocksUnitSegment(const Vec3& a, const Vec3& unit, double length,
   return Intersect(a, unit, clearance, length - clearance) >= 0.0;
 }
 
-RobotPreset RobotPreset::Fetch() {
-  RobotPreset r;
+namespace {
+
+CameraJoint Joint(std::string name, CameraJoint::Type type, CameraJoint::Role role, Vec3 xyz,
+                  Vec3 axis, double lower, double upper) {
+  CameraJoint j;
+  j.name = std::move(name);
+  j.type = type;
+  j.role = role;
+  j.xyz = xyz;
+  j.axis = axis;
+  j.lower = lower;
+  j.upper = upper;
+  return j;
+}
+
+// The pan-tilt head both shipped robots share (appendix J: pan +-pi/12, tilt +-0.5 rad).
+void AddPanTilt(RobotDescription* r) {
+  using T = CameraJoint::Type;
+  using R = CameraJoint::Role;
+  r->chain.push_back(
+      Joint("head_pan", T::kRevolute, R::kPan, Vec3::Zero(), Vec3::UnitZ(), -0.2618, 0.2618));
+  r->chain.push_back(
+      Joint("head_tilt", T::kRevolute, R::kTilt, Vec3::Zero(), Vec3::UnitY(), -0.5, 0.5));
+}
+
+Eigen::Matrix3d RpyRotation(const Vec3& rpy) {
+  return (Eigen::AngleAxisd(rpy.z(), Vec3::UnitZ()) * Eigen::AngleAxisd(rpy.y(), Vec3::UnitY()) *
+          Eigen::AngleAxisd(rpy.x(), Vec3::UnitX()))
+      .toRotationMatrix();
+}
+
+bool Finite(const Vec3& v) { return v.allFinite(); }
+
+// The rotation by q about the unit axis `axis`: written out for the coordinate axes (every
+// shipped joint turns about one; the planner computes a camera pose per simulated view), else
+// Rodrigues' formula.
+Eigen::Matrix3d AxisRotation(const Vec3& axis, double q) {
+  const double c = std::cos(q), s = std::sin(q);
+  Eigen::Matrix3d r;
+  if (axis == Vec3::UnitZ()) {
+    r << c, -s, 0, s, c, 0, 0, 0, 1;
+  } else if (axis == Vec3::UnitY()) {
+    r << c, 0, s, 0, 1, 0, -s, 0, c;
+  } else if (axis == Vec3::UnitX()) {
+    r << 1, 0, 0, 0, c, -s, 0, s, c;
+  } else {
+    r = Eigen::AngleAxisd(q, axis).toRotationMatrix();
+  }
+  return r;
+}
+
+}  // namespace
+
+RobotDescription RobotDescription::Fetch() {
+  RobotDescription r;
   r.name = "fetch";
-  r.camera_offset = Vec3(0.15, 0.0, 1.08);
-  r.lift_moves_camera = true;
-  r.lift_min = 0.0;
-  r.lift_max = 0.4;
+  // The camera 0.15 m ahead of the base centre and 1.08 m up at the lowest torso.
+  r.chain.push_back(Joint("torso_lift", CameraJoint::Type::kPrismatic, CameraJoint::Role::kLift,
+                          Vec3(0.15, 0.0, 1.08), Vec3::UnitZ(), 0.0, 0.4));
+  AddPanTilt(&r);
   r.footprint_radius = 0.3;
   r.reach = 1.0;
+  (void)r.Validate();  // well-formed (a unit test checks)
   return r;
 }
 
-RobotPreset RobotPreset::Stretch() {
-  RobotPreset r;
+RobotDescription RobotDescription::Stretch() {
+  RobotDescription r;
   r.name = "stretch";
-  r.camera_offset = Vec3(0.05, 0.0, 1.29);
-  r.lift_moves_camera = false;
-  r.lift_min = 0.0;
-  r.lift_max = 0.4;  // the action's lift range (appendix J); the camera does not follow it
+  r.chain.push_back(Joint("mast", CameraJoint::Type::kFixed, CameraJoint::Role::kNone,
+                          Vec3(0.05, 0.0, 1.29), Vec3::UnitZ(), 0.0, 0.0));
+  AddPanTilt(&r);
   r.footprint_radius = 0.2;
   r.reach = 0.8;
+  (void)r.Validate();
   return r;
 }
 
-StatusOr<RobotPreset> RobotPreset::ByName(const std::string& name) {
+StatusOr<RobotDescription> RobotDescription::ByName(const std::string& name) {
   if (name == "fetch") return Fetch();
   if (name == "stretch") return Stretch();
   return InvalidArgumentError("unknown robot '" + name + "' (expected fetch or stretch)");
+}
+
+Status RobotDescription::Validate() {
+  if (name.size() > 64) return InvalidFieldError("name", "at most 64 characters");
+  if (chain.size() > static_cast<size_t>(kMaxJoints)) {
+    return InvalidFieldError("joints", "at most " + std::to_string(kMaxJoints) + " joints");
+  }
+  if (!(footprint_radius > 0.0 && footprint_radius <= 5.0)) {
+    return InvalidFieldError("footprintRadius", "must be in (0, 5] m");
+  }
+  if (!(reach >= 0.0 && reach <= 10.0)) return InvalidFieldError("reach", "must be in [0, 10] m");
+  double* limits[4][2] = {
+      {nullptr, nullptr}, {&lift_min, &lift_max}, {&pan_min, &pan_max}, {&tilt_min, &tilt_max}};
+  bool taken[4] = {false, false, false, false};
+  for (int k = 1; k < 4; ++k) *limits[k][0] = *limits[k][1] = 0.0;
+  for (size_t i = 0; i < chain.size(); ++i) {
+    CameraJoint& j = chain[i];
+    const std::string at = "joints[" + std::to_string(i) + "].";
+    if (j.name.size() > 64) return InvalidFieldError(at + "name", "at most 64 characters");
+    if (!Finite(j.xyz) || j.xyz.cwiseAbs().maxCoeff() > 10.0) {
+      return InvalidFieldError(at + "xyz", "finite, each within 10 m");
+    }
+    if (!Finite(j.rpy) || j.rpy.cwiseAbs().maxCoeff() > 10.0) {
+      return InvalidFieldError(at + "rpy", "finite, each within 10 rad");
+    }
+    const int role = static_cast<int>(j.role);
+    if (j.type == CameraJoint::Type::kFixed) {
+      if (j.role != CameraJoint::Role::kNone) {
+        return InvalidFieldError(at + "role", "a fixed joint cannot drive an action dimension");
+      }
+      continue;
+    }
+    if (!Finite(j.axis) || j.axis.norm() < 1e-6) {
+      return InvalidFieldError(at + "axis", "finite and not zero");
+    }
+    j.axis.normalize();
+    if (!(std::isfinite(j.lower) && std::isfinite(j.upper) && j.lower <= j.upper &&
+          std::abs(j.lower) <= 10.0 && std::abs(j.upper) <= 10.0)) {
+      return InvalidFieldError(at + "lower", "finite limits, lower <= upper, within 10");
+    }
+    if (j.role == CameraJoint::Role::kNone) continue;
+    if ((j.role == CameraJoint::Role::kLift) != (j.type == CameraJoint::Type::kPrismatic)) {
+      return InvalidFieldError(at + "role",
+                               "the lift is a prismatic joint, the pan and tilt revolute ones");
+    }
+    if (taken[role]) return InvalidFieldError(at + "role", "another joint has this role");
+    taken[role] = true;
+    *limits[role][0] = j.lower;
+    *limits[role][1] = j.upper;
+  }
+  return OkStatus();
 }
 
 double CameraModel::TanHalfHorizontal() const { return std::tan(0.5 * horizontal_fov); }
@@ -130,19 +235,40 @@ Vec3 CameraPose::ToCamera(const Vec3& p) const {
   return Vec3(d.dot(forward), d.dot(left), d.dot(up));
 }
 
-CameraPose CameraPoseFor(const RobotPreset& robot, const RobotConfig& config) {
+CameraPose CameraPoseFor(const RobotDescription& robot, const RobotConfig& config) {
+  // The base on the floor, turned by its yaw; then each joint's origin and motion.
+  Eigen::Matrix3d r = AxisRotation(Vec3::UnitZ(), config.yaw);
+  Vec3 t(config.x, config.y, 0.0);
+  for (const CameraJoint& j : robot.chain) {
+    t += r * j.xyz;
+    if (!j.rpy.isZero()) r = r * RpyRotation(j.rpy);
+    if (j.type == CameraJoint::Type::kFixed) continue;
+    double q = 0.0;
+    switch (j.role) {
+      case CameraJoint::Role::kLift:
+        q = config.lift;
+        break;
+      case CameraJoint::Role::kPan:
+        q = config.pan;
+        break;
+      case CameraJoint::Role::kTilt:
+        q = config.tilt;
+        break;
+      case CameraJoint::Role::kNone:
+        q = std::clamp(0.0, j.lower, j.upper);
+        break;
+    }
+    if (j.type == CameraJoint::Type::kPrismatic) {
+      t += r * (q * j.axis);
+    } else {
+      r = r * AxisRotation(j.axis, q);
+    }
+  }
   CameraPose pose;
-  const double c = std::cos(config.yaw), s = std::sin(config.yaw);
-  const Vec3& off = robot.camera_offset;
-  pose.position = Vec3(config.x + c * off.x() - s * off.y(), config.y + s * off.x() + c * off.y(),
-                       off.z() + (robot.lift_moves_camera ? config.lift : 0.0));
-  const double heading = config.yaw + config.pan;
-  const double ch = std::cos(heading), sh = std::sin(heading);
-  const double ct = std::cos(config.tilt), st = std::sin(config.tilt);
-  // Positive tilt pitches the optical axis down.
-  pose.forward = Vec3(ch * ct, sh * ct, -st);
-  pose.left = Vec3(-sh, ch, 0.0);
-  pose.up = pose.forward.cross(pose.left);
+  pose.position = t;
+  pose.forward = r.col(0);
+  pose.left = r.col(1);
+  pose.up = r.col(2);
   return pose;
 }
 

@@ -257,7 +257,7 @@ bool ObjectSearchModel::IsFeasible(const State& s, const Action& a) const {
   if (a.kind == kMoveKind) {
     if (a.x.size() != 6 || !a.x.allFinite()) return false;
     const RobotConfig c = ConfigOf(a.x);
-    const RobotPreset& r = world_->robot;
+    const RobotDescription& r = world_->robot;
     if (c.lift < r.lift_min || c.lift > r.lift_max || c.pan < r.pan_min || c.pan > r.pan_max ||
         c.tilt < r.tilt_min || c.tilt > r.tilt_max) {
       return false;

@@ -66,7 +66,7 @@ Vec3 FacePoint(const Box& box, int k) {
 }
 
 bool AimAt(const World& world, const Vec3& point, Rng& rng, RobotConfig* out) {
-  const RobotPreset& r = world.robot;
+  const RobotDescription& r = world.robot;
   for (int tries = 0; tries < 64; ++tries) {
     RobotConfig c;
     if (!SampleBase(world, rng, &c.x, &c.y)) continue;

@@ -51,8 +51,9 @@ Status SearchParams::Validate() const {
   // the plan would declare it before anything was seen, an action no observation can follow.
   // Compared as the planner holds them (float): 0.599999995 passed as a double below 0.6.
   if (!(std::abs(static_cast<double>(static_cast<float>(guess_odds))) < declare_threshold)) {
-    return InvalidArgumentError("guess_odds must lie strictly between -declare_threshold and "
-                                "declare_threshold");
+    return InvalidArgumentError(
+        "guess_odds must lie strictly between -declare_threshold and "
+        "declare_threshold");
   }
   if (!(guess_size > 0.0) || !finite(guess_size))
     return InvalidArgumentError("guess_size must be > 0");
@@ -180,7 +181,7 @@ Status OccupancyMap::SetCells(const std::vector<uint8_t>& cells) {
   return OkStatus();
 }
 
-World World::Make(RobotPreset robot, SearchParams params, std::vector<Box> furniture,
+World World::Make(RobotDescription robot, SearchParams params, std::vector<Box> furniture,
                   OccupancyMap occupancy, std::vector<BaseRegion> base_regions, GridWorld grid,
                   RobotConfig start) {
   World w;
@@ -289,16 +290,30 @@ std::vector<RobotConfig> World::ManualPoses() const {
   return poses;
 }
 
-std::array<double, 3> World::ManualLifts() const {
-  return {robot.lift_min, 0.5 * (robot.lift_min + robot.lift_max), robot.lift_max};
+namespace {
+
+// The distinct values of `values`, in their order.
+std::vector<double> Distinct(std::initializer_list<double> values) {
+  std::vector<double> out;
+  for (double v : values) {
+    if (std::find(out.begin(), out.end(), v) == out.end()) out.push_back(v);
+  }
+  return out;
 }
 
-std::array<std::pair<double, double>, 9> World::ManualHeads() const {
-  const double pans[3] = {robot.pan_min, 0.5 * (robot.pan_min + robot.pan_max), robot.pan_max};
-  const double tilts[3] = {0.0, 0.5 * robot.tilt_max, robot.tilt_max};
-  std::array<std::pair<double, double>, 9> out;
-  for (int p = 0; p < 3; ++p) {
-    for (int t = 0; t < 3; ++t) out[3 * p + t] = {pans[p], tilts[t]};
+}  // namespace
+
+std::vector<double> World::ManualLifts() const {
+  return Distinct({robot.lift_min, 0.5 * (robot.lift_min + robot.lift_max), robot.lift_max});
+}
+
+std::vector<std::pair<double, double>> World::ManualHeads() const {
+  const std::vector<double> pans =
+      Distinct({robot.pan_min, 0.5 * (robot.pan_min + robot.pan_max), robot.pan_max});
+  const std::vector<double> tilts = Distinct({0.0, 0.5 * robot.tilt_max, robot.tilt_max});
+  std::vector<std::pair<double, double>> out;
+  for (double pan : pans) {
+    for (double tilt : tilts) out.emplace_back(pan, tilt);
   }
   return out;
 }
@@ -356,8 +371,12 @@ bool AnyBaseFeasible(const World& world) {
 }  // namespace
 
 StatusOr<World> BuildWorld(const PriorMap& prior) {
-  auto robot = RobotPreset::ByName(prior.robot);
-  if (!robot.ok()) return InvalidFieldError("robot", robot.status().message());
+  RobotDescription robot = prior.robot;
+  if (Status s = robot.Validate(); !s.ok()) {
+    const auto& v = s.field_violations();
+    return v.empty() ? InvalidFieldError("robot", s.message())
+                     : InvalidFieldError("robot." + v[0].field, v[0].description);
+  }
   OccupancyMap map(prior.room_min, prior.room_max, prior.map_resolution);
   std::vector<Box> furniture;
   for (const PriorMap::Furniture& f : prior.furniture) {
@@ -379,8 +398,8 @@ StatusOr<World> BuildWorld(const PriorMap& prior) {
     }
   }
   World world =
-      World::Make(*robot, prior.params, std::move(furniture), std::move(map), std::move(regions),
-                  GridWorld(prior.Workspaces(), kGridResolution), prior.start);
+      World::Make(std::move(robot), prior.params, std::move(furniture), std::move(map),
+                  std::move(regions), GridWorld(prior.Workspaces(), kGridResolution), prior.start);
   world.discrete_poses = prior.discrete_poses;
   if (Status s = world.Validate(); !s.ok()) return s;
   if (!AnyBaseFeasible(world)) {

@@ -7,6 +7,8 @@
 #include <map>
 #include <memory>
 #include <queue>
+#include <set>
+#include <tuple>
 
 #include "npfkct/object_search/discrete.h"
 #include "npfkct/object_search/model.h"
@@ -45,8 +47,8 @@ World TestWorld() {
   BaseRegion region;
   region.min = Vec2(-0.5, -0.6);
   region.max = Vec2(0.4, 0.6);
-  return World::Make(RobotPreset::Fetch(), params, {table}, map, {region}, GridWorld({top}, 0.02),
-                     RobotConfig{});
+  return World::Make(RobotDescription::Fetch(), params, {table}, map, {region},
+                     GridWorld({top}, 0.02), RobotConfig{});
 }
 
 ObjectKnowledge Object(const std::string& key, Vec3 center, Vec3 size, float odds) {
@@ -59,7 +61,7 @@ ObjectKnowledge Object(const std::string& key, Vec3 center, Vec3 size, float odd
 }
 
 TEST(GeometryTest, FrustumMatchesHandComputedLimits) {
-  const RobotPreset fetch = RobotPreset::Fetch();
+  const RobotDescription fetch = RobotDescription::Fetch();
   const CameraModel cam;
   const CameraPose pose = CameraPoseFor(fetch, RobotConfig{});
   EXPECT_TRUE(pose.position.isApprox(Vec3(0.15, 0.0, 1.08)));
@@ -85,7 +87,7 @@ TEST(GeometryTest, FrustumMatchesHandComputedLimits) {
   const CameraPose t = CameraPoseFor(fetch, turned);
   EXPECT_NEAR(std::atan2(t.forward.y(), t.forward.x()), 0.5, 1e-12);
   EXPECT_NEAR(t.position.z(), 1.48, 1e-12);
-  EXPECT_NEAR(CameraPoseFor(RobotPreset::Stretch(), turned).position.z(), 1.29, 1e-12);
+  EXPECT_NEAR(CameraPoseFor(RobotDescription::Stretch(), turned).position.z(), 1.29, 1e-12);
 }
 
 TEST(GeometryTest, BoxesBlockSegmentsThatCrossThem) {
@@ -348,6 +350,48 @@ TEST(GridWorldTest, TheOddsRuleWeighsASeenCellLessThanTheProbabilityRule) {
   EXPECT_NEAR(grid.WorkspaceMass()[1], std::exp(-2.0) / (1.0 + std::exp(-2.0)), 1e-9);
 }
 
+TEST(RobotTest, TheShippedChainsGiveThePosesOfTheirFormerClosedForm) {
+  // Before descriptions the camera stood at a fixed offset (raised by the lift on Fetch only),
+  // turned by yaw + pan and pitched down by the tilt.
+  auto closed_form = [](const Vec3& offset, bool lift_moves, const RobotConfig& c) {
+    CameraPose p;
+    const double cy = std::cos(c.yaw), sy = std::sin(c.yaw), h = c.yaw + c.pan;
+    p.position =
+        Vec3(c.x + cy * offset.x() - sy * offset.y(), c.y + sy * offset.x() + cy * offset.y(),
+             offset.z() + (lift_moves ? c.lift : 0.0));
+    p.forward =
+        Vec3(std::cos(h) * std::cos(c.tilt), std::sin(h) * std::cos(c.tilt), -std::sin(c.tilt));
+    p.left = Vec3(-std::sin(h), std::cos(h), 0.0);
+    p.up = p.forward.cross(p.left);
+    return p;
+  };
+  Rng rng(5);
+  for (int i = 0; i < 200; ++i) {
+    const RobotConfig c{rng.Uniform(-3, 3),  rng.Uniform(-3, 3),     rng.Uniform(-4, 4),
+                        rng.Uniform(0, 0.4), rng.Uniform(-0.3, 0.3), rng.Uniform(-0.5, 0.5)};
+    for (bool fetch : {true, false}) {
+      const CameraPose a =
+          CameraPoseFor(fetch ? RobotDescription::Fetch() : RobotDescription::Stretch(), c);
+      const CameraPose b = closed_form(fetch ? Vec3(0.15, 0, 1.08) : Vec3(0.05, 0, 1.29), fetch, c);
+      EXPECT_LT((a.position - b.position).norm(), 1e-12);
+      EXPECT_LT((a.forward - b.forward).norm(), 1e-12);
+      EXPECT_LT((a.left - b.left).norm(), 1e-12);
+      EXPECT_LT((a.up - b.up).norm(), 1e-12);
+    }
+  }
+  EXPECT_TRUE(RobotDescription::Fetch().has_lift());
+  EXPECT_FALSE(RobotDescription::Stretch().has_lift());  // plans in one dimension fewer
+  RobotDescription bad = RobotDescription::Fetch();
+  bad.chain.push_back(bad.chain[0]);  // a second lift
+  EXPECT_EQ(bad.Validate().field_violations()[0].field, "joints[3].role");
+  bad = RobotDescription::Fetch();
+  bad.chain[1].axis = Vec3::Zero();
+  EXPECT_EQ(bad.Validate().field_violations()[0].field, "joints[1].axis");
+  bad = RobotDescription::Fetch();
+  bad.chain.resize(RobotDescription::kMaxJoints + 1);
+  EXPECT_EQ(bad.Validate().field_violations()[0].field, "joints");
+}
+
 TEST(GridWorldTest, ViewLowersVisibleCellsOnly) {
   World w = TestWorld();
   RobotConfig c;
@@ -457,6 +501,24 @@ World FourSidedWorld() {
                     {Vec2(0.7, 0.8), Vec2(1.7, 1.4)},
                     {Vec2(0.7, -1.4), Vec2(1.7, -0.8)}};
   return w;
+}
+
+TEST(DiscreteActionSetTest, ARobotWithoutALiftHasNoLiftActions) {
+  World w = FourSidedWorld();
+  w.robot = RobotDescription::Stretch();
+  ObjectSearchModel model(std::make_shared<World>(w));
+  DiscreteObjectSearch primitive(model, DiscreteActionSet::kPrimitive);
+  DiscreteObjectSearch joint(model, DiscreteActionSet::kJoint);
+  EXPECT_EQ(w.ManualLifts(), std::vector<double>{0.0});
+  EXPECT_EQ(primitive.num_moves(), 4 + 1 + 9);
+  EXPECT_EQ(joint.num_moves(), 4 * 1 * 9);
+  std::set<std::tuple<double, double, double, double, double, double>> distinct;
+  for (int a = 0; a < joint.num_moves(); ++a) {
+    const RobotConfig c = joint.MoveTarget(a, RobotConfig{});
+    EXPECT_EQ(c.lift, 0.0);
+    distinct.insert({c.x, c.y, c.yaw, c.lift, c.pan, c.tilt});
+  }
+  EXPECT_EQ(distinct.size(), 36u);  // no configuration twice
 }
 
 TEST(DiscreteActionSetTest, PrimitiveActionsChangeOnePartAndAViewCanTakeThreeSteps) {
@@ -618,8 +680,8 @@ TEST(WorldTest, BuildWorldNamesThePartOfThePriorMap) {
   ASSERT_EQ(bad.status().field_violations().size(), 1u);
   EXPECT_EQ(bad.status().field_violations()[0].field, "start");
   prior.start.x = 0;
-  prior.robot = "roomba";
-  EXPECT_EQ(BuildWorld(prior).status().field_violations()[0].field, "robot");
+  prior.robot.footprint_radius = -1.0;
+  EXPECT_EQ(BuildWorld(prior).status().field_violations()[0].field, "robot.footprintRadius");
 }
 
 TEST(WorldTest, AGuessedTargetDeclarableBeforeItIsSeenIsRefused) {

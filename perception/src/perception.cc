@@ -461,7 +461,7 @@ Status PerceptionOptions::Validate() const {
   return OkStatus();
 }
 
-Eigen::Matrix4d CameraToMap(const object_search::RobotPreset& robot,
+Eigen::Matrix4d CameraToMap(const object_search::RobotDescription& robot,
                             const object_search::RobotConfig& config) {
   const object_search::CameraPose pose = object_search::CameraPoseFor(robot, config);
   Eigen::Matrix4d t = Eigen::Matrix4d::Identity();

@@ -83,7 +83,7 @@ TEST(Frustum, LiesAheadOfTheCameraBetweenNearAndFar) {
   }
   EXPECT_GT(area, 0.0);  // counter-clockwise
   // A point 1.1 m straight ahead is inside.
-  const Vec2 probe = 1.1 * heading + Vec2(world.robot.camera_offset.x(), 0);
+  const Vec2 probe = 1.1 * heading + Vec2(world.robot.chain.front().xyz.x(), 0);
   bool inside = true;
   for (size_t i = 0; i < hull.size(); ++i) {
     const Vec2 e = hull[(i + 1) % hull.size()] - hull[i], q = probe - hull[i];

@@ -61,8 +61,7 @@ Oracle::Oracle(const Simulator& simulator, OracleOptions options)
 const std::vector<RobotConfig>& Oracle::ViewsOf(int object) const {
   auto cached = views_.find(object);
   if (cached != views_.end()) return cached->second;
-  const object_search::RobotPreset preset =
-      object_search::RobotPreset::ByName(sim_.scenario().robot).value();
+  const object_search::RobotDescription& preset = sim_.scenario().robot;
   const Vec3 aim = sim_.objects()[object].box.center;
   std::vector<RobotConfig> views;
   const int lifts = std::max(1, options_.lifts), pans = std::max(1, options_.pans);

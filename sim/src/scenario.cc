@@ -6,6 +6,7 @@
 #include <set>
 #include <sstream>
 
+#include "npfkct/api/api.h"
 #include "npfkct/sim/json_read.h"
 
 namespace npfkct::sim {
@@ -276,9 +277,10 @@ StatusOr<Scenario> ParseScenarioJson(const json& j) {
   Scenario sc;
   NPFKCT_RETURN_IF_ERROR(ReadString(j, "name", "", &sc.name, true));
   NPFKCT_RETURN_IF_ERROR(ReadString(j, "description", "", &sc.description, false));
-  NPFKCT_RETURN_IF_ERROR(ReadString(j, "robot", "", &sc.robot, false));
-  if (Status s = object_search::RobotPreset::ByName(sc.robot).status(); !s.ok()) {
-    return Err("robot", s.message());
+  if (j.contains("robot")) {
+    auto robot = api::ParseRobot(j.at("robot").dump(), "robot");
+    if (!robot.ok()) return robot.status();
+    sc.robot = std::move(robot).value();
   }
   if (j.contains("room")) {
     const json& room = j.at("room");

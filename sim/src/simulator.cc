@@ -99,7 +99,7 @@ Color PatternColor(uint32_t seed, int face, double u, double v) {
 }
 
 Simulator::Simulator(Scenario scenario, uint64_t seed) : scenario_(std::move(scenario)) {
-  preset_ = object_search::RobotPreset::ByName(scenario_.robot).value();
+  preset_ = scenario_.robot;
   occupancy_ =
       object_search::OccupancyMap(scenario_.room_min, scenario_.room_max, scenario_.map_resolution);
   for (const Furniture& f : scenario_.furniture) occupancy_.AddBox(f.box);

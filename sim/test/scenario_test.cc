@@ -54,7 +54,7 @@ std::string Minimal() {
 TEST(ScenarioTest, MinimalScenarioDefaults) {
   auto s = ParseScenario(Minimal());
   ASSERT_TRUE(s.ok()) << s.status().ToString();
-  EXPECT_EQ(s->robot, "fetch");
+  EXPECT_EQ(s->robot.name, "fetch");
   EXPECT_NEAR(s->objects[0].box.center.z(), 0.75, 1e-12);
   EXPECT_EQ(s->params.n_odds, 6);
 }

@@ -33,7 +33,7 @@ TEST(ScenegenTest, ThousandSeedsGiveValidScenarioFiles) {
       EXPECT_LE(f.box.size.z(), 1.1 + 1e-9);
     }
     ASSERT_TRUE(InitialWorld(*s).ok()) << "seed " << seed;
-    robots.insert(s->robot);
+    robots.insert(s->robot.name);
     placements.insert(static_cast<int>(summary.placement));
     furniture.insert(summary.furniture);
     min_objects = std::min(min_objects, summary.objects);

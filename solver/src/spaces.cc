@@ -94,17 +94,25 @@ ActionVec BoxSpace::SampleInBall(const ActionVec& center, double radius, Rng& rn
                                  int max_tries) const {
   const int d = dim();
   if (d == 0) return center;
+  // A dimension of zero width (a robot without a lift) holds its one value: the ball is drawn in
+  // the others, as in a space without it.
+  int free_dims = 0;
+  for (int i = 0; i < d; ++i) free_dims += !fixed(i);
+  if (free_dims == 0) return Clamp(center);
   ActionVec x = ActionVec::Zero(d);
   for (int attempt = 0; attempt < max_tries; ++attempt) {
     // Uniform direction from a Gaussian, radius ~ r U^(1/d): uniform in the ball.
     ActionVec dir = ActionVec::Zero(d);
     double norm2 = 0.0;
     do {
-      for (int i = 0; i < d; ++i) dir[i] = rng.Normal();
+      for (int i = 0; i < d; ++i) dir[i] = fixed(i) ? 0.0 : rng.Normal();
       norm2 = dir.squaredNorm();
     } while (norm2 == 0.0);
-    const double r = radius * std::pow(rng.Uniform(), 1.0 / d);
+    const double r = radius * std::pow(rng.Uniform(), 1.0 / free_dims);
     x = center + (dir.array() * (r / std::sqrt(norm2)) * scale_.array()).matrix();
+    for (int i = 0; i < d; ++i) {
+      if (fixed(i)) x[i] = lower_[i];
+    }
     if (periodic_mask_ != 0) x = WrapPeriodic(x);
     if (Contains(x)) return x;
   }

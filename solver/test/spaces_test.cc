@@ -48,6 +48,27 @@ TEST(BoxSpaceTest, BallSamplesAreUniformInRadius) {
   EXPECT_NEAR(static_cast<double>(inner) / n, 0.5, 0.02);
 }
 
+TEST(BoxSpaceTest, AZeroWidthDimensionHoldsItsValueAndTheBallIsDrawnInTheOthers) {
+  // A robot without a lift: the middle dimension has one value. The ball is then a 2-D disc in
+  // the two others, uniform in radius, and every draw is inside the box (it was clamped from a
+  // 3-D ball after every try of it missed the zero-width slab).
+  BoxSpace box(MakeActionVec({-1, 0.25, -1}), MakeActionVec({1, 0.25, 1}));
+  EXPECT_TRUE(box.fixed(1));
+  EXPECT_FALSE(box.fixed(0));
+  Rng rng(4);
+  int inner = 0;
+  const int n = 20000;
+  for (int i = 0; i < n; ++i) {
+    ActionVec x = box.SampleInBall(MakeActionVec({0, 0.25, 0}), 1.0, rng);
+    ASSERT_EQ(x[1], 0.25);
+    ASSERT_TRUE(box.Contains(x));
+    if (std::hypot(x[0], x[2]) < 1.0 / std::sqrt(2.0)) ++inner;
+  }
+  EXPECT_NEAR(static_cast<double>(inner) / n, 0.5, 0.02);
+  BoxSpace point(MakeActionVec({1, 2}), MakeActionVec({1, 2}));
+  EXPECT_EQ(point.SampleInBall(MakeActionVec({1, 2}), 1.0, rng), MakeActionVec({1, 2}));
+}
+
 TEST(BoxSpaceTest, ValidateNamesTheProblem) {
   BoxSpace inverted(MakeActionVec({1}), MakeActionVec({0}));
   EXPECT_NE(inverted.Validate().message().find("lower[0] > upper[0]"), std::string::npos);

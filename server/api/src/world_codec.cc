@@ -7,6 +7,7 @@
 
 #include "npfkct/api/api.h"
 #include "npfkct/render/belief_picture.h"
+#include "npfkct/robot/urdf.h"
 
 namespace npfkct::api::internal {
 namespace {
@@ -111,23 +112,165 @@ json GridJson(const object_search::GridWorld& grid) {
   return g;
 }
 
-Status ReadRobot(const json& r, object_search::RobotPreset* robot) {
+// ---- robots ----
+
+using object_search::CameraJoint;
+using object_search::RobotDescription;
+
+constexpr const char* kJointTypes[] = {"fixed", "prismatic", "revolute"};
+constexpr const char* kJointRoles[] = {"none", "lift", "pan", "tilt"};
+
+// `s` (a status about a field of a robot) about the same field under `path`.
+Status UnderPath(const std::string& path, const Status& s) {
+  const auto& v = s.field_violations();
+  return v.empty() ? InvalidFieldError(path, s.message())
+                   : InvalidFieldError(Join(path, v[0].field), v[0].description);
+}
+
+// A description's joints, name, footprint and reach from a schema-checked object (or a
+// snapshot's), validated; errors name the field under `path`.
+StatusOr<RobotDescription> ReadDescription(const json& j, const std::string& path) {
+  RobotDescription r;
+  r.name = Utf8Prefix(String(j, "name", "custom"), 64);
+  r.footprint_radius = Number(j, "footprintRadius", r.footprint_radius);
+  r.reach = Number(j, "reach", r.reach);
+  const auto joints = j.find("joints");
+  if (joints == j.end() || !joints->is_array() ||
+      joints->size() > static_cast<size_t>(RobotDescription::kMaxJoints)) {
+    return InvalidFieldError(Join(path, "joints"), "an array of at most 16 joints");
+  }
+  for (size_t i = 0; i < joints->size(); ++i) {
+    const json& jj = (*joints)[i];
+    const std::string at = Join(path, At("joints", i));
+    if (!jj.is_object()) return InvalidFieldError(at, "a joint object");
+    for (const char* key : {"xyz", "rpy", "axis"}) {
+      Vec3 unused;
+      if (jj.contains(key) && !ReadVec(jj.at(key), &unused)) {
+        return InvalidFieldError(Join(at, key), "three numbers");
+      }
+    }
+    CameraJoint c;
+    c.name = Utf8Prefix(String(jj, "name"), 64);
+    const std::string type = String(jj, "type", "fixed");
+    const std::string role = String(jj, "role", "none");
+    const auto* type_at = std::find(std::begin(kJointTypes), std::end(kJointTypes), type);
+    const auto* role_at = std::find(std::begin(kJointRoles), std::end(kJointRoles), role);
+    if (type_at == std::end(kJointTypes)) {
+      return InvalidFieldError(Join(at, "type"), "fixed, prismatic or revolute");
+    }
+    if (role_at == std::end(kJointRoles)) {
+      return InvalidFieldError(Join(at, "role"), "none, lift, pan or tilt");
+    }
+    c.type = static_cast<CameraJoint::Type>(type_at - std::begin(kJointTypes));
+    c.role = static_cast<CameraJoint::Role>(role_at - std::begin(kJointRoles));
+    if (jj.contains("xyz")) ReadVec(jj.at("xyz"), &c.xyz);
+    if (jj.contains("rpy")) ReadVec(jj.at("rpy"), &c.rpy);
+    if (jj.contains("axis")) ReadVec(jj.at("axis"), &c.axis);
+    c.lower = Number(jj, "lower");
+    c.upper = Number(jj, "upper");
+    r.chain.push_back(std::move(c));
+  }
+  if (Status s = r.Validate(); !s.ok()) return UnderPath(path, s);
+  return r;
+}
+
+// The create request's robot: a shipped name, a description, or a URDF.
+StatusOr<RobotDescription> ReadRobotSpec(const json& j, const std::string& path) {
+  if (j.is_string()) {
+    auto r = RobotDescription::ByName(j.get<std::string>());
+    if (!r.ok()) return InvalidFieldError(path, "expected \"fetch\" or \"stretch\"");
+    return r;
+  }
+  if (!j.is_object()) return InvalidFieldError(path, "a name, a description or a URDF");
+  if (!j.contains("urdf")) return ReadDescription(j, path);
+  robot::UrdfSelection s;
+  s.name = Utf8Prefix(String(j, "name", "urdf"), 64);
+  s.footprint_radius = Number(j, "footprintRadius", s.footprint_radius);
+  s.reach = Number(j, "reach", s.reach);
+  s.base_link = String(j, "baseLink");
+  s.camera_link = String(j, "cameraLink");
+  s.optical_frame = j.value("opticalFrame", false);
+  s.lift_joint = String(j, "liftJoint");
+  s.pan_joint = String(j, "panJoint");
+  s.tilt_joint = String(j, "tiltJoint");
+  auto r = robot::DescriptionFromUrdf(String(j, "urdf"), s);
+  if (!r.ok()) return UnderPath(path, r.status());
+  return r;
+}
+
+// A snapshot's robot: its description, or (written before descriptions) a camera offset with
+// a lift that moves it or not, and the lift, pan and tilt limits.
+Status ReadRobot(const json& r, RobotDescription* robot) {
+  if (r.is_object() && r.contains("joints")) {
+    auto read = ReadDescription(r, "robot");
+    if (!read.ok()) return Lost("robot");
+    *robot = std::move(read).value();
+    return OkStatus();
+  }
+  RobotDescription d;
   if (!r.is_object() || !r.contains("cameraOffset") ||
-      !ReadVec(r.at("cameraOffset"), &robot->camera_offset)) {
+      !ReadVec(r.at("cameraOffset"), &d.chain.emplace_back().xyz)) {
     return Lost("robot");
   }
-  robot->name = String(r, "name", "custom").substr(0, 64);
-  robot->lift_moves_camera = Bool(r, "liftMovesCamera", true);
-  robot->lift_min = Number(r, "liftMin");
-  robot->lift_max = Number(r, "liftMax");
-  robot->pan_min = Number(r, "panMin");
-  robot->pan_max = Number(r, "panMax");
-  robot->tilt_min = Number(r, "tiltMin");
-  robot->tilt_max = Number(r, "tiltMax");
-  robot->footprint_radius = Number(r, "footprintRadius", 0.3);
-  robot->reach = Number(r, "reach", 1.0);
+  d.name = Utf8Prefix(String(r, "name", "custom"), 64);
+  CameraJoint& mount = d.chain.back();
+  mount.name = "mount";
+  if (r.value("liftMovesCamera", true)) {
+    mount.type = CameraJoint::Type::kPrismatic;
+    mount.role = CameraJoint::Role::kLift;
+    mount.lower = Number(r, "liftMin");
+    mount.upper = Number(r, "liftMax");
+  }
+  CameraJoint pan, tilt;
+  pan.name = "pan";
+  pan.type = tilt.type = CameraJoint::Type::kRevolute;
+  pan.role = CameraJoint::Role::kPan;
+  pan.lower = Number(r, "panMin");
+  pan.upper = Number(r, "panMax");
+  tilt.name = "tilt";
+  tilt.role = CameraJoint::Role::kTilt;
+  tilt.axis = Vec3::UnitY();
+  tilt.lower = Number(r, "tiltMin");
+  tilt.upper = Number(r, "tiltMax");
+  d.chain.push_back(pan);
+  d.chain.push_back(tilt);
+  d.footprint_radius = Number(r, "footprintRadius", 0.3);
+  d.reach = Number(r, "reach", 1.0);
+  if (!d.Validate().ok()) return Lost("robot");
+  *robot = std::move(d);
   return OkStatus();
 }
+
+}  // namespace
+
+json RobotDescriptionJson(const RobotDescription& r) {
+  json joints = json::array();
+  for (const CameraJoint& c : r.chain) {
+    json j = {{"name", c.name},
+              {"type", kJointTypes[static_cast<int>(c.type)]},
+              {"xyz", Vec(c.xyz)},
+              {"rpy", Vec(c.rpy)}};
+    if (c.type != CameraJoint::Type::kFixed) {
+      j["role"] = kJointRoles[static_cast<int>(c.role)];
+      j["axis"] = Vec(c.axis);
+      j["lower"] = c.lower;
+      j["upper"] = c.upper;
+    }
+    joints.push_back(std::move(j));
+  }
+  return {{"name", r.name},
+          {"footprintRadius", r.footprint_radius},
+          {"reach", r.reach},
+          {"joints", std::move(joints)}};
+}
+
+json RobotJson(const RobotDescription& r) {
+  // A shipped robot as its name, so that a spec reads as it was written.
+  if (auto shipped = RobotDescription::ByName(r.name); shipped.ok() && *shipped == r) return r.name;
+  return RobotDescriptionJson(r);
+}
+
+namespace {
 
 Status ReadFurniture(const json& furniture, const Limits& limits, World* w) {
   if (!furniture.is_array() || static_cast<int64_t>(furniture.size()) > limits.max_furniture) {
@@ -284,9 +427,10 @@ int64_t MapCells(const Vec2& lo, const Vec2& hi, double resolution) {
 
 StatusOr<WorldSpec> ReadWorldSpec(const json& j, const std::string& path, const Limits& limits) {
   WorldSpec spec;
-  spec.robot = String(j, "robot", "fetch");
-  if (!object_search::RobotPreset::ByName(spec.robot).ok()) {
-    return InvalidFieldError(Join(path, "robot"), "expected \"fetch\" or \"stretch\"");
+  if (j.contains("robot")) {
+    auto robot = ReadRobotSpec(j.at("robot"), Join(path, "robot"));
+    if (!robot.ok()) return robot.status();
+    spec.robot = std::move(robot).value();
   }
   if (j.contains("room")) {
     const json& room = j.at("room");
@@ -379,7 +523,7 @@ StatusOr<WorldSpec> ReadWorldSpec(const json& j, const std::string& path, const 
 
 json WorldSpecJson(const WorldSpec& spec) {
   json j;
-  j["robot"] = spec.robot;
+  j["robot"] = RobotJson(spec.robot);
   j["room"] = {{"min", Vec(spec.room_min)}, {"max", Vec(spec.room_max)}};
   j["mapResolution"] = spec.map_resolution;
   j["furniture"] = json::array();
@@ -416,18 +560,7 @@ json WorldSpecJson(const WorldSpec& spec) {
 
 json WorldJson(const World& w) {
   json j;
-  const auto& r = w.robot;
-  j["robot"] = {{"name", r.name},
-                {"cameraOffset", Vec(r.camera_offset)},
-                {"liftMovesCamera", r.lift_moves_camera},
-                {"liftMin", r.lift_min},
-                {"liftMax", r.lift_max},
-                {"panMin", r.pan_min},
-                {"panMax", r.pan_max},
-                {"tiltMin", r.tilt_min},
-                {"tiltMax", r.tilt_max},
-                {"footprintRadius", r.footprint_radius},
-                {"reach", r.reach}};
+  j["robot"] = RobotDescriptionJson(w.robot);
   j["camera"] = {{"horizontalFov", w.camera.horizontal_fov},
                  {"aspect", w.camera.aspect},
                  {"near", w.camera.near},
@@ -549,6 +682,20 @@ json BeliefJson(const World& w, const SessionView* session) {
 }  // namespace npfkct::api::internal
 
 namespace npfkct::api {
+
+StatusOr<object_search::RobotDescription> ParseRobot(std::string_view json_text,
+                                                     const std::string& path) {
+  if (json_text.size() > (size_t{2} << 20)) return InvalidFieldError(path, "at most 2 MiB");
+  // Wrapped in an object, which is what the bounded parser reads (the robot may be a name).
+  const std::string text = "{\"robot\": " + std::string(json_text) + "}";
+  auto j = internal::ParseBody(text, 16, 100'000, false);
+  if (!j.ok()) return InvalidFieldError(path, "not JSON");
+  return internal::ReadRobotSpec(j->at("robot"), path);
+}
+
+std::string RobotText(const object_search::RobotDescription& robot) {
+  return internal::RobotJson(robot).dump();
+}
 
 StatusOr<World> BuildWorld(const WorldSpec& spec, const Limits& limits) {
   using internal::GridCells;

@@ -17,6 +17,12 @@ StatusOr<WorldSpec> ReadWorldSpec(const json& j, const std::string& path, const 
 /// the schema has: base clearance, the grid bounds and the like are the server's own).
 json WorldSpecJson(const WorldSpec& spec);
 
+/// A robot description as the API writes it: its name, footprint, reach and joints.
+json RobotDescriptionJson(const object_search::RobotDescription& r);
+/// A robot as a world spec gives it: a shipped robot unchanged as its name, any other as
+/// RobotDescriptionJson (a URDF's robot as the joints it became).
+json RobotJson(const object_search::RobotDescription& r);
+
 /// The complete World, for snapshots (lossless for everything the planner reads).
 json WorldJson(const World& w);
 /// A World from WorldJson's output; every size is checked against `limits` before allocation.

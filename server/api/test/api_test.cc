@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <random>
@@ -13,6 +14,7 @@
 #include "npfkct/api/wire.h"
 #include "npfkct/object_search/planner_registry.h"
 #include "schema.h"
+#include "world_codec.h"
 
 namespace npfkct::api {
 namespace {
@@ -84,6 +86,127 @@ TEST(ParseCreateSession, AcceptsAScenarioWorldAndBuildsIt) {
   ASSERT_TRUE(world.ok()) << world.status().ToString();
   EXPECT_GT(world->grid.num_cells(), 0);
   EXPECT_EQ(world->objects.size(), 1u);  // the guessed target only
+}
+
+std::string ReadText(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream buffer;
+  buffer << in.rdbuf();
+  return buffer.str();
+}
+
+TEST(ParseCreateSession, ARobotIsANameADescriptionOrAUrdf) {
+  // A description: a camera on a 1.2 m mast with a pan and no tilt or lift.
+  json mast = {{"name", "mast-bot"},
+               {"footprintRadius", 0.25},
+               {"joints",
+                {{{"type", "fixed"}, {"xyz", {0.1, 0, 1.2}}},
+                 {{"name", "pan"},
+                  {"type", "revolute"},
+                  {"role", "pan"},
+                  {"axis", {0, 0, 1}},
+                  {"lower", -0.5},
+                  {"upper", 0.5}}}}};
+  json world = WorldOf("loose1");
+  world["robot"] = mast;
+  auto req = ParseCreateSession(CreateBody(world).dump(), kLimits);
+  ASSERT_TRUE(req.ok()) << req.status().ToString();
+  EXPECT_EQ(req->world.robot.name, "mast-bot");
+  EXPECT_FALSE(req->world.robot.has_lift());
+  EXPECT_EQ(req->world.robot.pan_max, 0.5);
+  EXPECT_EQ(req->world.robot.tilt_max, 0.0);
+  auto built = BuildWorld(req->world, kLimits);
+  ASSERT_TRUE(built.ok()) << built.status().ToString();
+  EXPECT_DOUBLE_EQ(CameraPoseFor(built->robot, {0, 0, 0, 0.3, 0, 0}).position.z(), 1.2);
+  // Written back as it was read (a shipped robot as its name).
+  EXPECT_EQ(ParseRobot(RobotText(req->world.robot), "robot").value(), req->world.robot);
+  EXPECT_EQ(RobotText(object_search::RobotDescription::Stretch()), "\"stretch\"");
+  // A URDF: Fetch's head chain.
+  world["robot"] = {
+      {"urdf", ReadText(std::string(NPFKCT_SOURCE_DIR) + "/robot/urdf/fetch_head.urdf")},
+      {"baseLink", "base_link"},
+      {"cameraLink", "head_camera_rgb_optical_frame"},
+      {"opticalFrame", true},
+      {"liftJoint", "torso_lift_joint"},
+      {"panJoint", "head_pan_joint"},
+      {"tiltJoint", "head_tilt_joint"}};
+  req = ParseCreateSession(CreateBody(world).dump(), kLimits);
+  ASSERT_TRUE(req.ok()) << req.status().ToString();
+  EXPECT_DOUBLE_EQ(req->world.robot.lift_max, 0.386);
+  // Errors name the field.
+  struct Case {
+    std::function<void(json*)> change;
+    std::string field;
+  };
+  const std::vector<Case> cases = {
+      {[](json* r) { (*r)["baseLink"] = "nope"; }, "world.robot.baseLink"},
+      {[](json* r) { (*r)["tiltJoint"] = "torso_lift_joint"; }, "world.robot.tiltJoint"},
+      {[](json* r) { (*r)["urdf"] = "<robot"; }, "world.robot.urdf"},
+  };
+  for (const Case& c : cases) {
+    json w = world;
+    c.change(&w["robot"]);
+    EXPECT_EQ(FieldOf(ParseCreateSession(CreateBody(w).dump(), kLimits)), c.field);
+  }
+  const std::vector<Case> description_cases = {
+      {[](json* r) { (*r)["joints"][1]["role"] = "lift"; }, "world.robot.joints[1].role"},
+      {[](json* r) {
+         (*r)["joints"][1]["axis"] = {0, 0, 0};
+       },
+       "world.robot.joints[1].axis"},
+      {[](json* r) { (*r)["joints"][1]["lower"] = 1.0; }, "world.robot.joints[1].lower"},
+      {[](json* r) { (*r)["joints"][0]["role"] = "pan"; }, "world.robot.joints[0].role"},
+      // What the schema refuses (a shape none of the three forms has) names the robot.
+      {[](json* r) { (*r)["footprintRadius"] = 0; }, "world.robot"},
+      {[](json* r) { (*r)["joints"][0]["kind"] = "x"; }, "world.robot"},
+  };
+  for (const Case& c : description_cases) {
+    json w = world;
+    w["robot"] = mast;
+    c.change(&w["robot"]);
+    EXPECT_EQ(FieldOf(ParseCreateSession(CreateBody(w).dump(), kLimits)), c.field);
+  }
+  json w = world;
+  w["robot"] = mast;
+  w["robot"]["joints"] = json::array();
+  for (int i = 0; i < 17; ++i) w["robot"]["joints"].push_back({{"type", "fixed"}});
+  EXPECT_FALSE(ParseCreateSession(CreateBody(w).dump(), kLimits).ok());
+}
+
+TEST(WorldSnapshot, KeepsTheRobotAndReadsTheFormBeforeDescriptions) {
+  auto req = ParseCreateSession(CreateBody(WorldOf("fig16")).dump(), kLimits);
+  ASSERT_TRUE(req.ok()) << req.status().ToString();
+  const World world = BuildWorld(req->world, kLimits).value();
+  json j = internal::WorldJson(world);
+  EXPECT_EQ(internal::WorldFromJson(j, kLimits).value().robot, world.robot);
+  // A snapshot written before robot descriptions: a camera offset, a lift that moves it or not.
+  for (bool lift : {true, false}) {
+    const auto robot = lift ? object_search::RobotDescription::Fetch()
+                            : object_search::RobotDescription::Stretch();
+    j["robot"] = {{"name", robot.name},
+                  {"cameraOffset", lift ? json{0.15, 0, 1.08} : json{0.05, 0, 1.29}},
+                  {"liftMovesCamera", lift},
+                  {"liftMin", 0.0},
+                  {"liftMax", lift ? 0.4 : 0.0},
+                  {"panMin", -0.2618},
+                  {"panMax", 0.2618},
+                  {"tiltMin", -0.5},
+                  {"tiltMax", 0.5},
+                  {"footprintRadius", robot.footprint_radius},
+                  {"reach", robot.reach}};
+    const auto read = internal::WorldFromJson(j, kLimits);
+    ASSERT_TRUE(read.ok()) << read.status().ToString();
+    EXPECT_EQ(read->robot.has_lift(), lift);
+    for (const object_search::RobotConfig& c :
+         {object_search::RobotConfig{1, 2, 0.3, 0.2, 0.1, -0.4},
+          object_search::RobotConfig{-1, 0.5, -2, 0.4, -0.26, 0.5}}) {
+      const auto a = CameraPoseFor(read->robot, c), b = CameraPoseFor(robot, c);
+      EXPECT_LT((a.position - b.position).norm(), 1e-12);
+      EXPECT_LT((a.forward - b.forward).norm(), 1e-12);
+    }
+  }
+  j["robot"] = {{"name", "x"}};
+  EXPECT_EQ(internal::WorldFromJson(j, kLimits).status().code(), StatusCode::kDataLoss);
 }
 
 TEST(ParseCreateSession, EachKindOfBoundIsDescribedInWordsWithItsValue) {
@@ -237,7 +360,10 @@ TEST(ParseCreateSession, DescribesViolationsInWords) {
   body["world"]["robot"] = "r2d2";
   auto r = ParseCreateSession(body.dump(), kLimits);
   ASSERT_FALSE(r.ok());
-  EXPECT_EQ(r.status().field_violations()[0].description, R"(expected one of "fetch", "stretch")");
+  EXPECT_EQ(r.status().field_violations()[0].field, "world.robot");
+  EXPECT_EQ(r.status().field_violations()[0].description,
+            R"(expected "fetch", "stretch", a robot description {joints, ...} or a URDF robot )"
+            R"({urdf, baseLink, cameraLink, ...})");
   body = CreateBody();
   body["planner"]["particles"] = "many";
   r = ParseCreateSession(body.dump(), kLimits);

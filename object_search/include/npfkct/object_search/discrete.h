@@ -42,7 +42,8 @@ class DiscreteObjectSearch {
   void Refresh();
 
   DiscreteActionSet action_set() const { return set_; }
-  /// Number of move actions (16 primitive or 108 joint with 4 poses).
+  /// Number of move actions (16 primitive or 108 joint with 4 poses and a lift, pan and tilt;
+  /// fewer for a robot without some of them).
   int num_moves() const { return num_moves_; }
   /// The manual base poses (x, y, yaw).
   const std::vector<RobotConfig>& poses() const { return poses_; }
@@ -81,6 +82,8 @@ class DiscreteObjectSearch {
   const ObjectSearchModel& model_;
   DiscreteActionSet set_;
   std::vector<RobotConfig> poses_;
+  std::vector<double> lifts_;                     // the world's manual lifts
+  std::vector<std::pair<double, double>> heads_;  // and head orientations
   int num_moves_ = 0;
 };
 

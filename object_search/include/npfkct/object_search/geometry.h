@@ -6,6 +6,7 @@
 #include <Eigen/Geometry>
 #include <array>
 #include <string>
+#include <vector>
 
 #include "npfkct/common/status.h"
 
@@ -67,27 +68,60 @@ struct RobotConfig {
   friend bool operator==(const RobotConfig&, const RobotConfig&) = default;
 };
 
-/// Kinematic preset of a mobile manipulator's head camera and joint limits.
-struct RobotPreset {
+/// One joint of the chain from a robot's base to its camera, as a URDF joint: the origin of its
+/// frame in the parent's (translation, then roll-pitch-yaw, fixed axes), and for a moving joint
+/// its axis in its own frame. A moving joint is driven by one of the planner's action dimensions
+/// (its role), or held at 0.
+struct CameraJoint {
+  enum class Type { kFixed, kPrismatic, kRevolute };
+  /// The action dimension that drives the joint (RobotConfig's lift, pan or tilt).
+  enum class Role { kNone, kLift, kPan, kTilt };
   std::string name;
-  /// Camera optical center in the base frame at lift 0, pan 0, tilt 0 (x forward, z up).
-  Vec3 camera_offset = Vec3(0.1, 0.0, 1.1);
-  /// Whether the lift raises the camera (Fetch's torso does; Stretch's lift moves only the arm).
-  bool lift_moves_camera = true;
-  double lift_min = 0.0, lift_max = 0.4;
-  double pan_min = -0.2618, pan_max = 0.2618;  // +-pi/12
-  double tilt_min = -0.5, tilt_max = 0.5;
+  Type type = Type::kFixed;
+  Role role = Role::kNone;
+  Vec3 xyz = Vec3::Zero();
+  Vec3 rpy = Vec3::Zero();
+  Vec3 axis = Vec3::UnitZ();        ///< Unit length; moving joints only.
+  double lower = 0.0, upper = 0.0;  ///< Limits of a moving joint (m or rad).
+
+  friend bool operator==(const CameraJoint&, const CameraJoint&) = default;
+};
+
+/// A mobile robot as the planner sees it: a round base on the floor (x forward, z up, at the
+/// configuration's x, y, yaw), the chain of joints from it to the camera (whose last frame is the
+/// camera's body: x along the optical axis, y left, z up), the limits of the lift, pan and tilt
+/// that drive the chain, and the manipulator's reach. A robot without a lift (or pan, tilt) has
+/// that action dimension fixed at 0: it plans in one dimension fewer.
+struct RobotDescription {
+  static constexpr int kMaxJoints = 16;
+
+  std::string name;
+  std::vector<CameraJoint> chain;
+  /// Limits of the action dimensions, those of the joints that play each role (0 and 0 when no
+  /// joint does); set by the chain's joints in Validate(), which a caller must run.
+  double lift_min = 0.0, lift_max = 0.0;
+  double pan_min = 0.0, pan_max = 0.0;
+  double tilt_min = 0.0, tilt_max = 0.0;
   /// Footprint radius used for collision checks against the occupancy map.
   double footprint_radius = 0.3;
   /// Reach of the manipulator from the base center (moveability).
   double reach = 1.0;
 
-  /// The Fetch robot (torso lift 0..0.4 m raises the head camera).
-  static RobotPreset Fetch();
-  /// The Stretch robot (camera on a fixed mast; the lift moves only the arm).
-  static RobotPreset Stretch();
-  /// "fetch" or "stretch".
-  static StatusOr<RobotPreset> ByName(const std::string& name);
+  /// The Fetch robot: torso lift 0..0.4 m raising a pan-tilt head.
+  static RobotDescription Fetch();
+  /// The Stretch robot: a pan-tilt camera on a fixed mast (its lift moves the arm, not the
+  /// camera, so it plans without a lift dimension).
+  static RobotDescription Stretch();
+  /// A shipped description by name: "fetch" or "stretch".
+  static StatusOr<RobotDescription> ByName(const std::string& name);
+  /// Checks every field (the message names the offending one: "joints[2].axis", ...): at most
+  /// kMaxJoints joints, finite values, unit-or-nonzero axes (normalised), lower <= upper, at most
+  /// one joint per role and roles only on moving joints, a positive footprint and reach; then
+  /// sets the action limits from the role joints.
+  Status Validate();
+  bool has_lift() const { return lift_max > lift_min; }
+
+  friend bool operator==(const RobotDescription&, const RobotDescription&) = default;
 };
 
 /// The camera's field of view (paper appendix J: 60 degrees horizontal, aspect 480/600, near
@@ -113,8 +147,9 @@ struct CameraPose {
   Vec3 ToCamera(const Vec3& p) const;
 };
 
-/// The head camera's pose for a robot configuration.
-CameraPose CameraPoseFor(const RobotPreset& robot, const RobotConfig& config);
+/// The camera's pose for configuration `config` (its base, and its lift, pan and tilt driving
+/// the chain's joints), by the chain's forward kinematics.
+CameraPose CameraPoseFor(const RobotDescription& robot, const RobotConfig& config);
 
 /// Whether a world point lies inside the camera frustum.
 bool InFrustum(const CameraModel& camera, const CameraPose& pose, const Vec3& p);

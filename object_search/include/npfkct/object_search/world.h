@@ -164,7 +164,7 @@ struct RealObservation {
 
 /// The robot's knowledge: everything the planner's model samples from.
 struct World {
-  RobotPreset robot = RobotPreset::Fetch();
+  RobotDescription robot = RobotDescription::Fetch();
   CameraModel camera;
   SearchParams params;
   std::vector<Box> furniture;            ///< Static occluders of the prior map.
@@ -179,7 +179,7 @@ struct World {
 
   /// A world with the given map parts, object 0 (the guessed target) only, and the robot at
   /// `start`. The grid world's sampler is built.
-  static World Make(RobotPreset robot, SearchParams params, std::vector<Box> furniture,
+  static World Make(RobotDescription robot, SearchParams params, std::vector<Box> furniture,
                     OccupancyMap occupancy, std::vector<BaseRegion> base_regions, GridWorld grid,
                     RobotConfig start);
 
@@ -199,11 +199,11 @@ struct World {
   /// The manual base poses (x, y, yaw) of the discrete baselines: discrete_poses, or each base
   /// region's center facing the nearest workspace.
   std::vector<RobotConfig> ManualPoses() const;
-  /// The manual lift heights: lowest, middle, highest.
-  std::array<double, 3> ManualLifts() const;
+  /// The manual lift heights: lowest, middle, highest (one when the robot has no lift).
+  std::vector<double> ManualLifts() const;
   /// The manual head orientations (pan, tilt): 3 pans (both limits and the middle) x 3 tilts
-  /// (level, half-way down, lowest).
-  std::array<std::pair<double, double>, 9> ManualHeads() const;
+  /// (level, half-way down, lowest), each without repeats (a robot without a pan has one).
+  std::vector<std::pair<double, double>> ManualHeads() const;
   /// Every manual pose x lift x head orientation (4 x 3 x 9 = 108 with four poses).
   std::vector<RobotConfig> ManualConfigurations() const;
 };
@@ -220,7 +220,7 @@ struct PriorMap {
     Box box;  ///< Stands on the floor: center.z = size.z / 2.
     bool workspace = false;
   };
-  std::string robot = "fetch";
+  RobotDescription robot = RobotDescription::Fetch();
   Vec2 room_min = Vec2(-3, -3);
   Vec2 room_max = Vec2(3, 3);
   double map_resolution = 0.05;

@@ -199,7 +199,7 @@ class Perception {
 
 /// The camera-to-map transform for a robot configuration (optical frame: x right, y down,
 /// z forward).
-Eigen::Matrix4d CameraToMap(const object_search::RobotPreset& robot,
+Eigen::Matrix4d CameraToMap(const object_search::RobotDescription& robot,
                             const object_search::RobotConfig& config);
 
 /// A bound on the points of the prior point-cloud map one frame can make Perception build for

@@ -57,7 +57,8 @@ struct SimNoise {
 struct Scenario {
   std::string name;
   std::string description;
-  std::string robot = "fetch";
+  /// The robot ("robot" in the file: "fetch", "stretch", a description or a URDF; api::ParseRobot).
+  object_search::RobotDescription robot = object_search::RobotDescription::Fetch();
   Vec2 room_min = Vec2(-3, -3);
   Vec2 room_max = Vec2(3, 3);
   double map_resolution = 0.05;

@@ -96,7 +96,7 @@ class Simulator {
 
  private:
   Scenario scenario_;
-  object_search::RobotPreset preset_;
+  object_search::RobotDescription preset_;
   object_search::CameraModel camera_;
   object_search::OccupancyMap occupancy_;
   RobotConfig robot_;

@@ -132,9 +132,10 @@ class Advt : public PlannerBase<Advt<M>, M, AdvtOptions> {
     ActionVec u = ActionVec::Zero(box.dim());
     double norm2 = 0.0;
     do {
-      for (int i = 0; i < u.size(); ++i) u[i] = rng.Normal();
+      for (int i = 0; i < u.size(); ++i) u[i] = box.fixed(i) ? 0.0 : rng.Normal();
       norm2 = u.squaredNorm();
-    } while (norm2 == 0.0);
+    } while (norm2 == 0.0 && box.Diameter() > 0.0);
+    if (norm2 == 0.0) return u;  // every dimension fixed: nowhere to go
     return (u.array() / std::sqrt(norm2) * box.scale().array()).matrix();
   }
 

@@ -102,7 +102,7 @@ HybridAction SampleVoronoiAround(const M& model, const typename M::State& s,
     proposal.kind = best.kind;
     proposal.x = best.x;
     for (int i = 0; i < box.dim(); ++i) {
-      proposal.x[i] += options.proposal_stddev * box.scale()[i] * rng.Normal();
+      if (!box.fixed(i)) proposal.x[i] += options.proposal_stddev * box.scale()[i] * rng.Normal();
     }
     proposal.x = box.WrapPeriodic(proposal.x);
     const bool inside =

@@ -35,6 +35,9 @@ class BoxSpace {
   BoxSpace& SetPeriodic(int i);
   /// Whether dimension `i` is periodic.
   bool periodic(int i) const { return periodic_mask_ & (1u << i); }
+  /// Whether dimension `i` has zero width (one value: e.g. the lift of a robot without one).
+  /// Samplers move only in the other dimensions.
+  bool fixed(int i) const { return !(upper_[i] > lower_[i]); }
 
   /// Checks bounds (finite, lower <= upper), scales (> 0) and the dimension limit.
   Status Validate() const;

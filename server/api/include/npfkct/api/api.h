@@ -51,6 +51,16 @@ bool IsModelName(std::string_view name);
 /// limits before anything is allocated; errors name the field under "world".
 StatusOr<World> BuildWorld(const WorldSpec& spec, const Limits& limits);
 
+/// A robot as a world spec or a scenario file gives it, from its JSON text: "fetch",
+/// "stretch", a description ({name, footprintRadius, reach, joints}) or a URDF ({urdf,
+/// baseLink, cameraLink, opticalFrame, liftJoint, panJoint, tiltJoint, ...}). Errors are
+/// INVALID_ARGUMENT naming the field under `path`. At most 2 MiB of text.
+StatusOr<object_search::RobotDescription> ParseRobot(std::string_view json_text,
+                                                     const std::string& path);
+/// The JSON text ParseRobot reads back: a shipped robot, unchanged, as its name; any other as
+/// its description (a URDF's robot as the joints it became).
+std::string RobotText(const object_search::RobotDescription& robot);
+
 // ---- replies ----
 
 /// The HTTP status of a canonical code (google.rpc.Code to HTTP mapping).

@@ -1,0 +1,131 @@
+"""Any robot through the real server: a session's robot from its URDF (robot/urdf/) or from a
+description of its camera chain; plans stay within the robot's joints, and a robot without a
+lift plans with the lift at 0. Bad robots get a 400 naming the field."""
+
+import os
+import tempfile
+
+import requests
+
+from conftest import ROOT, ServerProcess, world_of
+
+
+def urdf(name):
+    with open(os.path.join(ROOT, "robot", "urdf", name), encoding="utf-8") as f:
+        return f.read()
+
+
+FETCH = {"name": "fetch-urdf", "baseLink": "base_link",
+         "cameraLink": "head_camera_rgb_optical_frame", "opticalFrame": True,
+         "liftJoint": "torso_lift_joint", "panJoint": "head_pan_joint",
+         "tiltJoint": "head_tilt_joint"}
+STRETCH = {"name": "stretch-urdf", "baseLink": "base_link", "cameraLink": "camera_link",
+           "panJoint": "joint_head_pan", "tiltJoint": "joint_head_tilt", "footprintRadius": 0.2,
+           "reach": 0.8}
+
+
+def create(url, robot, scenario="loose1"):
+    world = world_of(scenario)
+    world["robot"] = robot
+    return requests.post(url + "/v1/sessions", json={
+        "world": world, "seed": 4, "planner": {"name": "kct", "particles": 100}}, timeout=60)
+
+
+def moves(url, sid, n):
+    """The configurations of n planned moves (each observed with nothing seen)."""
+    out = []
+    for _ in range(n):
+        r = requests.post(f"{url}/v1/sessions/{sid}:plan", json={"budget": {"simulations": 300}},
+                          timeout=60)
+        assert r.status_code == 200, r.text
+        action = r.json()["action"]
+        if action["type"] != "MOVE":
+            break
+        out.append(action["configuration"])
+        r = requests.post(f"{url}/v1/sessions/{sid}:observe",
+                          json={"actionId": r.json()["actionId"], "detections": [],
+                                "robotState": action["configuration"]}, timeout=60)
+        assert r.status_code == 200, r.text
+    return out
+
+
+def test_robots_from_their_urdfs_plan_within_their_joints():
+    server = ServerProcess("--state-dir", tempfile.mkdtemp())
+    try:
+        r = create(server.url, dict(FETCH, urdf=urdf("fetch_head.urdf")))
+        assert r.status_code == 200, r.text
+        fetch = moves(server.url, r.json()["id"], 3)
+        assert fetch, "no move planned"
+        for c in fetch:
+            assert 0.0 <= c["lift"] <= 0.386 and -1.57 <= c["pan"] <= 1.57, c
+            assert -0.76 <= c["tilt"] <= 1.45, c
+        r = create(server.url, dict(STRETCH, urdf=urdf("stretch_head.urdf")), "fig16")
+        assert r.status_code == 200, r.text
+        stretch = moves(server.url, r.json()["id"], 3)
+        assert stretch and all(c["lift"] == 0.0 for c in stretch), stretch
+        # A description of the camera chain: a fixed 1.1 m mast and a pan, no tilt, no lift.
+        mast = {"name": "mast", "joints": [
+            {"type": "fixed", "xyz": [0.1, 0, 1.1]},
+            {"name": "pan", "type": "revolute", "role": "pan", "axis": [0, 0, 1],
+             "lower": -1.0, "upper": 1.0}]}
+        r = create(server.url, mast)
+        assert r.status_code == 200, r.text
+        for c in moves(server.url, r.json()["id"], 2):
+            assert c["lift"] == 0.0 and c["tilt"] == 0.0 and -1.0 <= c["pan"] <= 1.0, c
+    finally:
+        assert server.stop() == 0
+
+
+def test_bad_robots_name_the_field():
+    server = ServerProcess("--state-dir", tempfile.mkdtemp())
+    try:
+        cases = [
+            (dict(FETCH, urdf=urdf("fetch_head.urdf"), baseLink="nope"), "world.robot.baseLink"),
+            (dict(FETCH, urdf=urdf("fetch_head.urdf"), panJoint="shoulder_pan_joint"),
+             "world.robot.panJoint"),
+            (dict(FETCH, urdf="<robot name='x'><link"), "world.robot.urdf"),
+            (dict(FETCH, urdf="<robot name='r'>" + "<link name='a'>" * 50000 + "</robot>"),
+             "world.robot.urdf"),
+            ({"joints": [{"type": "revolute", "role": "lift", "axis": [0, 0, 1]}]},
+             "world.robot.joints[0].role"),
+            ({"joints": [{"type": "prismatic", "axis": [0, 0, 0]}]}, "world.robot.joints[0].axis"),
+            ("roomba", "world.robot"),
+        ]
+        for robot, field in cases:
+            r = create(server.url, robot)
+            assert r.status_code == 400, (field, r.status_code, r.text[:300])
+            fields = [v["field"] for d in r.json()["error"]["details"]
+                      for v in d.get("fieldViolations", [])]
+            assert fields[:1] == [field], (field, r.text[:300])
+        assert requests.get(server.url + "/healthz", timeout=5).status_code == 200
+    finally:
+        assert server.stop() == 0
+
+
+def test_mutated_urdfs_get_an_answer_and_never_hurt_the_server():
+    """300 Fetch URDFs with random edits (tags cut or doubled, quotes dropped, numbers made
+    huge, NaN or negative, joints retyped): each gets a 200 or a 400, and the server lives."""
+    import random
+    rng = random.Random(7)
+    text = urdf("fetch_head.urdf")
+    edits = ["<", ">", "\"", "'", "/>", "</link>", "<link name='x'>", "nan", "1e999", "-1e308",
+             "inf", "type=\"floating\"", "type=\"planar\"", "<!--", "]]>", "&amp;", "&#0;",
+             "<joint name='j' type='revolute'><parent link='base_link'/><child link='base_link'/>"
+             "</joint>", "\u00e9", "0 0 0", "xyz=\"1 2\"", "rpy=\"a b c\""]
+    server = ServerProcess("--state-dir", tempfile.mkdtemp())
+    try:
+        for i in range(300):
+            t = text
+            for _ in range(rng.randint(1, 4)):
+                at = rng.randrange(len(t))
+                if rng.random() < 0.5:
+                    t = t[:at] + rng.choice(edits) + t[at:]
+                else:
+                    t = t[:at] + t[at + rng.randint(1, 20):]
+            r = create(server.url, dict(FETCH, urdf=t))
+            assert r.status_code in (200, 400), (i, r.status_code, r.text[:200])
+            if r.status_code == 400:
+                assert r.json()["error"]["message"].startswith("world.robot"), r.text[:200]
+        assert requests.get(server.url + "/healthz", timeout=5).status_code == 200
+    finally:
+        assert server.stop() == 0
