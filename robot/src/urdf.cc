@@ -37,25 +37,22 @@ void SetOrigin(const KDL::Frame& f, CameraJoint* j) {
   j->rpy = Vec3(roll, pitch, yaw);
 }
 
-// The camera pose of `robot` at the origin with the joints driven by `c`, and KDL's pose of the
-// same configuration along `chain` (which takes the moving joints' values in path order), each
-// as a frame.
+// Whether the camera pose of `robot` at the origin with the joints driven by `c` is KDL's pose
+// of the same configuration along `chain`, whose moving joints are the description's, in order
+// (each held where the description holds it when no action dimension drives it).
 bool SameKinematics(const RobotDescription& robot, const KDL::Chain& chain,
-                    const std::vector<const urdf::Joint*>& moving,
-                    const std::vector<CameraJoint::Role>& roles,
                     const object_search::RobotConfig& c) {
   KDL::JntArray q(chain.getNrOfJoints());
-  for (size_t i = 0; i < moving.size(); ++i) {
-    const double* value = roles[i] == CameraJoint::Role::kLift   ? &c.lift
-                          : roles[i] == CameraJoint::Role::kPan  ? &c.pan
-                          : roles[i] == CameraJoint::Role::kTilt ? &c.tilt
-                                                                 : nullptr;
-    double held = 0.0;
-    if (moving[i]->limits && moving[i]->type != urdf::Joint::CONTINUOUS) {
-      held = std::clamp(0.0, moving[i]->limits->lower, moving[i]->limits->upper);
-    }
-    q(static_cast<unsigned>(i)) = value ? *value : held;
+  unsigned k = 0;
+  for (const CameraJoint& j : robot.chain) {
+    if (j.type == CameraJoint::Type::kFixed) continue;
+    if (k >= q.rows()) return false;
+    q(k++) = j.role == CameraJoint::Role::kLift   ? c.lift
+             : j.role == CameraJoint::Role::kPan  ? c.pan
+             : j.role == CameraJoint::Role::kTilt ? c.tilt
+                                                  : std::clamp(0.0, j.lower, j.upper);
   }
+  if (k != q.rows()) return false;
   KDL::ChainFkSolverPos_recursive fk(chain);
   KDL::Frame kdl;
   if (fk.JntToCart(q, kdl) < 0) return false;
@@ -166,8 +163,6 @@ StatusOr<RobotDescription> DescriptionFromUrdf(std::string_view xml,
   }
   // Consecutive fixed joints are composed into the next joint's origin (or a last fixed one).
   KDL::Chain chain;
-  std::vector<const urdf::Joint*> moving;
-  std::vector<CameraJoint::Role> roles;
   KDL::Frame pending = KDL::Frame::Identity();
   for (const urdf::Joint* j : path) {
     const KDL::Frame origin = FrameOf(j->parent_to_joint_origin_transform);
@@ -208,8 +203,6 @@ StatusOr<RobotDescription> DescriptionFromUrdf(std::string_view xml,
       }
     }
     robot.chain.push_back(c);
-    moving.push_back(j);
-    roles.push_back(c.role);
     const KDL::Vector axis(c.axis.x(), c.axis.y(), c.axis.z());
     chain.addSegment(
         KDL::Segment(KDL::Joint(j->name, origin.p, origin.M * axis,
@@ -241,7 +234,7 @@ StatusOr<RobotDescription> DescriptionFromUrdf(std::string_view xml,
     c.lift = robot.lift_min + t * (robot.lift_max - robot.lift_min);
     c.pan = robot.pan_min + t * (robot.pan_max - robot.pan_min);
     c.tilt = robot.tilt_min + (1.0 - t) * (robot.tilt_max - robot.tilt_min);
-    if (!SameKinematics(robot, chain, moving, roles, c)) {
+    if (!SameKinematics(robot, chain, c)) {
       return InvalidFieldError("urdf", "the chain's kinematics could not be reproduced");
     }
   }

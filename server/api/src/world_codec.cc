@@ -143,13 +143,12 @@ StatusOr<RobotDescription> ReadDescription(const json& j, const std::string& pat
     const json& jj = (*joints)[i];
     const std::string at = Join(path, At("joints", i));
     if (!jj.is_object()) return InvalidFieldError(at, "a joint object");
-    for (const char* key : {"xyz", "rpy", "axis"}) {
-      Vec3 unused;
-      if (jj.contains(key) && !ReadVec(jj.at(key), &unused)) {
+    CameraJoint c;
+    for (const auto& [key, v] : {std::pair{"xyz", &c.xyz}, {"rpy", &c.rpy}, {"axis", &c.axis}}) {
+      if (jj.contains(key) && !ReadVec(jj.at(key), v)) {
         return InvalidFieldError(Join(at, key), "three numbers");
       }
     }
-    CameraJoint c;
     c.name = Utf8Prefix(String(jj, "name"), 64);
     const std::string type = String(jj, "type", "fixed");
     const std::string role = String(jj, "role", "none");
@@ -163,9 +162,6 @@ StatusOr<RobotDescription> ReadDescription(const json& j, const std::string& pat
     }
     c.type = static_cast<CameraJoint::Type>(type_at - std::begin(kJointTypes));
     c.role = static_cast<CameraJoint::Role>(role_at - std::begin(kJointRoles));
-    if (jj.contains("xyz")) ReadVec(jj.at("xyz"), &c.xyz);
-    if (jj.contains("rpy")) ReadVec(jj.at("rpy"), &c.rpy);
-    if (jj.contains("axis")) ReadVec(jj.at("axis"), &c.axis);
     c.lower = Number(jj, "lower");
     c.upper = Number(jj, "upper");
     r.chain.push_back(std::move(c));

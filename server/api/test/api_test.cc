@@ -121,6 +121,9 @@ TEST(ParseCreateSession, ARobotIsANameADescriptionOrAUrdf) {
   // Written back as it was read (a shipped robot as its name).
   EXPECT_EQ(ParseRobot(RobotText(req->world.robot), "robot").value(), req->world.robot);
   EXPECT_EQ(RobotText(object_search::RobotDescription::Stretch()), "\"stretch\"");
+  // A scenario file's robot text past its bound, or not JSON, names the field.
+  EXPECT_EQ(FieldOf(ParseRobot(std::string(3 << 20, ' '), "robot")), "robot");
+  EXPECT_EQ(FieldOf(ParseRobot("{\"joints\": [", "robot")), "robot");
   // A URDF: Fetch's head chain.
   world["robot"] = {
       {"urdf", ReadText(std::string(NPFKCT_SOURCE_DIR) + "/robot/urdf/fetch_head.urdf")},
