@@ -46,6 +46,8 @@ install(DIRECTORY common/include/npfkct solver/include/npfkct object_search/incl
                   server/api/include/npfkct
                   clients/cpp/include/npfkct
   DESTINATION ${CMAKE_INSTALL_INCLUDEDIR} FILES_MATCHING PATTERN "*.h")
+install(FILES ${CMAKE_CURRENT_BINARY_DIR}/common/include/npfkct/common/version.h
+  DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/npfkct/common)
 install(EXPORT npfkctTargets NAMESPACE npfkct:: DESTINATION ${NPFKCT_INSTALL_CMAKEDIR})
 configure_package_config_file(cmake/npfkctConfig.cmake.in
   ${CMAKE_CURRENT_BINARY_DIR}/npfkctConfig.cmake

@@ -10,7 +10,9 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <string>
 
+#include "npfkct/common/version.h"
 #include "npfkct/server/server.h"
 
 namespace {
@@ -127,6 +129,7 @@ int main(int argc, char** argv) {
   o.model_dir = DefaultModelDir();
   Flags extra;
   CLI::App app{"npfkct-server: an embeddable planning server for robot object search"};
+  app.set_version_flag("--version", std::string("npfkct-server ") + npfkct::kVersion);
   AddFlags(&app, &o, &extra);
   CLI11_PARSE(app, argc, argv);
   o.max_body_bytes = static_cast<size_t>(extra.max_body_mb * (1 << 20));

@@ -15,6 +15,7 @@
 
 #include "npfkct/api/client_codec.h"
 #include "npfkct/api/wire.h"
+#include "npfkct/common/version.h"
 #include "npfkct/sim/api_robot.h"
 
 namespace {
@@ -36,6 +37,7 @@ int main(int argc, char** argv) {
   std::string scenario_path;
   uint64_t seed = 1;
   CLI::App app{"npfkct-sim-robot: the simulated robot of a scenario, as JSON lines on stdio"};
+  app.set_version_flag("--version", std::string("npfkct-sim-robot ") + npfkct::kVersion);
   app.add_option("--scenario", scenario_path, "scenario file")->required();
   app.add_option("--seed", seed, "seed of the world and of the noise");
   bool raw = false, photos = false;

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "episode_runner.h"
+#include "npfkct/common/version.h"
 #include "npfkct/solver/advt.h"
 #include "npfkct/solver/discrete_as_hybrid.h"
 #include "npfkct/solver/kct.h"
@@ -299,6 +300,7 @@ int main(int argc, char** argv) {
   CLI::App app{
       "npfkct-bench: closed-loop benchmark runs of the npfkct planners, on the classic POMDP "
       "benchmarks (--problem) or on object-search scenarios (--scenario)"};
+  app.set_version_flag("--version", std::string("npfkct-bench ") + npfkct::kVersion);
   app.add_option("--problem", c.problem, "tiger | rocksample | lightdark | vdptag");
   app.add_option("--scenario", search.scenarios,
                  "object-search scenario file(s) (repeatable or comma-separated)")

@@ -14,8 +14,10 @@
 #include <cstdio>
 #include <numbers>
 #include <opencv2/core.hpp>
+#include <string>
 #include <vector>
 
+#include "npfkct/common/version.h"
 #include "npfkct/perception/perception.h"
 #include "npfkct/sim/frame_io.h"
 #include "npfkct/sim/simulator.h"
@@ -46,6 +48,7 @@ int main(int argc, char** argv) {
   int repeats = 1;
   double room = 0.0;
   CLI::App app{"npfkct-perception-bench: per-stage time of the perception pipeline"};
+  app.set_version_flag("--version", std::string("npfkct-perception-bench ") + npfkct::kVersion);
   app.add_option("--scenario", scenarios, "scenario names in scenarios")->delimiter(',');
   app.add_option("--repeats", repeats, "passes over the frames");
   app.add_option("--room", room,

@@ -10,6 +10,7 @@
 
 #include "npfkct/api/client_codec.h"
 #include "npfkct/client/client.h"
+#include "npfkct/common/version.h"
 #include "npfkct/sim/api_robot.h"
 #include "npfkct/sim/scenario.h"
 
@@ -104,6 +105,7 @@ int Drive(const Options& o, const npfkct::sim::Scenario& scenario, npfkct::sim::
 int main(int argc, char** argv) {
   Options o;
   CLI::App app{"npfkct-drive: plays a scenario's simulated robot against npfkct-server"};
+  app.set_version_flag("--version", std::string("npfkct-drive ") + npfkct::kVersion);
   app.add_option("--server", o.server, "server URL");
   app.add_option("--scenario", o.scenario, "scenario file")->required();
   app.add_option("--planner", o.planner, "planner of the session");

@@ -11,6 +11,7 @@
 #include "console.h"
 #include "http_front.h"
 #include "npfkct/api/api.h"
+#include "npfkct/common/version.h"
 #include "npfkct/filter/filter.h"
 #include "options.h"
 
@@ -211,7 +212,7 @@ HttpResponse ErrorResponse(const Status& s, int http_status, int retry_after) {
 HttpResponse Health(const RouteRequest&, RouteContext& ctx) {
   const StoreHealth store = ctx.registry.store_health();
   const api::HealthView h{ctx.registry.store()->backend(), store.ok, store.message,
-                          ctx.registry.size()};
+                          ctx.registry.size(), kVersion};
   HttpResponse res = Json(store.ok ? 200 : 503, api::RenderHealth(h));
   if (!store.ok) res.AddHeader("Retry-After", "1");
   return res;

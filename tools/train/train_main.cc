@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "npfkct/common/stats.h"
+#include "npfkct/common/version.h"
 #include "npfkct/filter/dataset.h"
 #include "npfkct/filter/filter.h"
 #include "npfkct/filter/train.h"
@@ -210,6 +211,7 @@ Status Bench(const std::shared_ptr<NeuralFilter>& filter, const std::string& ben
 
 int main(int argc, char** argv) {
   CLI::App app{"npfkct-train: dataset, training and evaluation of the neural process filter"};
+  app.set_version_flag("--version", std::string("npfkct-train ") + npfkct::kVersion);
   app.require_subcommand(1);
 
   GenerateOptions gen;

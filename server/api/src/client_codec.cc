@@ -473,6 +473,7 @@ StatusOr<HealthView> ParseHealthReply(std::string_view body, const Limits& limit
     }
   }
   h.sessions_held = r.Int<int>(j, "sessionsHeld", "");
+  h.version = r.String(j, "version");
   if (!r.status().ok()) return r.status();
   return h;
 }

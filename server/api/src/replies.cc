@@ -5,6 +5,7 @@
 #include "json_util.h"
 #include "npfkct/api/api.h"
 #include "npfkct/api/wire.h"
+#include "npfkct/common/version.h"
 #include "npfkct/render/belief_picture.h"
 #include "step_codec.h"
 #include "world_codec.h"
@@ -261,14 +262,17 @@ std::string RenderSteps(const std::vector<StepRecord>& steps) {
   return internal::Dump(out);
 }
 
-std::string RenderHealth() { return R"({"status":"SERVING"})"; }
+std::string RenderHealth() {
+  return internal::Dump(json{{"status", "SERVING"}, {"version", kVersion}});
+}
 
 std::string RenderHealth(const HealthView& h) {
   json store = {{"backend", h.store_backend}, {"status", h.store_ok ? "OK" : "UNAVAILABLE"}};
   if (!h.store_ok) store["message"] = h.store_message;
   json j = {{"status", h.store_ok ? "SERVING" : "NOT_SERVING"},
             {"store", store},
-            {"sessionsHeld", h.sessions_held}};
+            {"sessionsHeld", h.sessions_held},
+            {"version", kVersion}};
   return internal::Dump(j);
 }
 std::string RenderEmpty() { return "{}"; }

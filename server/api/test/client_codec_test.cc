@@ -15,6 +15,7 @@
 
 #include "npfkct/api/api.h"
 #include "npfkct/api/wire.h"
+#include "npfkct/common/version.h"
 #include "step_codec.h"
 
 namespace npfkct::api {
@@ -576,11 +577,13 @@ TEST(ParseHealthReply, ReadsBothFormsOfHealth) {
     EXPECT_EQ(back->store_ok, h.store_ok);
     EXPECT_EQ(back->store_message, h.store_message);
     EXPECT_EQ(back->sessions_held, h.sessions_held);
+    EXPECT_EQ(back->version, kVersion);
   }
   auto plain = ParseHealthReply(RenderHealth(), kLimits);
   ASSERT_TRUE(plain.ok()) << plain.status().ToString();
   EXPECT_TRUE(plain->store_ok);
   EXPECT_EQ(plain->store_backend, "memory");
+  EXPECT_EQ(plain->version, kVersion);
   // A server that says it serves while its store is unavailable contradicts itself.
   auto contradiction = ParseHealthReply(
       R"({"status": "SERVING", "store": {"backend": "memory", "status": "UNAVAILABLE"}})", kLimits);

@@ -88,10 +88,10 @@ StatusOr<std::string> RenderBeliefPng(const World& world, const SessionView* ses
                                       int64_t max_pixels = 4'000'000);
 /// GET /v1/sessions/{id}/steps: {"steps": [...]}, oldest first.
 std::string RenderSteps(const std::vector<StepRecord>& steps);
-/// {"status": "SERVING"}.
+/// {"status": "SERVING", "version"}.
 std::string RenderHealth();
 /// {"status": "SERVING" | "NOT_SERVING" (the store is unavailable), "store": {"backend",
-/// "status": "OK" | "UNAVAILABLE", "message"}, "sessionsHeld"}.
+/// "status": "OK" | "UNAVAILABLE", "message"}, "sessionsHeld", "version"}.
 std::string RenderHealth(const HealthView& health);
 /// {}.
 std::string RenderEmpty();

@@ -193,6 +193,8 @@ struct HealthView {
   std::string store_message;
   /// Sessions held in memory.
   int sessions_held = 0;
+  /// The server's release (npfkct::kVersion); empty in a reply from a server that has none.
+  std::string version;
 };
 
 /// One step of a session's history: the plan that chose the action and, once observed, what
