@@ -1171,10 +1171,13 @@ shipped `filter/model/filter.pt`.
                                os.path.join(r, "filter_bench.json"))]),
     ("Perception in the loop", """\
 Loose1 and Hidden1 with the simulator rendering each view (ray-cast 640x480 RGB-D, the robot
-reporting its pose with localization noise) and the perception pipeline making the detections,
-beside the simulator's geometric observation (`kct`, 20 trials, 1 s of CPU per step). Then the
-pipeline's time per stage on one core over the frames of the manual view set of Loose1, Hidden1
-and Complex1.
+reporting its pose with localization noise) and the perception pipeline making the detections:
+`perception` scores the objects by SIFT and colour against the target's photos, `boxes` by a
+simulated YOLO-style detector's 2D boxes sent with the depth (no image, no photos; the target
+boxed with probability 1 - noise.falseDetection, another object with that probability). Beside
+them the simulator's geometric observation (`kct`, 20 trials, 1 s of CPU per step, the same
+seeds). Then the pipeline's time per stage on one core over the frames of the manual view set
+of Loose1, Hidden1 and Complex1.
 
     bench/bench_perception.sh
     python3 bench/results_table.py flat bench/results/perception.jsonl

@@ -40,8 +40,15 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", std::string("npfkct-sim-robot ") + npfkct::kVersion);
   app.add_option("--scenario", scenario_path, "scenario file")->required();
   app.add_option("--seed", seed, "seed of the world and of the noise");
-  bool raw = false, photos = false;
+  bool raw = false, boxes = false, boxes3d = false, photos = false;
   app.add_flag("--raw", raw, "observations as rendered frames instead of geometric detections");
+  app.add_flag("--boxes", boxes,
+               "observations as rendered depth with a simulated detector's 2D boxes (imageBoxes)")
+      ->excludes("--raw");
+  app.add_flag("--boxes3d", boxes3d,
+               "observations as 3D boxes with one score each instead of per-face scores")
+      ->excludes("--raw")
+      ->excludes("--boxes");
   app.add_flag("--target-photos", photos, "print the target's photos as JSON and exit");
   CLI11_PARSE(app, argc, argv);
   auto scenario = npfkct::sim::LoadScenario(scenario_path);
@@ -64,8 +71,10 @@ int main(int argc, char** argv) {
         action.ok()    ? robot.Execute(*action)
         : IsLook(line) ? robot.Look()
                        : robot.Refuse("malformed action (" + action.status().message() + ")");
-    const api::ObserveRequest observation =
-        raw ? robot.ObserveRaw(!outcome.illegal) : robot.Observe(!outcome.illegal);
+    const api::ObserveRequest observation = raw       ? robot.ObserveRaw(!outcome.illegal)
+                                             : boxes   ? robot.ObserveBoxes(!outcome.illegal)
+                                             : boxes3d ? robot.ObserveBoxes3d(!outcome.illegal)
+                                                       : robot.Observe(!outcome.illegal);
     const npfkct::StatusOr<std::string> body = api::EncodeObserve(observation);
     if (!body.ok()) {
       std::cerr << "npfkct-sim-robot: " << body.status().ToString() << "\n";

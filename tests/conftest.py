@@ -108,9 +108,11 @@ def kill_servers_a_test_left():
 class SimRobot:
     """npfkct-sim-robot: executes API actions and returns :observe bodies."""
 
-    def __init__(self, scenario, seed=1, raw=False):
+    def __init__(self, scenario, seed=1, raw=False, boxes=False, boxes3d=False):
         args = [ROBOT_BIN, "--scenario", scenario_path(scenario), "--seed", str(seed)]
-        self.proc = subprocess.Popen(args + (["--raw"] if raw else []),
+        mode = [flag for flag, on in (("--raw", raw), ("--boxes", boxes), ("--boxes3d", boxes3d))
+                if on]
+        self.proc = subprocess.Popen(args + mode,
                                      stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
         self.photos_args = args + ["--target-photos"]
 

@@ -4,6 +4,7 @@ import base64
 import json
 import os
 import shutil
+import struct
 import subprocess
 import sys
 
@@ -11,7 +12,7 @@ import pytest
 
 from conftest import ROOT, SCENARIOS, SimRobot, world_of
 
-from npfkct_client import (ApiError, Box, Detection, Face, NpfkctClient, PointCloud,
+from npfkct_client import (ApiError, Box, Detection, Face, ImageBox, NpfkctClient, PointCloud,
                            RobotConfig)
 
 
@@ -81,6 +82,100 @@ def test_raw_frames_through_the_typed_client(server):
     finally:
         robot.close()
         client.delete_session(session.id)
+
+
+def test_a_detectors_boxes_through_the_typed_client(server):
+    """The robot's own detector: depth as a PointCloud and 2D boxes of the target as ImageBoxes,
+    no photos and no image. The episode ends with the target removed, and the reply says which
+    object each box went to."""
+    client = NpfkctClient(server.url)
+    robot = SimRobot("hidden1", seed=5, boxes=True)
+    session = client.create_session(world_of("hidden1"), seed=5)
+    boxed = set()
+    try:
+        for _ in range(30):
+            plan = client.plan(session.id, time_ms=250)
+            reply = robot.execute(plan.action.to_json())
+            o = reply["observation"]
+            if "pointCloud" not in o:  # the camera saw nothing in range
+                observed = client.observe(session.id, plan.action_id, body=o)
+            else:
+                assert "image" not in o
+                boxes = [ImageBox.from_xyxy(b["x"], b["y"], b["x"] + b["width"],
+                                            b["y"] + b["height"], b["score"])
+                         for b in o["imageBoxes"]]
+                observed = client.observe(
+                    session.id, plan.action_id, succeeded=o["succeeded"],
+                    robot_state=RobotConfig.from_json(o["robotState"]),
+                    point_cloud=PointCloud(base64.b64decode(o["pointCloud"]["data"]), "xyzrgb"),
+                    camera=o["camera"], image_boxes=boxes)
+                given = observed.perception.get("boxObjects", [])
+                assert len(given) == len(boxes)
+                boxed |= {i for i in given if i is not None}
+            assert observed.done == reply["outcome"]["terminal"]
+            if observed.done:
+                break
+        assert observed.done, "the target was not removed within 30 steps"
+        assert boxed and all(i.startswith("obj-") for i in boxed)
+    finally:
+        robot.close()
+        client.delete_session(session.id)
+
+
+def test_3d_boxes_with_one_score_each(server):
+    """A 3D box detector's output: each object's box with one score, typed as Detection(score=);
+    the server gives the score to the faces the camera sees and the episode ends."""
+    client = NpfkctClient(server.url)
+    robot = SimRobot("covered1", seed=2, boxes3d=True)
+    session = client.create_session(world_of("covered1"), seed=2)
+    try:
+        for _ in range(40):
+            plan = client.plan(session.id, time_ms=250)
+            reply = robot.execute(plan.action.to_json())
+            o = reply["observation"]
+            detections = [Detection(d["id"], Box(d["box"]["center"], d["box"]["size"]),
+                                    moveability=d["moveability"], score=d.get("score"))
+                          for d in o["detections"]]
+            assert all("faces" not in d for d in o["detections"])
+            observed = client.observe(session.id, plan.action_id, succeeded=o["succeeded"],
+                                      robot_state=RobotConfig.from_json(o["robotState"]),
+                                      detections=detections)
+            assert observed.done == reply["outcome"]["terminal"]
+            if observed.done:
+                break
+        assert observed.done, "the target was not removed within 40 steps"
+    finally:
+        robot.close()
+        client.delete_session(session.id)
+
+
+def test_one_score_and_face_scores_together_are_refused(server):
+    client = NpfkctClient(server.url)
+    session = client.create_session(world_of("loose1"), seed=1)
+    plan = client.plan(session.id, simulations=50)
+    assert plan.action.type == "MOVE"
+    box = {"center": [1.9, -0.2, 0.83], "size": [0.1, 0.1, 0.1]}
+    cases = [({"id": "b", "box": box, "score": 0.9, "faces": [{"corner": 0, "score": 0.9}]},
+              "detections[0].faces"),
+             ({"id": "b", "box": box, "score": 2}, "detections[0].score")]
+    for detection, field in cases:
+        with pytest.raises(ApiError) as e:
+            client.observe(session.id, plan.action_id,
+                           body={"robotState": plan.action.configuration.to_json(),
+                                 "detections": [detection]})
+        assert e.value.http_status == 400 and e.value.field == field, e.value.message
+    client.delete_session(session.id)
+
+
+def test_depth_images_and_detector_boxes_pack():
+    camera = {"fx": 2.0, "fy": 4.0, "cx": 1.0, "cy": 1.0}
+    cloud = PointCloud.from_depth([[2.0, 0.0], [float("nan"), 1.0]], camera)
+    assert cloud.fields == "xyz" and cloud.frame == "camera" and len(cloud.data) == 24
+    assert struct.unpack("<6f", cloud.data) == pytest.approx(
+        ((0.5 - 1.0) / 2.0 * 2.0, (0.5 - 1.0) / 4.0 * 2.0, 2.0,
+         (1.5 - 1.0) / 2.0, (1.5 - 1.0) / 4.0, 1.0))
+    box = ImageBox.from_xyxy(10, 20, 110, 70, 0.9)
+    assert box.to_json() == {"x": 10.0, "y": 20.0, "width": 100.0, "height": 50.0, "score": 0.9}
 
 
 def test_point_cloud_packing():

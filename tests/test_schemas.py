@@ -49,8 +49,9 @@ def test_examples_validate():
     assert len(examples) >= 14
     for name in examples:
         message = name[: -len(".json")]
-        if message.endswith("_raw"):  # the raw-sensor-data variant of a message
-            message = message[: -len("_raw")]
+        for variant in ("_raw", "_boxes"):  # raw sensor data, and with a detector's boxes
+            if message.endswith(variant):
+                message = message[: -len(variant)]
         with open(os.path.join(SCHEMAS, "examples", name), encoding="utf-8") as f:
             validator(message).validate(json.load(f))
 

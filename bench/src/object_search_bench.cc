@@ -38,6 +38,7 @@ struct TrialContext {
   std::string render_prefix;  // empty: no pictures
   bool trace = false;         // each step on stderr
   bool perception = false;    // observe through rendered frames and the perception pipeline
+  bool boxes = false;         // with the robot's detector's boxes in place of the image
   std::shared_ptr<const filter::NeuralFilter> filter;  // Net_sam of the npfkct planner
   object_search::SearchRollout rollout = object_search::SearchRollout::kAimed;
   std::optional<double> plan_r_co;  // R_co of the planning model (the simulator pays the real one)
@@ -73,12 +74,18 @@ StatusOr<std::unique_ptr<object_search::SearchPlanner>> MakePlanner(
 
 // The robot's eyes in perception mode: renders the view, reports a noisy pose, and turns the
 // frame into detections with the perception pipeline, as the server does for raw :observe data.
+// With `boxes`, the robot's own detector instead: the depth and a simulated YOLO-style
+// detector's boxes of the target (no photos, no image).
 class PerceivingRobot {
  public:
-  PerceivingRobot(const sim::Simulator& simulator, const World& world)
+  PerceivingRobot(const sim::Simulator& simulator, const World& world, bool boxes)
       : simulator_(simulator),
-        perception_(world, {sim::ObjectPhotos(simulator.objects()[simulator.target_index()])}, {}) {
-  }
+        boxes_(boxes),
+        perception_(world,
+                    boxes ? perception::TargetModel{}
+                          : perception::TargetModel{{sim::ObjectPhotos(
+                                simulator.objects()[simulator.target_index()])}},
+                    {}) {}
 
   StatusOr<object_search::RealObservation> Observe(Rng& rng) {
     const sim::Frame f = simulator_.Render(640, 480);
@@ -94,7 +101,11 @@ class PerceivingRobot {
       obs.achieved = reported;
       return obs;
     }
-    frame.image = sim::FrameBgr(f);
+    if (boxes_) {
+      frame.image_boxes = sim::DetectorBoxes(simulator_, f, rng);
+    } else {
+      frame.image = sim::FrameBgr(f);
+    }
     frame.intrinsics = {f.width, f.height, f.fx, f.fy, f.cx, f.cy};
     frame.reported = reported;
     auto result = perception_.Process(frame);
@@ -108,6 +119,7 @@ class PerceivingRobot {
 
  private:
   const sim::Simulator& simulator_;
+  bool boxes_;
   perception::Perception perception_;
   std::vector<double> frame_ms_;
 };
@@ -227,7 +239,7 @@ EpisodeResult RunTrial(const TrialContext& ctx) {
   world.grid.SetSampling(ctx.grid_sampling);
   Rng rng(ctx.seed * 7919 + 1), world_rng(ctx.seed * 104729 + 3), sensor_rng(ctx.seed * 31 + 5);
   std::unique_ptr<PerceivingRobot> eyes;
-  if (ctx.perception) eyes = std::make_unique<PerceivingRobot>(simulator, world);
+  if (ctx.perception) eyes = std::make_unique<PerceivingRobot>(simulator, world, ctx.boxes);
   auto observe = [&]() -> StatusOr<object_search::RealObservation> {
     if (eyes) return eyes->Observe(sensor_rng);
     return simulator.Observe(world_rng);
@@ -408,12 +420,12 @@ bool LoadFilter(const SearchBenchConfig& config, BenchSetup* setup) {
 bool CheckModesAndRollout(const SearchBenchConfig& config, BenchSetup* setup) {
   const object_search::PlannerRegistry& registry = setup->registry;
   for (const std::string& mode : config.observe) {
-    if (mode != "geometric" && mode != "perception") {
-      std::cerr << "npfkct-bench: --observe: expected geometric or perception, got '" << mode
+    if (mode != "geometric" && mode != "perception" && mode != "boxes") {
+      std::cerr << "npfkct-bench: --observe: expected geometric, perception or boxes, got '" << mode
                 << "'\n";
       return false;
     }
-    if (mode == "perception" &&
+    if (mode != "geometric" &&
         std::any_of(setup->planners.begin(), setup->planners.end(),
                     [&](const std::string& p) { return registry.Find(p)->needs_truth; })) {
       std::cerr << "npfkct-bench: the oracle observes geometrically only\n";
@@ -553,7 +565,8 @@ std::vector<EpisodeResult> RunAllTrials(const SearchBenchConfig& config, const B
                          config.seed * 1000003ULL + static_cast<uint64_t>(trial),
                          render_prefix,
                          config.trace,
-                         mode == "perception",
+                         mode != "geometric",
+                         mode == "boxes",
                          setup.net,
                          setup.rollout,
                          config.plan_r_co,

@@ -34,7 +34,9 @@ struct SearchBenchConfig {
   std::string filter_model;
   /// Observation modes compared: "geometric" (the simulator's visibility shortcut) and/or
   /// "perception" (rendered 640x480 RGB-D frames, a noisy reported pose, and the perception
-  /// pipeline: registration, segmentation, association, SIFT target detection).
+  /// pipeline: registration, segmentation, association, SIFT target detection) and/or "boxes"
+  /// (the same frames' depth with a simulated YOLO-style detector's 2D boxes of the target
+  /// through the same pipeline, in place of the image and SIFT).
   std::vector<std::string> observe = {"geometric"};
   /// The model's rollout policy for every planner: "aimed" (the default), "greedy" or "random"
   /// (object_search::SearchRollout).

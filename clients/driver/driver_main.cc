@@ -31,6 +31,8 @@ struct Options {
   bool keep = false;
   bool quiet = false;
   bool raw = false;
+  bool boxes = false;
+  bool boxes3d = false;
   double timeout_s = 120;
 };
 
@@ -78,8 +80,10 @@ int Drive(const Options& o, const npfkct::sim::Scenario& scenario, npfkct::sim::
     discounted += discount * outcome.reward;
     discount *= scenario.params.discount;
     ++steps;
-    api::ObserveRequest observation =
-        o.raw ? robot.ObserveRaw(!outcome.illegal) : robot.Observe(!outcome.illegal);
+    api::ObserveRequest observation = o.raw       ? robot.ObserveRaw(!outcome.illegal)
+                                      : o.boxes   ? robot.ObserveBoxes(!outcome.illegal)
+                                      : o.boxes3d ? robot.ObserveBoxes3d(!outcome.illegal)
+                                                  : robot.Observe(!outcome.illegal);
     observation.action_id = plan->action_id;
     auto observed = client.Observe(id, observation);
     if (!observed.ok()) return Fail("observing", observed.status());
@@ -131,6 +135,15 @@ int main(int argc, char** argv) {
   app.add_flag("--raw", o.raw,
                "send rendered RGB-D frames (point cloud + PNG) for the server's perception instead "
                "of the simulator's geometric detections");
+  app.add_flag("--boxes", o.boxes,
+               "send rendered depth with a simulated YOLO-style detector's 2D boxes of the target "
+               "(imageBoxes) instead of the simulator's geometric detections")
+      ->excludes("--raw");
+  app.add_flag("--boxes3d", o.boxes3d,
+               "send the simulator's detections as 3D boxes with one score each (a 3D box "
+               "detector's) instead of per-face scores")
+      ->excludes("--raw")
+      ->excludes("--boxes");
   CLI11_PARSE(app, argc, argv);
 
   auto scenario = npfkct::sim::LoadScenario(o.scenario);

@@ -1,6 +1,7 @@
 #include "npfkct/object_search/world.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <random>
@@ -440,6 +441,25 @@ Status ApplyDiscreteOutcome(World* world, int object, int kind_offset, bool succ
   return OkStatus();
 }
 
+std::vector<int> SeenCorners(const Box& box, const CameraModel& camera, const CameraPose& pose,
+                             const std::vector<Box>& occluders) {
+  const auto corners = box.Corners();
+  std::array<std::pair<double, int>, 8> by_distance;
+  for (int k = 0; k < 8; ++k) by_distance[k] = {(corners[k] - pose.position).squaredNorm(), k};
+  std::partial_sort(by_distance.begin(), by_distance.begin() + 4, by_distance.end());
+  std::vector<int> out;
+  for (int n = 0; n < 4; ++n) {
+    const int k = by_distance[n].second;
+    const Vec3 p = corners[k] + 0.05 * (box.center - corners[k]);
+    if (!InFrustum(camera, pose, p)) continue;
+    const bool hidden = std::any_of(occluders.begin(), occluders.end(), [&](const Box& b) {
+      return b.BlocksSegment(pose.position, p);
+    });
+    if (!hidden) out.push_back(k);
+  }
+  return out;
+}
+
 Status ApplyRealObservation(World* world, const RealObservation& observation) {
   const SearchParams& p = world->params;
   const RobotConfig& c = observation.achieved;
@@ -454,6 +474,14 @@ Status ApplyRealObservation(World* world, const RealObservation& observation) {
     if (Status s = CheckBox(d.box, field); !s.ok()) return s;
     if (!(d.moveability >= 0.0 && d.moveability <= 1.0)) {
       return InvalidArgumentError(field + ".moveability: must be in [0, 1]");
+    }
+    if (!std::isnan(d.score)) {
+      if (!(d.score >= 0.0 && d.score <= 1.0)) {
+        return InvalidArgumentError(field + ".score: must be in [0, 1]");
+      }
+      if (!d.faces.empty()) {
+        return InvalidArgumentError(field + ".score: give per-face scores or one score, not both");
+      }
     }
     for (size_t k = 0; k < d.faces.size(); ++k) {
       const FaceDetection& f = d.faces[k];
@@ -473,7 +501,19 @@ Status ApplyRealObservation(World* world, const RealObservation& observation) {
   // Everything is valid: apply.
   world->robot_config = c;
   world->robot_config.yaw = WrapAngle(c.yaw);
-  for (const ObjectDetection& d : observation.objects) {
+  const CameraPose pose = CameraPoseFor(world->robot, world->robot_config);
+  for (size_t i = 0; i < observation.objects.size(); ++i) {
+    const ObjectDetection& d = observation.objects[i];
+    std::vector<FaceDetection> whole;  // a score for the whole object: the faces seen get it
+    if (!std::isnan(d.score)) {
+      std::vector<Box> occluders = world->furniture;
+      for (size_t j = 0; j < observation.objects.size(); ++j) {
+        if (j != i) occluders.push_back(observation.objects[j].box);
+      }
+      for (int k : SeenCorners(d.box, world->camera, pose, occluders)) {
+        whole.push_back({k, d.score});
+      }
+    }
     int index = world->FindObject(d.key);
     if (index < 0) {
       ObjectKnowledge o;
@@ -484,7 +524,7 @@ Status ApplyRealObservation(World* world, const RealObservation& observation) {
     ObjectKnowledge& o = world->objects[index];
     o.box = d.box;
     o.moveability = d.moveability;
-    for (const FaceDetection& f : d.faces) {
+    for (const FaceDetection& f : whole.empty() ? d.faces : whole) {
       const double q = std::clamp(f.score, 1e-6, 1.0 - 1e-6);
       const double step =
           std::clamp(std::log(q / (1.0 - q)), -p.detection_max_step, p.detection_max_step);
@@ -492,7 +532,6 @@ Status ApplyRealObservation(World* world, const RealObservation& observation) {
           std::clamp(o.odds[f.corner] + step, -p.face_odds_limit, p.face_odds_limit));
     }
   }
-  const CameraPose pose = CameraPoseFor(world->robot, world->robot_config);
   world->grid.UpdateFromView(world->camera, pose, world->Occluders(), 0.5 * p.guess_size,
                              static_cast<float>(p.grid_free_delta), static_cast<float>(p.grid_min),
                              static_cast<float>(p.grid_max));

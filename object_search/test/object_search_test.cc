@@ -468,6 +468,48 @@ TEST(WorldTest, RealObservationAppendsObjectsAndUpdatesOdds) {
   EXPECT_NE(ApplyRealObservation(&w, bad).message().find("robot state"), std::string::npos);
 }
 
+// A 3D box detector's one score per box: the faces the camera sees get it, hidden ones do not.
+TEST(WorldTest, AWholeBoxScoreGoesToTheFacesTheCameraSees) {
+  World w = TestWorld();
+  RealObservation obs;
+  obs.achieved.tilt = 0.4;
+  ObjectDetection d;
+  d.key = "box-1";
+  d.box.center = Vec3(1.1, 0.1, 0.8);
+  d.box.size = Vec3(0.1, 0.1, 0.1);
+  d.score = 0.8;
+  obs.objects.push_back(d);
+  const CameraPose pose = CameraPoseFor(w.robot, obs.achieved);
+  const std::vector<int> seen = SeenCorners(d.box, w.camera, pose, w.furniture);
+  ASSERT_FALSE(seen.empty());
+  ASSERT_TRUE(ApplyRealObservation(&w, obs).ok());
+  ASSERT_EQ(w.objects.size(), 2u);
+  for (int k = 0; k < 8; ++k) {
+    const bool got = std::find(seen.begin(), seen.end(), k) != seen.end();
+    EXPECT_NEAR(w.objects[1].odds[k], got ? std::log(4.0) : 0.0, 1e-6) << "corner " << k;
+  }
+  // A box detected in front of it hides it: no face of it gets the score.
+  World hidden = TestWorld();
+  RealObservation behind = obs;
+  ObjectDetection wall;
+  wall.key = "wall";
+  wall.box.center = Vec3(0.8, 0.1, 0.8);
+  wall.box.size = Vec3(0.05, 1.0, 1.0);
+  wall.score = 0.1;
+  behind.objects.push_back(wall);
+  ASSERT_TRUE(ApplyRealObservation(&hidden, behind).ok());
+  const int box = hidden.FindObject("box-1");
+  ASSERT_GE(box, 0);
+  for (int k = 0; k < 8; ++k) EXPECT_EQ(hidden.objects[box].odds[k], 0.0f) << "corner " << k;
+  // One score and per-face scores together, or a score beyond [0, 1], name the field.
+  RealObservation bad = obs;
+  bad.objects[0].faces = {{0, 0.8}};
+  EXPECT_NE(ApplyRealObservation(&w, bad).message().find("objects[0].score"), std::string::npos);
+  bad = obs;
+  bad.objects[0].score = 1.5;
+  EXPECT_NE(ApplyRealObservation(&w, bad).message().find("objects[0].score"), std::string::npos);
+}
+
 TEST(ObjectSearchModelTest, PlannersDeclareAndRemoveAConfirmedTarget) {
   World w = TestWorld();
   w.objects.push_back(Object("t", Vec3(1.0, 0.2, 0.8), Vec3(0.1, 0.1, 0.1), 2.0f));

@@ -455,8 +455,12 @@ Status PerceptionOptions::Validate() const {
       min_features < 1 || min_inliers < 4 || max_clusters < 1 || max_track_points < 1 ||
       max_total_track_points < 1 || max_ransac_points < 1 || max_ransac_map_points < 1 ||
       max_map_points < 1 || max_ransac_pairs < 1 || max_icp_points < 1 || max_features < 1 ||
-      max_sift_pixels < 16 || max_sift_frame_pixels < 0 || max_sift_pairs < 0) {
+      max_sift_pixels < 16 || max_sift_frame_pixels < 0 || max_sift_pairs < 0 ||
+      max_image_boxes < 0) {
     return InvalidArgumentError("perception options: bad counts");
+  }
+  if (!(unboxed_score >= 0.0 && unboxed_score <= 1.0)) {
+    return InvalidArgumentError("perception options: unboxed_score must be in [0, 1]");
   }
   return OkStatus();
 }
@@ -596,22 +600,34 @@ struct Perception::Impl {
 
   // Stage 4, detection: takes the clusters and their tracks, gives one detection per cluster
   // (target score, visible faces, moveability). `perception` scores the image regions.
+  // With the robot's detector's boxes, *box_objects gets the track id each box was given to.
   std::vector<object_search::ObjectDetection> Detect(const Perception& perception,
                                                      const SensorFrame& frame,
                                                      const Eigen::Matrix4d& camera_to_map,
                                                      const Segments& segments,
-                                                     const std::vector<int>& track_of) const;
+                                                     const std::vector<int>& track_of,
+                                                     std::vector<std::string>* box_objects) const;
   // Takes one cluster, gives the probability that it is the target (the frame's SIFT budgets
   // spent from *sift_pixels and *sift_pairs).
   double ClusterScore(const Perception& perception, const SensorFrame& frame,
                       const Eigen::Matrix4d& map_to_camera, const CloudXYZ& objects,
                       const pcl::PointIndices& cluster, int64_t* sift_pixels,
                       int64_t* sift_pairs) const;
-  // Takes one cluster, gives the masked sub-image it covers in *region and *mask; false when
-  // that is less than 4 x 4 pixels.
+  // Takes one cluster, gives the pixels its points cover: their bounding rectangle in the image
+  // (*rect) and a mask of that size; false when that is less than 4 x 4 pixels.
+  bool ClusterMask(const CameraIntrinsics& in, const Eigen::Matrix4d& map_to_camera,
+                   const CloudXYZ& objects, const pcl::PointIndices& cluster, cv::Rect* rect,
+                   cv::Mat* mask) const;
+  // Takes one cluster, gives the masked sub-image it covers in *region and *mask (scaled down
+  // to options.max_sift_pixels); false when that is less than 4 x 4 pixels.
   bool ClusterRegion(const SensorFrame& frame, const Eigen::Matrix4d& map_to_camera,
                      const CloudXYZ& objects, const pcl::PointIndices& cluster, cv::Mat* region,
                      cv::Mat* mask) const;
+  // Takes the clusters and the robot's detector's boxes, gives each cluster's probability of
+  // being the target (0.5 when it covers too few pixels to say) and, per box, the index of the
+  // cluster it was given to (-1 for none).
+  std::vector<double> BoxScores(const SensorFrame& frame, const Eigen::Matrix4d& map_to_camera,
+                                const Segments& segments, std::vector<int>* box_cluster) const;
   // Takes an object's box, gives its moveability.
   double Moveability(const Box& box) const;
 };
@@ -987,6 +1003,43 @@ Status CheckOpticalFrame(const Cloud& cloud, const CameraIntrinsics& in) {
 
 // Takes the frame, gives an error unless every check above passes and the image, when given,
 // is 3-channel of the camera's size.
+// The detector's boxes: at most max_image_boxes, each finite, of positive size, inside the image,
+// with a score in [0, 1]; errors name "imageBoxes[i].field".
+Status CheckImageBoxes(const std::vector<ImageBox>& boxes, const CameraIntrinsics& in,
+                       const PerceptionOptions& o) {
+  if (boxes.size() > static_cast<size_t>(o.max_image_boxes)) {
+    return InvalidFieldError("imageBoxes", std::to_string(boxes.size()) + " boxes; at most " +
+                                               std::to_string(o.max_image_boxes));
+  }
+  for (size_t i = 0; i < boxes.size(); ++i) {
+    const ImageBox& b = boxes[i];
+    const std::string at = "imageBoxes[" + std::to_string(i) + "].";
+    const std::pair<const char*, double> fields[] = {
+        {"x", b.x}, {"y", b.y}, {"width", b.width}, {"height", b.height}, {"score", b.score}};
+    for (const auto& [name, v] : fields) {
+      if (!std::isfinite(v)) return InvalidFieldError(at + name, "must be a finite number");
+    }
+    if (!(b.score >= 0.0 && b.score <= 1.0)) {
+      return InvalidFieldError(at + "score", "must be in [0, 1]");
+    }
+    if (!(b.width > 0.0)) return InvalidFieldError(at + "width", "must be > 0");
+    if (!(b.height > 0.0)) return InvalidFieldError(at + "height", "must be > 0");
+    if (b.x < 0.0 || b.x + b.width > in.width) {
+      return InvalidFieldError(at + "x", "the box spans x in [" + std::to_string(b.x) + ", " +
+                                             std::to_string(b.x + b.width) +
+                                             "]; the image is " + std::to_string(in.width) +
+                                             " pixels wide");
+    }
+    if (b.y < 0.0 || b.y + b.height > in.height) {
+      return InvalidFieldError(at + "y", "the box spans y in [" + std::to_string(b.y) + ", " +
+                                             std::to_string(b.y + b.height) +
+                                             "]; the image is " + std::to_string(in.height) +
+                                             " pixels high");
+    }
+  }
+  return OkStatus();
+}
+
 Status CheckFrame(const SensorFrame& frame, const PerceptionOptions& o) {
   if (Status s = frame.intrinsics.Validate(); !s.ok()) return s;
   if (Status s = CheckCloud(frame.cloud, o); !s.ok()) return s;
@@ -1002,6 +1055,7 @@ Status CheckFrame(const SensorFrame& frame, const PerceptionOptions& o) {
                                                std::to_string(frame.intrinsics.width) + "x" +
                                                std::to_string(frame.intrinsics.height));
   }
+  if (frame.image_boxes) return CheckImageBoxes(*frame.image_boxes, frame.intrinsics, o);
   return OkStatus();
 }
 
@@ -1354,11 +1408,19 @@ int Perception::Impl::MatchingTrack(const CloudXYZ& cluster, const std::vector<b
 
 std::vector<object_search::ObjectDetection> Perception::Impl::Detect(
     const Perception& perception, const SensorFrame& frame, const Eigen::Matrix4d& camera_to_map,
-    const Segments& segments, const std::vector<int>& track_of) const {
+    const Segments& segments, const std::vector<int>& track_of,
+    std::vector<std::string>* box_objects) const {
   const Eigen::Matrix4d map_to_camera = camera_to_map.inverse();
   const Vec3 camera_position = camera_to_map.block<3, 1>(0, 3);
   std::vector<Box> boxes;
   for (int t : track_of) boxes.push_back(tracks[t].box);
+  // The robot's own detector's boxes score the clusters when it sent them; SIFT does otherwise.
+  std::vector<double> box_scores;
+  if (frame.image_boxes) {
+    std::vector<int> box_cluster;
+    box_scores = BoxScores(frame, map_to_camera, segments, &box_cluster);
+    for (int c : box_cluster) box_objects->push_back(c < 0 ? "" : tracks[track_of[c]].id);
+  }
   int64_t sift_pixels = options.max_sift_frame_pixels, sift_pairs = options.max_sift_pairs;
   std::vector<object_search::ObjectDetection> detections;
   for (size_t c = 0; c < segments.clusters.size(); ++c) {
@@ -1367,7 +1429,9 @@ std::vector<object_search::ObjectDetection> Perception::Impl::Detect(
     det.key = tr.id;
     det.box = boxes[c];
     double score = 0.5;
-    if (!frame.image.empty()) {
+    if (frame.image_boxes) {
+      score = box_scores[c];
+    } else if (!frame.image.empty()) {
       score = ClusterScore(perception, frame, map_to_camera, *segments.objects,
                            segments.clusters[c], &sift_pixels, &sift_pairs);
     }
@@ -1396,12 +1460,11 @@ double Perception::Impl::ClusterScore(const Perception& perception, const Sensor
   return perception.ScoreRegion(region, mask, sift ? sift_pairs : nullptr, nullptr);
 }
 
-bool Perception::Impl::ClusterRegion(const SensorFrame& frame, const Eigen::Matrix4d& map_to_camera,
-                                     const CloudXYZ& objects, const pcl::PointIndices& cluster,
-                                     cv::Mat* region, cv::Mat* mask) const {
-  // Sub-image: the cluster's points reprojected into the image, masked to the pixels they
-  // cover (the bounding rectangle alone also holds whatever stands beside or behind).
-  const auto& in = frame.intrinsics;
+bool Perception::Impl::ClusterMask(const CameraIntrinsics& in, const Eigen::Matrix4d& map_to_camera,
+                                   const CloudXYZ& objects, const pcl::PointIndices& cluster,
+                                   cv::Rect* rect, cv::Mat* mask) const {
+  // The cluster's points reprojected into the image, masked to the pixels they cover (the
+  // bounding rectangle alone also holds whatever stands beside or behind).
   std::vector<cv::Point3i> pixels;  // u, v, radius
   int u0 = in.width, v0 = in.height, u1 = -1, v1 = -1;
   for (int i : cluster.indices) {
@@ -1419,13 +1482,20 @@ bool Perception::Impl::ClusterRegion(const SensorFrame& frame, const Eigen::Matr
     u1 = std::max(u1, u + r);
     v1 = std::max(v1, v + r);
   }
-  const cv::Rect rect = cv::Rect(u0, v0, u1 - u0 + 1, v1 - v0 + 1) &
-                        cv::Rect(0, 0, frame.image.cols, frame.image.rows);
-  if (rect.width < 4 || rect.height < 4) return false;
-  *mask = cv::Mat::zeros(rect.size(), CV_8U);
+  *rect = cv::Rect(u0, v0, u1 - u0 + 1, v1 - v0 + 1) & cv::Rect(0, 0, in.width, in.height);
+  if (rect->width < 4 || rect->height < 4) return false;
+  *mask = cv::Mat::zeros(rect->size(), CV_8U);
   for (const cv::Point3i& p : pixels) {
-    cv::circle(*mask, cv::Point(p.x - rect.x, p.y - rect.y), p.z, cv::Scalar(255), cv::FILLED);
+    cv::circle(*mask, cv::Point(p.x - rect->x, p.y - rect->y), p.z, cv::Scalar(255), cv::FILLED);
   }
+  return true;
+}
+
+bool Perception::Impl::ClusterRegion(const SensorFrame& frame, const Eigen::Matrix4d& map_to_camera,
+                                     const CloudXYZ& objects, const pcl::PointIndices& cluster,
+                                     cv::Mat* region, cv::Mat* mask) const {
+  cv::Rect rect;
+  if (!ClusterMask(frame.intrinsics, map_to_camera, objects, cluster, &rect, mask)) return false;
   *region = frame.image(rect);
   const int64_t area = int64_t{rect.width} * rect.height;
   if (area > options.max_sift_pixels) {
@@ -1439,6 +1509,62 @@ bool Perception::Impl::ClusterRegion(const SensorFrame& frame, const Eigen::Matr
     *mask = small_mask;
   }
   return true;
+}
+
+std::vector<double> Perception::Impl::BoxScores(const SensorFrame& frame,
+                                                const Eigen::Matrix4d& map_to_camera,
+                                                const Segments& segments,
+                                                std::vector<int>* box_cluster) const {
+  const std::vector<ImageBox>& image_boxes = *frame.image_boxes;
+  const size_t n = segments.clusters.size();
+  std::vector<double> scores(n, 0.5);
+  // Per cluster, its pixels' rectangle and the integral image of its mask: the pixels a box
+  // holds are then four lookups, whatever the boxes and clusters.
+  std::vector<cv::Rect> rects(n);
+  std::vector<cv::Mat> sums(n);
+  std::vector<double> areas(n, 0.0);
+  for (size_t c = 0; c < n; ++c) {
+    cv::Mat mask;
+    if (!ClusterMask(frame.intrinsics, map_to_camera, *segments.objects, segments.clusters[c],
+                     &rects[c], &mask)) {
+      continue;  // too few pixels to say: no evidence
+    }
+    cv::threshold(mask, mask, 0, 1, cv::THRESH_BINARY);
+    cv::integral(mask, sums[c], CV_32S);
+    areas[c] = sums[c].at<int>(mask.rows, mask.cols);
+    if (areas[c] > 0) scores[c] = options.unboxed_score;  // in view, and no box yet
+  }
+  std::vector<bool> boxed(n, false);
+  box_cluster->assign(image_boxes.size(), -1);
+  for (size_t b = 0; b < image_boxes.size(); ++b) {
+    const ImageBox& ib = image_boxes[b];
+    const cv::Rect box(cv::Point(static_cast<int>(std::floor(ib.x)),
+                                 static_cast<int>(std::floor(ib.y))),
+                       cv::Point(static_cast<int>(std::ceil(ib.x + ib.width)),
+                                 static_cast<int>(std::ceil(ib.y + ib.height))));
+    // The box goes to the cluster of which it holds the most pixels, half of them at least.
+    double best = 0.0;
+    for (size_t c = 0; c < n; ++c) {
+      if (areas[c] <= 0) continue;
+      const cv::Rect in = box & rects[c];
+      if (in.empty()) continue;
+      const cv::Mat& sum = sums[c];
+      const int x0 = in.x - rects[c].x, y0 = in.y - rects[c].y;
+      const int x1 = x0 + in.width, y1 = y0 + in.height;
+      const double held = sum.at<int>(y1, x1) - sum.at<int>(y0, x1) - sum.at<int>(y1, x0) +
+                          sum.at<int>(y0, x0);
+      if (held >= 0.5 * areas[c] && held > best) {
+        best = held;
+        (*box_cluster)[b] = static_cast<int>(c);
+      }
+    }
+    if (const int c = (*box_cluster)[b]; c >= 0) {
+      // Several boxes on one object: the most confident.
+      scores[c] = boxed[c] ? std::max(scores[c], ib.score) : ib.score;
+      boxed[c] = true;
+    }
+  }
+  return scores;
 }
 
 double Perception::Impl::Moveability(const Box& box) const {
@@ -1488,9 +1614,11 @@ StatusOr<PerceptionResult> Perception::Process(const SensorFrame& frame) {
   const std::vector<int> track_of = im.Associate(segments);
   result.timings.association = Ms(t0);
 
-  // ---- 4. target detection (SIFT / colour), visible faces, moveability ----
+  // ---- 4. target detection (the robot's detector's boxes, or SIFT / colour), visible faces,
+  // moveability ----
   t0 = Clock::now();
-  result.observation.objects = im.Detect(*this, frame, reg.camera_to_map, segments, track_of);
+  result.observation.objects =
+      im.Detect(*this, frame, reg.camera_to_map, segments, track_of, &result.box_objects);
   result.timings.detection = Ms(t0);
   result.timings.total = Ms(start);
   return result;

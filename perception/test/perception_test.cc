@@ -144,6 +144,74 @@ TEST(PerceptionTest, ClustersBoxesAndDetectsTheTarget) {
   EXPECT_EQ(found, visible);
 }
 
+// The robot's own detector: a box around the target's pixels scores the target's faces with the
+// box's score, every other object in view gets unboxed_score; SIFT is not consulted (no photos).
+TEST(PerceptionTest, TheRobotsDetectorBoxesScoreTheObjects) {
+  Simulator sim(Load("loose1"), 1);
+  PerceptionOptions options;
+  Perception p(sim.InitialWorld().value(), TargetModel{}, options);
+  SensorFrame frame = FrontView(&sim);
+  frame.image = cv::Mat();  // depth only: the detector ran on the image
+  const sim::Frame f = sim.Render(640, 480);
+  cv::Rect target_pixels;
+  for (int v = 0; v < f.height; ++v) {
+    for (int u = 0; u < f.width; ++u) {
+      if (f.ids[static_cast<size_t>(v) * f.width + u] == sim.target_index()) {
+        target_pixels |= cv::Rect(u, v, 1, 1);
+      }
+    }
+  }
+  ASSERT_GT(target_pixels.area(), 100);
+  frame.image_boxes =
+      std::vector<ImageBox>{{1.0 * target_pixels.x, 1.0 * target_pixels.y,
+                             1.0 * target_pixels.width, 1.0 * target_pixels.height, 0.9},
+                            {0.0, 0.0, 20.0, 20.0, 0.8}};  // a box on nothing (the wall's corner)
+  auto r = p.Process(frame);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  ASSERT_GE(r->observation.objects.size(), 2u);
+  ASSERT_EQ(r->box_objects.size(), 2u);
+  EXPECT_EQ(r->box_objects[1], "");
+  bool saw_target = false;
+  for (const auto& d : r->observation.objects) {
+    const bool target = SceneObjectOf(sim, d.box) == sim.target_index();
+    saw_target |= target;
+    if (target) {
+      EXPECT_EQ(r->box_objects[0], d.key);
+    }
+    ASSERT_FALSE(d.faces.empty());
+    for (const auto& face : d.faces) {
+      EXPECT_DOUBLE_EQ(face.score, target ? 0.9 : options.unboxed_score) << d.key;
+    }
+  }
+  EXPECT_TRUE(saw_target);
+
+  // No boxes at all: the detector saw no target, every object in view is probably not it.
+  frame.image_boxes = std::vector<ImageBox>{};
+  r = p.Process(frame);
+  ASSERT_TRUE(r.ok());
+  EXPECT_TRUE(r->box_objects.empty());
+  for (const auto& d : r->observation.objects) {
+    for (const auto& face : d.faces) EXPECT_DOUBLE_EQ(face.score, options.unboxed_score);
+  }
+
+  // Boxes outside the image, NaN or too many are refused naming the box and its field.
+  const std::vector<std::pair<ImageBox, std::string>> bad = {
+      {{630, 10, 20, 10, 0.5}, "imageBoxes[0].x"},
+      {{10, 10, 20, 480, 0.5}, "imageBoxes[0].y"},
+      {{10, 10, std::nan(""), 10, 0.5}, "imageBoxes[0].width"},
+      {{10, 10, 20, 10, std::nan("")}, "imageBoxes[0].score"},
+      {{10, 10, 20, -1, 0.5}, "imageBoxes[0].height"},
+  };
+  for (const auto& [box, field] : bad) {
+    frame.image_boxes = std::vector<ImageBox>{box};
+    auto refused = p.Process(frame);
+    EXPECT_EQ(refused.status().code(), StatusCode::kInvalidArgument) << field;
+    EXPECT_EQ(refused.status().message().rfind(field, 0), 0u) << refused.status().message();
+  }
+  frame.image_boxes = std::vector<ImageBox>(options.max_image_boxes + 1, {10, 10, 5, 5, 0.5});
+  EXPECT_EQ(p.Process(frame).status().message().rfind("imageBoxes:", 0), 0u);
+}
+
 TEST(PerceptionTest, BoxesConvergeAndIdsStayWhenTheRobotMoves) {
   Simulator sim(Load("loose1"), 1);
   Perception p(sim.InitialWorld().value(), TargetOf(sim), {});

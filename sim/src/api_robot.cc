@@ -1,5 +1,7 @@
 #include "npfkct/sim/api_robot.h"
 
+#include <algorithm>
+
 #include "npfkct/api/wire.h"
 #include "npfkct/sim/frame_io.h"
 
@@ -57,7 +59,10 @@ api::ObserveRequest ApiRobot::Observe(bool succeeded) {
 }
 
 api::ObserveRequest ApiRobot::ObserveRaw(bool succeeded, int width, int height) {
-  const Frame frame = sim_.Render(width, height);
+  return ObserveRaw(succeeded, sim_.Render(width, height));
+}
+
+api::ObserveRequest ApiRobot::ObserveRaw(bool succeeded, const Frame& frame) {
   RobotConfig reported = sim_.robot();
   const SimNoise& noise = sim_.scenario().noise;
   reported.x += noise.localization_xy * rng_.Normal();
@@ -80,6 +85,27 @@ api::ObserveRequest ApiRobot::ObserveRaw(bool succeeded, int width, int height) 
   raw.intrinsics.cx = frame.cx;
   raw.intrinsics.cy = frame.cy;
   out.frame = std::move(raw);
+  return out;
+}
+
+api::ObserveRequest ApiRobot::ObserveBoxes(bool succeeded, int width, int height) {
+  const Frame frame = sim_.Render(width, height);
+  api::ObserveRequest out = ObserveRaw(succeeded, frame);
+  if (!out.frame) return out;
+  out.frame->image = cv::Mat();  // depth and boxes: the detector ran on the image
+  out.frame->image_boxes = DetectorBoxes(sim_, frame, rng_);
+  return out;
+}
+
+api::ObserveRequest ApiRobot::ObserveBoxes3d(bool succeeded) {
+  api::ObserveRequest out = Observe(succeeded);
+  for (object_search::ObjectDetection& d : out.detections) {
+    if (d.faces.empty()) continue;
+    double sum = 0.0;
+    for (const object_search::FaceDetection& f : d.faces) sum += f.score;
+    d.score = sum / static_cast<double>(d.faces.size());
+    d.faces.clear();
+  }
   return out;
 }
 

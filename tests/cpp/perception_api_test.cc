@@ -4,10 +4,12 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <functional>
 #include <limits>
+#include <map>
 #include <opencv2/imgcodecs.hpp>
 #include <set>
 
@@ -192,6 +194,129 @@ TEST_F(PerceptionApiTest, BadFramesGetErrorsNamingTheFieldAndChangeNothing) {
                                     {"target", {{"photos", {Png(small), "not an image"}}}}});
   EXPECT_EQ(bad.status, 400);
   EXPECT_EQ(std::string(bad.body["error"]["message"]).rfind("target.photos[1]", 0), 0u) << bad.raw;
+}
+
+// The robot's own detector: depth plus 2D boxes of the target's class (imageBoxes), no photos
+// and no image. The boxes score the objects; the reply says which object each box went to.
+TEST_F(PerceptionApiTest, DetectorBoxesDriveAnEpisode) {
+  Start();
+  sim::ApiRobot robot(Loose1(), 5);
+  const std::string base = "/v1/sessions/" + Create(json::object());
+  bool done = false;
+  int boxed_frames = 0;
+  std::string declared;
+  std::map<std::string, int> boxes_per_object;
+  for (int step = 0; step < 25 && !done; ++step) {
+    Reply plan = Post(base + ":plan", {{"budget", {{"simulations", 300}}}});
+    ASSERT_EQ(plan.status, 200) << plan.raw;
+    const auto action = api::ParseAction(plan.body["action"].dump()).value();
+    if (action.type == api::ActionView::Type::kDeclareTarget) declared = action.object_id;
+    const auto outcome = robot.Execute(action);
+    json observation = Body(robot.ObserveBoxes(!outcome.illegal));
+    observation["actionId"] = plan.body["actionId"];
+    Reply r = Post(base + ":observe", observation);
+    ASSERT_EQ(r.status, 200) << r.raw.substr(0, 400);
+    done = r.body["done"];
+    EXPECT_EQ(done, outcome.terminal);
+    if (!observation.contains("pointCloud")) continue;
+    EXPECT_FALSE(observation.contains("image"));
+    const json& p = r.body["perception"];
+    const json& boxes = observation["imageBoxes"];
+    if (boxes.empty()) {
+      EXPECT_FALSE(p.contains("boxObjects"));
+      continue;
+    }
+    ++boxed_frames;
+    ASSERT_EQ(p["boxObjects"].size(), boxes.size()) << r.raw.substr(0, 400);
+    std::set<std::string> detected;
+    for (const json& d : p["detections"]) detected.insert(d["id"].get<std::string>());
+    for (const json& id : p["boxObjects"]) {
+      if (id.is_null()) continue;
+      EXPECT_TRUE(detected.count(id.get<std::string>())) << id;  // an object of this frame
+      ++boxes_per_object[id.get<std::string>()];
+    }
+  }
+  EXPECT_TRUE(done) << "the target was not removed within 25 steps";
+  EXPECT_GT(boxed_frames, 0);
+  // The object the robot declared the target is the one the detector's boxes went to most.
+  ASSERT_FALSE(boxes_per_object.empty());
+  const auto most = std::max_element(boxes_per_object.begin(), boxes_per_object.end(),
+                                     [](auto& a, auto& b) { return a.second < b.second; });
+  EXPECT_EQ(declared, most->first);
+}
+
+TEST_F(PerceptionApiTest, BadDetectorBoxesGetErrorsNamingTheField) {
+  Start();
+  sim::ApiRobot robot(Loose1(), 6);
+  const std::string base = "/v1/sessions/" + Create(json::object());
+  json good;
+  for (int tries = 0; tries < 10; ++tries) {
+    Reply plan = Post(base + ":plan", {{"budget", {{"simulations", 100}}}});
+    ASSERT_EQ(plan.status, 200) << plan.raw;
+    const auto outcome = robot.Execute(api::ParseAction(plan.body["action"].dump()).value());
+    good = Body(robot.ObserveBoxes(!outcome.illegal));
+    good["actionId"] = plan.body["actionId"];
+    if (good.contains("pointCloud")) break;
+    ASSERT_EQ(Post(base + ":observe", good).status, 200);  // the camera saw nothing: retry
+  }
+  ASSERT_TRUE(good.contains("pointCloud"));
+  good["imageBoxes"] =
+      json::array({{{"x", 100}, {"y", 80}, {"width", 50}, {"height", 40}, {"score", 0.9}}});
+  const json before = Get(base).body;
+  const json box = good["imageBoxes"][0];
+  auto with_box = [&](const std::string& key, json value) {
+    return [=](json* b) { (*b)["imageBoxes"][0][key] = value; };
+  };
+  struct Case {
+    std::string what;
+    std::function<void(json*)> edit;
+    std::string field;
+  };
+  const std::vector<Case> cases = {
+      {"a box past the right edge", with_box("x", 600), "imageBoxes[0].x"},
+      {"a box past the bottom edge", with_box("height", 401), "imageBoxes[0].y"},
+      {"a box left of the image", with_box("x", -1), "imageBoxes[0].x"},
+      {"a box of no width", with_box("width", 0), "imageBoxes[0].width"},
+      {"a score above 1", with_box("score", 1.5), "imageBoxes[0].score"},
+      {"a NaN score, as a string", with_box("score", "NaN"), "imageBoxes[0].score"},
+      {"a box without its score", [](json* b) { (*b)["imageBoxes"][0].erase("score"); },
+       "imageBoxes[0].score"},
+      {"an unknown member", with_box("label", "cup"), "imageBoxes[0].label"},
+      {"thousands of boxes",
+       [&](json* b) {
+         (*b)["imageBoxes"] = json::array();
+         for (int i = 0; i < 5000; ++i) (*b)["imageBoxes"].push_back(box);
+       },
+       "imageBoxes"},
+      {"boxes without depth",
+       [](json* b) {
+         b->erase("pointCloud");
+         b->erase("camera");
+       },
+       "pointCloud"},
+  };
+  for (const Case& c : cases) {
+    json body = good;
+    c.edit(&body);
+    Reply r = Post(base + ":observe", body);
+    EXPECT_EQ(r.status, 400) << c.what << ": " << r.raw.substr(0, 300);
+    const std::string message = r.body["error"]["message"];
+    EXPECT_EQ(message.rfind(c.field, 0), 0u) << c.what << ": " << message;
+    EXPECT_EQ(r.body["error"]["details"][0]["fieldViolations"][0]["field"], c.field) << c.what;
+  }
+  const json after = Get(base).body;
+  EXPECT_EQ(after["step"], before["step"]);
+  EXPECT_EQ(after.value("perceptionTracks", json()), before.value("perceptionTracks", json()));
+  // 256 boxes, all on the same place, are what the API allows: the frame applies.
+  json many = good;
+  many["imageBoxes"] = json::array();
+  for (int i = 0; i < 256; ++i) many["imageBoxes"].push_back(box);
+  Reply ok = Post(base + ":observe", many);
+  ASSERT_EQ(ok.status, 200) << ok.raw.substr(0, 300);
+  ASSERT_EQ(ok.body["perception"]["boxObjects"].size(), 256u);
+  // Boxes on the same pixels go to the same object, or all to none.
+  const json first = ok.body["perception"]["boxObjects"][0];
+  for (const json& id : ok.body["perception"]["boxObjects"]) EXPECT_EQ(id, first);
 }
 
 TEST_F(PerceptionApiTest, TracksSurviveARestart) {

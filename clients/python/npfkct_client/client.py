@@ -82,20 +82,23 @@ class Face:
 
 @dataclasses.dataclass
 class Detection:
-    """An object the robot saw, with a stable id across steps."""
+    """An object the robot saw, with a stable id across steps: per-face scores (`faces`), or
+    one `score` for the whole box as a 3D detector gives it (the server gives it to the faces
+    the camera sees)."""
 
     id: str
     box: Box
     moveability: float = 1.0
     faces: List[Face] = dataclasses.field(default_factory=list)
+    score: Optional[float] = None
 
     def to_json(self) -> Dict[str, Any]:
-        return {
-            "id": self.id,
-            "box": self.box.to_json(),
-            "moveability": self.moveability,
-            "faces": [dataclasses.asdict(f) for f in self.faces],
-        }
+        out = {"id": self.id, "box": self.box.to_json(), "moveability": self.moveability}
+        if self.score is not None:
+            out["score"] = self.score
+        else:
+            out["faces"] = [dataclasses.asdict(f) for f in self.faces]
+        return out
 
 
 @dataclasses.dataclass
@@ -135,6 +138,19 @@ class PointCloud:
     frame: str = "camera"
 
     @classmethod
+    def from_depth(cls, depth: Iterable[Sequence[float]], camera: Dict[str, float]) -> "PointCloud":
+        """The camera-frame cloud of a depth image (rows of metres; 0 or NaN where nothing was
+        seen; a numpy array will do) with the pinhole intrinsics {fx, fy, cx, cy}."""
+        fx, fy, cx, cy = camera["fx"], camera["fy"], camera["cx"], camera["cy"]
+        out = bytearray()
+        for v, row in enumerate(depth):
+            for u, z in enumerate(row):
+                z = float(z)
+                if z > 0.0:  # NaN compares false
+                    out += struct.pack("<fff", (u + 0.5 - cx) / fx * z, (v + 0.5 - cy) / fy * z, z)
+        return cls(bytes(out), "xyz", "camera")
+
+    @classmethod
     def from_points(cls, points: Iterable[Sequence[float]], frame: str = "camera",
                     colors: Optional[Iterable[Sequence[int]]] = None) -> "PointCloud":
         """Packs (x, y, z) tuples, with optional (r, g, b) colours; NaN points are dropped."""
@@ -152,6 +168,30 @@ class PointCloud:
     def to_json(self) -> Dict[str, Any]:
         return {"frame": self.frame, "fields": self.fields,
                 "data": base64.b64encode(self.data).decode()}
+
+
+@dataclasses.dataclass
+class ImageBox:
+    """A box of the robot's own detector in the camera image (pixels: left x, top y, width,
+    height) with `score`, the probability that it shows the target: a YOLO-style detection of
+    the target's class. Sent with the depth (a PointCloud), the server gives each box to the
+    object whose pixels it holds and scores the objects with it."""
+
+    x: float
+    y: float
+    width: float
+    height: float
+    score: float
+
+    @classmethod
+    def from_xyxy(cls, x1: float, y1: float, x2: float, y2: float, score: float) -> "ImageBox":
+        """From corner coordinates, as YOLO-style detectors give them (xyxy)."""
+        return cls(float(x1), float(y1), float(x2) - float(x1), float(y2) - float(y1),
+                   float(score))
+
+    def to_json(self) -> Dict[str, Any]:
+        return {"x": self.x, "y": self.y, "width": self.width, "height": self.height,
+                "score": self.score}
 
 
 @dataclasses.dataclass
@@ -525,11 +565,14 @@ class NpfkctClient:
                 body: Optional[Dict[str, Any]] = None,
                 point_cloud: Optional[PointCloud] = None, image: Optional[bytes] = None,
                 camera: Optional[Dict[str, float]] = None,
-                semantic_scores: Optional[Dict[str, float]] = None) -> Observation:
+                semantic_scores: Optional[Dict[str, float]] = None,
+                image_boxes: Optional[List[ImageBox]] = None) -> Observation:
         """Reports the outcome of `action_id`: either `detections`, or raw sensor data for the
         server's perception (`point_cloud`, with the PNG/JPEG bytes of `image` and the `camera`
-        intrinsics {width, height, fx, fy, cx, cy}). `body` may carry a ready :observe body (as
-        the simulated robot produces); the typed arguments are used otherwise."""
+        intrinsics {width, height, fx, fy, cx, cy}; `image_boxes`, the robot's own detector's
+        boxes of the target, score the objects in place of the server's matching of the image
+        against the target's photos). `body` may carry a ready :observe body (as the simulated
+        robot produces); the typed arguments are used otherwise."""
         if body is None:
             body = {"succeeded": succeeded}
             if robot_state is not None:
@@ -545,6 +588,8 @@ class NpfkctClient:
                 body["camera"] = dict(camera)
             if semantic_scores is not None:
                 body["semanticScores"] = dict(semantic_scores)
+            if image_boxes is not None:
+                body["imageBoxes"] = [b.to_json() for b in image_boxes]
         body = dict(body, actionId=action_id)
         j = self._call("POST", f"/v1/sessions/{session_id}:observe", body)
         return _typed(lambda j: Observation(done=j["done"], reward=j["reward"],

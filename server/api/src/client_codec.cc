@@ -281,6 +281,7 @@ object_search::ObjectDetection ReadDetection(Reader& r, const json& d, const std
                            r.Number(faces[i], "score")});
     }
   }
+  if (d.contains("score")) det.score = r.Number(d, "score");
   return det;
 }
 
@@ -309,6 +310,11 @@ perception::PerceptionResult ReadPerception(Reader& r, const json& p, const std:
   out.timings.association = r.Number(t, "association");
   out.timings.detection = r.Number(t, "detection");
   out.timings.total = r.Number(t, "total");
+  if (p.contains("boxObjects")) {
+    for (const json& id : p.at("boxObjects")) {
+      out.box_objects.push_back(id.is_string() ? id.get<std::string>() : "");
+    }
+  }
   return out;
 }
 
@@ -386,6 +392,13 @@ StatusOr<std::string> EncodeObserve(const ObserveRequest& request) {
   j["camera"] = {{"width", in.width}, {"height", in.height}, {"fx", in.fx},
                  {"fy", in.fy},       {"cx", in.cx},         {"cy", in.cy}};
   if (!frame.semantic_scores.empty()) j["semanticScores"] = frame.semantic_scores;
+  if (frame.image_boxes) {
+    j["imageBoxes"] = json::array();
+    for (const perception::ImageBox& b : *frame.image_boxes) {
+      j["imageBoxes"].push_back(
+          {{"x", b.x}, {"y", b.y}, {"width", b.width}, {"height", b.height}, {"score", b.score}});
+    }
+  }
   return internal::Dump(j);
 }
 

@@ -218,6 +218,11 @@ std::string RenderObserve(const ObserveReply& r) {
           {"association", p.timings.association},
           {"detection", p.timings.detection},
           {"total", p.timings.total}}}};
+    if (!p.box_objects.empty()) {  // the request's imageBoxes, each with its object or null
+      json given = json::array();
+      for (const std::string& id : p.box_objects) given.push_back(id.empty() ? json() : json(id));
+      out["perception"]["boxObjects"] = given;
+    }
   }
   out["session"] = SessionJson(r.session);
   return internal::Dump(out);

@@ -206,6 +206,7 @@ Status ReadDetections(const json& dets, const Limits& limits,
             {static_cast<int>(f.at("corner").get<int64_t>()), f.at("score").get<double>()});
       }
     }
+    if (d.contains("score")) det.score = d.at("score").get<double>();  // the schema: not both
     out->push_back(std::move(det));
   }
   return OkStatus();
@@ -267,6 +268,20 @@ StatusOr<perception::SensorFrame> ReadFrame(const json& body, const Limits& limi
     const json& scores = body.at("semanticScores");
     for (auto it = scores.begin(); it != scores.end(); ++it) {
       frame.semantic_scores[it.key()] = it->get<double>();
+    }
+  }
+  if (body.contains("imageBoxes")) {
+    // The schema bounds the count and each number; perception checks them against the image.
+    const json& boxes = body.at("imageBoxes");
+    if (boxes.size() > static_cast<size_t>(limits.max_image_boxes)) {
+      return InvalidFieldError("imageBoxes", "at most " + std::to_string(limits.max_image_boxes) +
+                                                 " boxes");
+    }
+    frame.image_boxes.emplace();
+    for (const json& b : boxes) {
+      frame.image_boxes->push_back({internal::Number(b, "x"), internal::Number(b, "y"),
+                                    internal::Number(b, "width"), internal::Number(b, "height"),
+                                    internal::Number(b, "score")});
     }
   }
   return frame;

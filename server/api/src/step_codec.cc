@@ -73,7 +73,14 @@ json PlannerOptionsJson(const PlannerSpec& p) {
 json DetectionJson(const object_search::ObjectDetection& d) {
   json faces = json::array();
   for (const auto& f : d.faces) faces.push_back({{"corner", f.corner}, {"score", f.score}});
-  return {{"id", d.key}, {"box", BoxJson(d.box)}, {"moveability", d.moveability}, {"faces", faces}};
+  json j = {{"id", d.key}, {"box", BoxJson(d.box)}, {"moveability", d.moveability}};
+  // One score for the whole object, or per-face scores.
+  if (!std::isnan(d.score)) {
+    j["score"] = d.score;
+  } else {
+    j["faces"] = faces;
+  }
+  return j;
 }
 
 json StatsJson(const SearchStats& s, const CandidateStats& candidates) {

@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <utility>
 #include <vector>
@@ -154,7 +155,18 @@ struct ObjectDetection {
   Box box;
   double moveability = 1.0;
   std::vector<FaceDetection> faces;
+  /// A score for the object as a whole (a 3D box detector's probability that it is the target),
+  /// in place of `faces`: the face grids the camera sees from the achieved configuration get it
+  /// (of the box's corners, the four nearest the camera that lie in its frustum and that no
+  /// furniture or other detected box hides). NaN: only `faces`.
+  double score = std::numeric_limits<double>::quiet_NaN();
 };
+
+/// The face grids (box corners 0-7) of `box` that the camera at `pose` sees: of its corners, the
+/// four nearest the camera, each taken 5% of the way to the centre, that lie in the frustum and
+/// that no box of `occluders` hides.
+std::vector<int> SeenCorners(const Box& box, const CameraModel& camera, const CameraPose& pose,
+                             const std::vector<Box>& occluders);
 
 /// What the robot learnt in one real step.
 struct RealObservation {

@@ -17,6 +17,7 @@
 
 #include <map>
 #include <memory>
+#include <optional>
 #include <opencv2/core.hpp>
 #include <string>
 #include <vector>
@@ -36,6 +37,14 @@ struct CameraIntrinsics {
   Status Validate() const;
 };
 
+/// A box in the image from the robot's own detector (a YOLO-style 2D detection of the target's
+/// class), in pixels: left, top, width and height, inside the image.
+struct ImageBox {
+  double x = 0, y = 0, width = 0, height = 0;
+  /// The probability that the box shows the target (the detector's confidence for its class).
+  double score = 0.5;
+};
+
 /// One sensor frame as the robot reports it.
 struct SensorFrame {
   /// Points in the camera's optical frame (x right, y down, z forward), or in the map frame.
@@ -49,6 +58,12 @@ struct SensorFrame {
   /// Optional semantic score per object id from an external detector (YOLO-like), averaged with
   /// the feature-matching score.
   std::map<std::string, double> semantic_scores;
+  /// The robot's detector ran on this frame and found these boxes of the target's class (none:
+  /// it ran and found nothing). When present, they score the objects in place of SIFT and colour
+  /// matching: an object gets the score of the box that holds most of its projected pixels (at
+  /// least half of them), and an object in view that no box holds gets
+  /// PerceptionOptions::unboxed_score.
+  std::optional<std::vector<ImageBox>> image_boxes;
 };
 
 /// Settings of the pipeline; defaults suit the Fetch head camera at 0.5-4 m.
@@ -121,6 +136,11 @@ struct PerceptionOptions {
   /// Per frame, region keypoints times photo keypoints that SIFT matches; regions beyond are
   /// scored by colour alone.
   int64_t max_sift_pairs = 20'000'000;
+  /// The detector's boxes one frame may carry.
+  int max_image_boxes = 256;
+  /// With the robot's detector's boxes: the probability that an object in view that no box holds
+  /// is the target all the same (detectors miss).
+  double unboxed_score = 0.25;
 
   Status Validate() const;
 };
@@ -139,6 +159,9 @@ struct PerceptionResult {
   /// and the reported one was kept.
   double fitness = 0.0;
   int clusters = 0;
+  /// Per box of SensorFrame::image_boxes, the id of the object it was given to; empty for a box
+  /// that holds no object's pixels (half of them at least).
+  std::vector<std::string> box_objects;
   StageTimings timings;
 };
 

@@ -75,6 +75,8 @@ struct Limits {
   int64_t max_perception_map_points = 4'000'000;
   /// Scores of an external detector per observation.
   int max_semantic_scores = 256;
+  /// Boxes of the robot's own detector per observation (imageBoxes).
+  int max_image_boxes = 256;
 
   // ---- strings and requests ----
   int max_display_name = 200;
