@@ -1003,6 +1003,14 @@ Status CheckOpticalFrame(const Cloud& cloud, const CameraIntrinsics& in) {
 
 // Takes the frame, gives an error unless every check above passes and the image, when given,
 // is 3-channel of the camera's size.
+// A number as it was given (up to 17 significant digits): a message never rounds a box's edge
+// onto the image's.
+std::string Exact(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  return buf;
+}
+
 // The detector's boxes: at most max_image_boxes, each finite, of positive size, inside the image,
 // with a score in [0, 1]; errors name "imageBoxes[i].field".
 Status CheckImageBoxes(const std::vector<ImageBox>& boxes, const CameraIntrinsics& in,
@@ -1025,16 +1033,14 @@ Status CheckImageBoxes(const std::vector<ImageBox>& boxes, const CameraIntrinsic
     if (!(b.width > 0.0)) return InvalidFieldError(at + "width", "must be > 0");
     if (!(b.height > 0.0)) return InvalidFieldError(at + "height", "must be > 0");
     if (b.x < 0.0 || b.x + b.width > in.width) {
-      return InvalidFieldError(at + "x", "the box spans x in [" + std::to_string(b.x) + ", " +
-                                             std::to_string(b.x + b.width) +
-                                             "]; the image is " + std::to_string(in.width) +
-                                             " pixels wide");
+      return InvalidFieldError(at + "x", "the box spans x in [" + Exact(b.x) + ", " +
+                                             Exact(b.x + b.width) + "]; the image is " +
+                                             std::to_string(in.width) + " pixels wide");
     }
     if (b.y < 0.0 || b.y + b.height > in.height) {
-      return InvalidFieldError(at + "y", "the box spans y in [" + std::to_string(b.y) + ", " +
-                                             std::to_string(b.y + b.height) +
-                                             "]; the image is " + std::to_string(in.height) +
-                                             " pixels high");
+      return InvalidFieldError(at + "y", "the box spans y in [" + Exact(b.y) + ", " +
+                                             Exact(b.y + b.height) + "]; the image is " +
+                                             std::to_string(in.height) + " pixels high");
     }
   }
   return OkStatus();
@@ -1518,49 +1524,49 @@ std::vector<double> Perception::Impl::BoxScores(const SensorFrame& frame,
   const std::vector<ImageBox>& image_boxes = *frame.image_boxes;
   const size_t n = segments.clusters.size();
   std::vector<double> scores(n, 0.5);
-  // Per cluster, its pixels' rectangle and the integral image of its mask: the pixels a box
-  // holds are then four lookups, whatever the boxes and clusters.
-  std::vector<cv::Rect> rects(n);
-  std::vector<cv::Mat> sums(n);
-  std::vector<double> areas(n, 0.0);
-  for (size_t c = 0; c < n; ++c) {
-    cv::Mat mask;
-    if (!ClusterMask(frame.intrinsics, map_to_camera, *segments.objects, segments.clusters[c],
-                     &rects[c], &mask)) {
-      continue;  // too few pixels to say: no evidence
-    }
-    cv::threshold(mask, mask, 0, 1, cv::THRESH_BINARY);
-    cv::integral(mask, sums[c], CV_32S);
-    areas[c] = sums[c].at<int>(mask.rows, mask.cols);
-    if (areas[c] > 0) scores[c] = options.unboxed_score;  // in view, and no box yet
-  }
-  std::vector<bool> boxed(n, false);
-  box_cluster->assign(image_boxes.size(), -1);
-  for (size_t b = 0; b < image_boxes.size(); ++b) {
-    const ImageBox& ib = image_boxes[b];
-    const cv::Rect box(cv::Point(static_cast<int>(std::floor(ib.x)),
+  std::vector<cv::Rect> boxes;
+  for (const ImageBox& ib : image_boxes) {
+    boxes.emplace_back(cv::Point(static_cast<int>(std::floor(ib.x)),
                                  static_cast<int>(std::floor(ib.y))),
                        cv::Point(static_cast<int>(std::ceil(ib.x + ib.width)),
                                  static_cast<int>(std::ceil(ib.y + ib.height))));
-    // The box goes to the cluster of which it holds the most pixels, half of them at least.
-    double best = 0.0;
-    for (size_t c = 0; c < n; ++c) {
-      if (areas[c] <= 0) continue;
-      const cv::Rect in = box & rects[c];
+  }
+  // One cluster at a time (its mask and the integral image of it, which make the pixels a box
+  // holds four lookups, are dropped before the next: a frame's memory is one cluster's, however
+  // many clusters span the image), each box keeping the cluster of which it holds the most
+  // pixels, half of them at least.
+  std::vector<double> best(boxes.size(), 0.0);
+  box_cluster->assign(boxes.size(), -1);
+  for (size_t c = 0; c < n; ++c) {
+    cv::Rect rect;
+    cv::Mat mask, sum;
+    if (!ClusterMask(frame.intrinsics, map_to_camera, *segments.objects, segments.clusters[c],
+                     &rect, &mask)) {
+      continue;  // too few pixels to say: no evidence
+    }
+    cv::threshold(mask, mask, 0, 1, cv::THRESH_BINARY);
+    cv::integral(mask, sum, CV_32S);
+    const double area = sum.at<int>(mask.rows, mask.cols);
+    if (!(area > 0)) continue;
+    scores[c] = options.unboxed_score;  // in view, and no box yet
+    for (size_t b = 0; b < boxes.size(); ++b) {
+      const cv::Rect in = boxes[b] & rect;
       if (in.empty()) continue;
-      const cv::Mat& sum = sums[c];
-      const int x0 = in.x - rects[c].x, y0 = in.y - rects[c].y;
+      const int x0 = in.x - rect.x, y0 = in.y - rect.y;
       const int x1 = x0 + in.width, y1 = y0 + in.height;
       const double held = sum.at<int>(y1, x1) - sum.at<int>(y0, x1) - sum.at<int>(y1, x0) +
                           sum.at<int>(y0, x0);
-      if (held >= 0.5 * areas[c] && held > best) {
-        best = held;
+      if (held >= 0.5 * area && held > best[b]) {
+        best[b] = held;
         (*box_cluster)[b] = static_cast<int>(c);
       }
     }
+  }
+  std::vector<bool> boxed(n, false);
+  for (size_t b = 0; b < boxes.size(); ++b) {
     if (const int c = (*box_cluster)[b]; c >= 0) {
       // Several boxes on one object: the most confident.
-      scores[c] = boxed[c] ? std::max(scores[c], ib.score) : ib.score;
+      scores[c] = boxed[c] ? std::max(scores[c], image_boxes[b].score) : image_boxes[b].score;
       boxed[c] = true;
     }
   }
