@@ -72,9 +72,9 @@ int main(int argc, char** argv) {
         : IsLook(line) ? robot.Look()
                        : robot.Refuse("malformed action (" + action.status().message() + ")");
     const api::ObserveRequest observation = raw       ? robot.ObserveRaw(!outcome.illegal)
-                                             : boxes   ? robot.ObserveBoxes(!outcome.illegal)
-                                             : boxes3d ? robot.ObserveBoxes3d(!outcome.illegal)
-                                                       : robot.Observe(!outcome.illegal);
+                                            : boxes   ? robot.ObserveBoxes(!outcome.illegal)
+                                            : boxes3d ? robot.ObserveBoxes3d(!outcome.illegal)
+                                                      : robot.Observe(!outcome.illegal);
     const npfkct::StatusOr<std::string> body = api::EncodeObserve(observation);
     if (!body.ok()) {
       std::cerr << "npfkct-sim-robot: " << body.status().ToString() << "\n";

@@ -352,10 +352,11 @@ int main(int argc, char** argv) {
                  "and its options, e.g. npfkct-paper); records keep the planner in base_planner");
   app.add_option("--robot", search.robot, "scenarios: override the robot (fetch | stretch)");
   app.add_option("--table", search.table_path, "scenarios: write a Markdown table (Table 1)");
-  app.add_option("--observe", search.observe,
-                 "scenarios: how the robot observes, geometric (the simulator's shortcut) and/or "
-                 "perception (rendered RGB-D frames through the perception pipeline) and/or boxes (their "
-                 "depth with a simulated detector's 2D boxes of the target)")
+  app.add_option(
+         "--observe", search.observe,
+         "scenarios: how the robot observes, geometric (the simulator's shortcut) and/or "
+         "perception (rendered RGB-D frames through the perception pipeline) and/or boxes (their "
+         "depth with a simulated detector's 2D boxes of the target)")
       ->delimiter(',');
   app.add_flag("--trace", search.trace,
                "scenarios: print each step of every trial on stderr (each line names its trial)");

@@ -15,6 +15,7 @@
 #include "npfkct/filter/filter.h"
 #include "npfkct/object_search/planner_registry.h"
 #include "npfkct/perception/perception.h"
+#include "npfkct/sim/api_robot.h"
 #include "npfkct/sim/frame_io.h"
 #include "npfkct/sim/oracle.h"
 #include "npfkct/sim/scenario.h"

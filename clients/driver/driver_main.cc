@@ -4,8 +4,10 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <fstream>
 #include <iostream>
 #include <optional>
+#include <sstream>
 #include <string>
 
 #include "npfkct/api/client_codec.h"
@@ -25,6 +27,8 @@ struct Options {
   std::optional<std::string> model;  // absent: the server's default; "": none
   std::string api_key;
   double budget_ms = 1000;
+  double cpu_ms = 0;
+  std::string world;  // a world file for the session in place of the scenario's prior map
   int64_t simulations = 0;
   uint64_t seed = 1;
   int max_steps = 0;
@@ -68,7 +72,8 @@ int Drive(const Options& o, const npfkct::sim::Scenario& scenario, npfkct::sim::
   }
 
   api::PlanRequest budget;
-  if (o.budget_ms > 0) budget.time_ms = o.budget_ms;
+  if (o.budget_ms > 0 && o.cpu_ms <= 0) budget.time_ms = o.budget_ms;
+  if (o.cpu_ms > 0) budget.cpu_ms = o.cpu_ms;
   if (o.simulations > 0) budget.simulations = o.simulations;
   double discounted = 0.0, discount = 1.0;
   bool success = false;
@@ -127,6 +132,12 @@ int main(int argc, char** argv) {
           },
           "FINITE"));
   app.add_option("--budget-ms", o.budget_ms, "planning time per step");
+  app.add_option("--cpu-ms", o.cpu_ms,
+                 "CPU time of the planning thread per step, in place of --budget-ms");
+  app.add_option("--world", o.world,
+                 "a world file (the create request's world: a SLAM occupancy grid, traced "
+                 "workspaces, ...) for the session in place of the scenario's prior map; the "
+                 "scenario stays the truth the simulated robot sees");
   app.add_option("--simulations", o.simulations, "simulations per step (0: time only)");
   app.add_option("--seed", o.seed, "seed of the simulated world and of the session");
   app.add_option("--max-steps", o.max_steps, "step limit (default: the scenario's)");
@@ -158,6 +169,18 @@ int main(int argc, char** argv) {
   api::CreateSessionRequest create;
   create.display_name = "npfkct-drive " + scenario->name;
   create.world = scenario->Prior();
+  if (!o.world.empty()) {
+    std::ifstream in(o.world);
+    std::stringstream text;
+    text << in.rdbuf();
+    auto world = api::ParseWorldSpec(text.str());
+    if (!in || !world.ok()) {
+      std::cerr << "npfkct-drive: " << o.world << ": "
+                << (in ? world.status().message() : "cannot read it") << "\n";
+      return 2;
+    }
+    create.world = std::move(world).value();
+  }
   create.planner.name = o.planner;
   if (o.model) {
     create.planner.model = *o.model;

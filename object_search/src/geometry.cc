@@ -292,4 +292,52 @@ double WrapAngle(double a) {
   return a - std::numbers::pi;
 }
 
+StatusOr<Box> BoxAroundPolygon(const std::vector<Vec2>& polygon, double height) {
+  if (polygon.size() < 3) return InvalidArgumentError("a polygon needs 3 points or more");
+  // The convex hull (Andrew's monotone chain), counter-clockwise.
+  std::vector<Vec2> points = polygon;
+  std::sort(points.begin(), points.end(), [](const Vec2& a, const Vec2& b) {
+    return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y());
+  });
+  auto cross = [](const Vec2& o, const Vec2& a, const Vec2& b) {
+    return (a - o).x() * (b - o).y() - (a - o).y() * (b - o).x();
+  };
+  std::vector<Vec2> hull(2 * points.size());
+  size_t k = 0;
+  for (size_t i = 0; i < points.size(); ++i) {  // lower hull
+    while (k >= 2 && cross(hull[k - 2], hull[k - 1], points[i]) <= 0) --k;
+    hull[k++] = points[i];
+  }
+  for (size_t i = points.size() - 1, lower = k + 1; i-- > 0;) {  // upper hull
+    while (k >= lower && cross(hull[k - 2], hull[k - 1], points[i]) <= 0) --k;
+    hull[k++] = points[i];
+  }
+  hull.resize(k > 1 ? k - 1 : k);
+  if (hull.size() < 3) return InvalidArgumentError("the polygon's points span no area");
+  // The smallest rectangle has a side along an edge of the hull.
+  double best_area = std::numeric_limits<double>::infinity();
+  Box best;
+  for (size_t i = 0; i < hull.size(); ++i) {
+    const Vec2 edge = hull[(i + 1) % hull.size()] - hull[i];
+    const double yaw = std::atan2(edge.y(), edge.x());
+    const double c = std::cos(yaw), s = std::sin(yaw);
+    Vec2 lo = Vec2::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+    for (const Vec2& p : hull) {
+      const Vec2 q(c * p.x() + s * p.y(), -s * p.x() + c * p.y());
+      lo = lo.cwiseMin(q);
+      hi = hi.cwiseMax(q);
+    }
+    const Vec2 size = hi - lo;
+    if (size.x() * size.y() < best_area) {
+      best_area = size.x() * size.y();
+      const Vec2 mid = 0.5 * (lo + hi);
+      best.center = Vec3(c * mid.x() - s * mid.y(), s * mid.x() + c * mid.y(), 0.5 * height);
+      best.size = Vec3(size.x(), size.y(), height);
+      best.yaw = yaw;
+    }
+  }
+  if (!(best_area > 0.0)) return InvalidArgumentError("the polygon's points span no area");
+  return best;
+}
+
 }  // namespace npfkct::object_search

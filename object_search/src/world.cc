@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <random>
 
 namespace npfkct::object_search {
@@ -371,6 +372,25 @@ bool AnyBaseFeasible(const World& world) {
 
 }  // namespace
 
+std::vector<BaseRegion> BaseRegionsAround(const PriorMap& prior) {
+  const double inner = prior.robot.footprint_radius + prior.params.base_clearance;
+  const double outer = std::max(prior.robot.reach, inner + 0.3);
+  std::vector<BaseRegion> out;
+  for (const PriorMap::Furniture& f : prior.furniture) {
+    if (!f.workspace) continue;
+    Vec2 lo = Vec2::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+    for (const Vec3& corner : f.box.Corners()) {
+      lo = lo.cwiseMin(corner.head<2>());
+      hi = hi.cwiseMax(corner.head<2>());
+    }
+    out.push_back({Vec2(lo.x() - outer, lo.y() - inner), Vec2(lo.x() - inner, hi.y() + inner)});
+    out.push_back({Vec2(hi.x() + inner, lo.y() - inner), Vec2(hi.x() + outer, hi.y() + inner)});
+    out.push_back({Vec2(lo.x() - inner, lo.y() - outer), Vec2(hi.x() + inner, lo.y() - inner)});
+    out.push_back({Vec2(lo.x() - inner, hi.y() + inner), Vec2(hi.x() + inner, hi.y() + outer)});
+  }
+  return out;
+}
+
 StatusOr<World> BuildWorld(const PriorMap& prior) {
   RobotDescription robot = prior.robot;
   if (Status s = robot.Validate(); !s.ok()) {
@@ -379,6 +399,11 @@ StatusOr<World> BuildWorld(const PriorMap& prior) {
                      : InvalidFieldError("robot." + v[0].field, v[0].description);
   }
   OccupancyMap map(prior.room_min, prior.room_max, prior.map_resolution);
+  if (!prior.occupied.empty()) {
+    if (Status s = map.SetCells(prior.occupied); !s.ok()) {
+      return InvalidFieldError("occupancyGrid", s.message());
+    }
+  }
   std::vector<Box> furniture;
   for (const PriorMap::Furniture& f : prior.furniture) {
     map.AddBox(f.box);
@@ -386,7 +411,14 @@ StatusOr<World> BuildWorld(const PriorMap& prior) {
   }
   // The base stands in the room: each region is cut to it (a region kilometres wide made every
   // draw of a base pose fall outside), and one with no part in it is refused.
-  std::vector<BaseRegion> regions = prior.base_regions;
+  const bool derived = prior.base_regions.empty();
+  std::vector<BaseRegion> regions = derived ? BaseRegionsAround(prior) : prior.base_regions;
+  if (derived) {  // the strips are cut to the room; those wholly outside it go
+    std::erase_if(regions, [&](const BaseRegion& r) {
+      return !(std::min(r.max.x(), map.max().x()) > std::max(r.min.x(), map.min().x()) &&
+               std::min(r.max.y(), map.max().y()) > std::max(r.min.y(), map.min().y()));
+    });
+  }
   if (!map.cells().empty()) {
     for (size_t i = 0; i < regions.size(); ++i) {
       BaseRegion& r = regions[i];

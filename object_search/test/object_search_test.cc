@@ -774,6 +774,51 @@ TEST(WorldTest, BaseRegionsAreCutToTheRoomAndMustLeaveRoomForTheBase) {
   EXPECT_TRUE(BuildWorld(prior).ok());
 }
 
+// A SLAM map: its occupied cells keep the base out; without base regions, four strips around
+// each workspace from the footprint (plus clearance) to the reach.
+TEST(WorldTest, AnOccupancyGridBlocksTheBaseAndRegionsGoAroundTheWorkspaces) {
+  PriorMap prior;  // the room is [-3, 3] x [-3, 3] at 5 cm: 120 x 120 cells
+  prior.furniture.push_back({"table", {Vec3(1.5, 0, 0.375), 0.0, Vec3(1, 1, 0.75)}, true});
+  const auto regions = BaseRegionsAround(prior);
+  ASSERT_EQ(regions.size(), 4u);
+  const double inner = prior.robot.footprint_radius + prior.params.base_clearance;
+  EXPECT_NEAR(regions[0].min.x(), 1.0 - prior.robot.reach, 1e-12);
+  EXPECT_NEAR(regions[0].max.x(), 1.0 - inner, 1e-12);
+  EXPECT_NEAR(regions[3].min.y(), 0.5 + inner, 1e-12);
+  prior.occupied.assign(120 * 120, 0);
+  // A wall along x = 0.5 (columns 70-71) the whole height of the room.
+  for (int row = 0; row < 120; ++row)
+    prior.occupied[row * 120 + 70] = prior.occupied[row * 120 + 71] = 1;
+  auto w = BuildWorld(prior);
+  ASSERT_TRUE(w.ok()) << w.status().ToString();
+  EXPECT_EQ(w->base_regions.size(), 4u);      // derived
+  EXPECT_FALSE(w->BaseFeasible(0.55, -0.8));  // on the wall
+  EXPECT_TRUE(w->BaseFeasible(2.4, 0.0));     // the table's far side
+  prior.occupied.resize(100);                 // not the room's cells
+  EXPECT_EQ(BuildWorld(prior).status().field_violations()[0].field, "occupancyGrid");
+}
+
+TEST(GeometryTest, TheBoxAroundAPolygonIsItsSmallestRectangle) {
+  // A 1.2 x 0.8 table turned by 30 degrees, traced with an extra point on one side.
+  const double yaw = 0.5235987755982988, c = std::cos(yaw), s = std::sin(yaw);
+  std::vector<Vec2> polygon;
+  for (const Vec2& p : {Vec2(-0.6, -0.4), Vec2(0.0, -0.4), Vec2(0.6, -0.4), Vec2(0.6, 0.4),
+                        Vec2(-0.6, 0.4), Vec2(0.1, 0.1)}) {
+    polygon.emplace_back(2.0 + c * p.x() - s * p.y(), 1.0 + s * p.x() + c * p.y());
+  }
+  auto box = BoxAroundPolygon(polygon, 0.75);
+  ASSERT_TRUE(box.ok()) << box.status().ToString();
+  EXPECT_NEAR(box->center.x(), 2.0, 1e-9);
+  EXPECT_NEAR(box->center.y(), 1.0, 1e-9);
+  EXPECT_NEAR(box->center.z(), 0.375, 1e-12);
+  EXPECT_NEAR(box->size.x() * box->size.y(), 1.2 * 0.8, 1e-9);
+  EXPECT_NEAR(std::max(box->size.x(), box->size.y()), 1.2, 1e-9);
+  const double turn = std::fmod(box->yaw - yaw + 4 * M_PI, M_PI / 2);  // a quarter turn's rest
+  EXPECT_NEAR(std::min(turn, M_PI / 2 - turn), 0.0, 1e-9);
+  EXPECT_FALSE(BoxAroundPolygon({Vec2(0, 0), Vec2(1, 1), Vec2(2, 2)}, 0.7).ok());  // no area
+  EXPECT_FALSE(BoxAroundPolygon({Vec2(0, 0), Vec2(1, 1)}, 0.7).ok());
+}
+
 TEST(PlannerRegistryTest, BuiltInPlannersAreListedInTableOrderWithValidNames) {
   const PlannerRegistry& r = PlannerRegistry::BuiltIn();
   EXPECT_EQ(r.Names(), (std::vector<std::string>{"npfkct", "kct", "pomcp", "gpomcp", "pomcp-joint",

@@ -1526,10 +1526,10 @@ std::vector<double> Perception::Impl::BoxScores(const SensorFrame& frame,
   std::vector<double> scores(n, 0.5);
   std::vector<cv::Rect> boxes;
   for (const ImageBox& ib : image_boxes) {
-    boxes.emplace_back(cv::Point(static_cast<int>(std::floor(ib.x)),
-                                 static_cast<int>(std::floor(ib.y))),
-                       cv::Point(static_cast<int>(std::ceil(ib.x + ib.width)),
-                                 static_cast<int>(std::ceil(ib.y + ib.height))));
+    boxes.emplace_back(
+        cv::Point(static_cast<int>(std::floor(ib.x)), static_cast<int>(std::floor(ib.y))),
+        cv::Point(static_cast<int>(std::ceil(ib.x + ib.width)),
+                  static_cast<int>(std::ceil(ib.y + ib.height))));
   }
   // One cluster at a time (its mask and the integral image of it, which make the pixels a box
   // holds four lookups, are dropped before the next: a frame's memory is one cluster's, however
@@ -1554,8 +1554,8 @@ std::vector<double> Perception::Impl::BoxScores(const SensorFrame& frame,
       if (in.empty()) continue;
       const int x0 = in.x - rect.x, y0 = in.y - rect.y;
       const int x1 = x0 + in.width, y1 = y0 + in.height;
-      const double held = sum.at<int>(y1, x1) - sum.at<int>(y0, x1) - sum.at<int>(y1, x0) +
-                          sum.at<int>(y0, x0);
+      const double held =
+          sum.at<int>(y1, x1) - sum.at<int>(y0, x1) - sum.at<int>(y1, x0) + sum.at<int>(y0, x0);
       if (held >= 0.5 * area && held > best[b]) {
         best[b] = held;
         (*box_cluster)[b] = static_cast<int>(c);

@@ -10,6 +10,36 @@ namespace npfkct::sim {
 ApiRobot::ApiRobot(Scenario scenario, uint64_t seed)
     : sim_(std::move(scenario), seed), rng_(seed * 7919 + 1) {}
 
+std::vector<perception::ImageBox> DetectorBoxes(const Simulator& sim, const Frame& frame,
+                                                Rng& rng) {
+  const SimNoise& noise = sim.scenario().noise;
+  // The pixels each scene object shows (the rendered ids), as a detector sees them.
+  const size_t n = sim.objects().size();
+  const int width = frame.width, height = frame.height;
+  std::vector<int> u0(n, width), v0(n, height), u1(n, -1), v1(n, -1), pixels(n, 0);
+  for (int v = 0; v < height; ++v) {
+    for (int u = 0; u < width; ++u) {
+      const int id = frame.ids[static_cast<size_t>(v) * width + u];
+      if (id < 0 || id >= static_cast<int>(n)) continue;
+      u0[id] = std::min(u0[id], u);
+      v0[id] = std::min(v0[id], v);
+      u1[id] = std::max(u1[id], u);
+      v1[id] = std::max(v1[id], v);
+      ++pixels[id];
+    }
+  }
+  constexpr int kMinBoxPixels = 100;  // fewer: too small for the detector to box
+  std::vector<perception::ImageBox> boxes;
+  for (size_t i = 0; i < n; ++i) {
+    if (pixels[i] < kMinBoxPixels) continue;
+    // It fires on the target unless it misses, on another object when it errs.
+    if (rng.Bernoulli(noise.false_detection) == sim.objects()[i].target) continue;
+    const double score = std::clamp(0.85 + noise.detection * rng.Normal(), 0.5, 0.99);
+    boxes.push_back({1.0 * u0[i], 1.0 * v0[i], u1[i] - u0[i] + 1.0, v1[i] - v0[i] + 1.0, score});
+  }
+  return boxes;
+}
+
 ExecutionOutcome ApiRobot::Execute(const api::ActionView& action) {
   const auto& params = sim_.scenario().params;
   if (action.type == api::ActionView::Type::kMove) {

@@ -54,35 +54,6 @@ pcl::PointCloud<pcl::PointXYZRGB>::Ptr FrameCloud(const Frame& frame, bool world
   return cloud;
 }
 
-std::vector<perception::ImageBox> DetectorBoxes(const Simulator& sim, const Frame& frame, Rng& rng) {
-  const SimNoise& noise = sim.scenario().noise;
-  // The pixels each scene object shows (the rendered ids), as a detector sees them.
-  const size_t n = sim.objects().size();
-  const int width = frame.width, height = frame.height;
-  std::vector<int> u0(n, width), v0(n, height), u1(n, -1), v1(n, -1), pixels(n, 0);
-  for (int v = 0; v < height; ++v) {
-    for (int u = 0; u < width; ++u) {
-      const int id = frame.ids[static_cast<size_t>(v) * width + u];
-      if (id < 0 || id >= static_cast<int>(n)) continue;
-      u0[id] = std::min(u0[id], u);
-      v0[id] = std::min(v0[id], v);
-      u1[id] = std::max(u1[id], u);
-      v1[id] = std::max(v1[id], v);
-      ++pixels[id];
-    }
-  }
-  constexpr int kMinBoxPixels = 100;  // fewer: too small for the detector to box
-  std::vector<perception::ImageBox> boxes;
-  for (size_t i = 0; i < n; ++i) {
-    if (pixels[i] < kMinBoxPixels) continue;
-    // It fires on the target unless it misses, on another object when it errs.
-    if (rng.Bernoulli(noise.false_detection) == sim.objects()[i].target) continue;
-    const double score = std::clamp(0.85 + noise.detection * rng.Normal(), 0.5, 0.99);
-    boxes.push_back({1.0 * u0[i], 1.0 * v0[i], u1[i] - u0[i] + 1.0, v1[i] - v0[i] + 1.0, score});
-  }
-  return boxes;
-}
-
 cv::Mat RenderStep(const object_search::World& world, const Frame& view,
                    const std::string& caption) {
   render::BeliefPictureOptions options;

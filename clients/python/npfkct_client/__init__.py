@@ -17,6 +17,7 @@ from npfkct_client.client import (
     RobotConfig,
     Session,
 )
+from npfkct_client.maps import occupancy_grid_from_map_files, traced_workspaces, write_map_files
 
 __all__ = [
     "__version__",
@@ -32,4 +33,7 @@ __all__ = [
     "PointCloud",
     "RobotConfig",
     "Session",
+    "occupancy_grid_from_map_files",
+    "traced_workspaces",
+    "write_map_files",
 ]

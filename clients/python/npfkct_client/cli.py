@@ -1,6 +1,7 @@
 """npfkct-client: the command-line client of the npfkct planning server (python3 -m npfkct_client).
 
   npfkct-client --server URL create --scenario FILE [--planner NAME] [--model NAME] [--seed N]
+                [--map MAP.yaml]   (a ROS map_server occupancy grid for the room)
   npfkct-client --server URL plan ID [--time-ms MS] [--cpu-ms MS] [--simulations N]
   npfkct-client --server URL observe ID --action-id A --body FILE   (an :observe body as JSON)
   npfkct-client --server URL get ID | belief ID [--png OUT] | list | delete ID | health
@@ -12,9 +13,10 @@ import sys
 
 from npfkct_client import __version__
 from npfkct_client.client import ApiError, NpfkctClient
+from npfkct_client.maps import occupancy_grid_from_map_files
 
-WORLD_KEYS = ("robot", "room", "mapResolution", "furniture", "baseRegions", "discretePoses",
-              "start", "params")
+WORLD_KEYS = ("robot", "room", "mapResolution", "occupancyGrid", "furniture", "workspaces",
+              "baseRegions", "discretePoses", "start", "params")
 
 
 def world_of_scenario(path: str):
@@ -36,6 +38,8 @@ def main(argv=None) -> int:
     create.add_argument("--planner", default="npfkct")
     create.add_argument("--model", help="neural filter model of the server (e.g. filter.pt)")
     create.add_argument("--seed", type=int)
+    create.add_argument("--map", help="a ROS map_server YAML (with its PGM): the occupancy grid "
+                        "in place of the scenario's room")
     plan = sub.add_parser("plan", help="plan the next action")
     plan.add_argument("id")
     plan.add_argument("--time-ms", type=float)
@@ -58,8 +62,13 @@ def main(argv=None) -> int:
     client = NpfkctClient(args.server, api_key=args.api_key)
     try:
         if args.command == "create":
-            out = client.create_session(world_of_scenario(args.scenario), planner=args.planner,
-                                        seed=args.seed, model=args.model).raw
+            world = world_of_scenario(args.scenario)
+            if args.map:
+                world.pop("room", None)
+                world.pop("mapResolution", None)
+                world["occupancyGrid"] = occupancy_grid_from_map_files(args.map)
+            out = client.create_session(world, planner=args.planner, seed=args.seed,
+                                        model=args.model).raw
         elif args.command == "plan":
             p = client.plan(args.id, time_ms=args.time_ms, simulations=args.simulations,
                             cpu_ms=args.cpu_ms)

@@ -54,8 +54,7 @@ Status Limits::Validate() const {
       max_image_pixels == hard.max_image_pixels && max_image_side == hard.max_image_side &&
       max_photos == hard.max_photos && max_photo_pixels == hard.max_photo_pixels &&
       max_perception_map_points == hard.max_perception_map_points &&
-      max_semantic_scores == hard.max_semantic_scores &&
-      max_image_boxes == hard.max_image_boxes &&
+      max_semantic_scores == hard.max_semantic_scores && max_image_boxes == hard.max_image_boxes &&
       max_display_name == hard.max_display_name && max_description == hard.max_description &&
       max_id_length == hard.max_id_length && max_json_depth == hard.max_json_depth &&
       max_json_values == hard.max_json_values;

@@ -274,8 +274,8 @@ StatusOr<perception::SensorFrame> ReadFrame(const json& body, const Limits& limi
     // The schema bounds the count and each number; perception checks them against the image.
     const json& boxes = body.at("imageBoxes");
     if (boxes.size() > static_cast<size_t>(limits.max_image_boxes)) {
-      return InvalidFieldError("imageBoxes", "at most " + std::to_string(limits.max_image_boxes) +
-                                                 " boxes");
+      return InvalidFieldError("imageBoxes",
+                               "at most " + std::to_string(limits.max_image_boxes) + " boxes");
     }
     frame.image_boxes.emplace();
     for (const json& b : boxes) {

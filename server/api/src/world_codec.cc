@@ -6,6 +6,7 @@
 #include <set>
 
 #include "npfkct/api/api.h"
+#include "npfkct/api/wire.h"
 #include "npfkct/render/belief_picture.h"
 #include "npfkct/robot/urdf.h"
 
@@ -421,6 +422,46 @@ int64_t MapCells(const Vec2& lo, const Vec2& hi, double resolution) {
                            CeilCount((hi.y() - lo.y()) / resolution));
 }
 
+// A SLAM occupancy grid as the OccupancyGrid message has it: resolution, origin [x, y, yaw] of
+// cell (0, 0)'s corner, width x height cells row by row from the origin, data base64 int8 (-1
+// unknown, 0-100 occupied); a cell at occupiedThreshold or above, or unknown, is where the base
+// may not stand. Gives the room, its resolution and its cells; counted before it is allocated.
+Status ReadOccupancyGrid(const json& g, const std::string& path, const Limits& limits,
+                         WorldSpec* spec) {
+  const double resolution = Number(g, "resolution", 0.05);
+  const int64_t width = Integer(g, "width", 0), height = Integer(g, "height", 0);
+  if (SaturatingProduct(width, height) > limits.max_map_cells) {
+    return InvalidFieldError(
+        Join(path, "width"),
+        "width x height is more than " + std::to_string(limits.max_map_cells) + " cells");
+  }
+  const json& origin = g.at("origin");
+  if (origin.size() > 2 && origin[2].get<double>() != 0.0) {
+    return InvalidFieldError(Join(path, "origin") + "[2]",
+                             "a rotated map is not supported: its yaw must be 0");
+  }
+  const Vec2 lo(origin[0].get<double>(), origin[1].get<double>());
+  auto data = Base64Decode(g.at("data").get<std::string>(), Join(path, "data"),
+                           static_cast<size_t>(width * height));
+  if (!data.ok()) return data.status();
+  if (static_cast<int64_t>(data->size()) != width * height) {
+    return InvalidFieldError(Join(path, "data"), std::to_string(data->size()) +
+                                                     " cells; width x height is " +
+                                                     std::to_string(width * height));
+  }
+  const int threshold = static_cast<int>(Integer(g, "occupiedThreshold", 65));
+  spec->room_min = lo;
+  // A hair less than whole cells, so that counting them again (a ceiling) gives width x height.
+  spec->room_max = lo + Vec2(width - 1e-6, height - 1e-6) * resolution;
+  spec->map_resolution = resolution;
+  spec->occupied.resize(data->size());
+  for (size_t i = 0; i < data->size(); ++i) {
+    const int v = static_cast<int8_t>((*data)[i]);
+    spec->occupied[i] = v < 0 || v >= threshold ? 1 : 0;
+  }
+  return OkStatus();
+}
+
 StatusOr<WorldSpec> ReadWorldSpec(const json& j, const std::string& path, const Limits& limits) {
   WorldSpec spec;
   if (j.contains("robot")) {
@@ -437,6 +478,17 @@ StatusOr<WorldSpec> ReadWorldSpec(const json& j, const std::string& path, const 
     }
   }
   spec.map_resolution = Number(j, "mapResolution", spec.map_resolution);
+  if (j.contains("occupancyGrid")) {
+    if (j.contains("room") || j.contains("mapResolution")) {
+      return InvalidFieldError(Join(path, j.contains("room") ? "room" : "mapResolution"),
+                               "the occupancy grid gives the room and its resolution");
+    }
+    if (Status s =
+            ReadOccupancyGrid(j.at("occupancyGrid"), Join(path, "occupancyGrid"), limits, &spec);
+        !s.ok()) {
+      return s;
+    }
+  }
   const int64_t map_cells = MapCells(spec.room_min, spec.room_max, spec.map_resolution);
   if (map_cells > limits.max_map_cells) {
     return InvalidFieldError(Join(path, "mapResolution"),
@@ -445,27 +497,42 @@ StatusOr<WorldSpec> ReadWorldSpec(const json& j, const std::string& path, const 
                                  std::to_string(limits.max_map_cells) +
                                  " (use a coarser resolution or a smaller room)");
   }
-  const json& furniture = j.at("furniture");
-  if (static_cast<int64_t>(furniture.size()) > limits.max_furniture) {
-    return InvalidFieldError(Join(path, "furniture"),
-                             "at most " + std::to_string(limits.max_furniture) + " pieces");
+  const json none = json::array();
+  const json& furniture = j.contains("furniture") ? j.at("furniture") : none;
+  const json& traced = j.contains("workspaces") ? j.at("workspaces") : none;
+  if (static_cast<int64_t>(furniture.size() + traced.size()) > limits.max_furniture) {
+    return InvalidFieldError(Join(path, traced.empty() ? "furniture" : "workspaces"),
+                             "at most " + std::to_string(limits.max_furniture) +
+                                 " pieces of furniture and workspaces together");
   }
   std::set<std::string> names;
   int64_t grid_cells = 0;
-  for (size_t i = 0; i < furniture.size(); ++i) {
-    const json& f = furniture[i];
-    const std::string at = At(Join(path, "furniture"), i);
+  for (size_t i = 0; i < furniture.size() + traced.size(); ++i) {
+    const bool polygon = i >= furniture.size();
+    const json& f = polygon ? traced[i - furniture.size()] : furniture[i];
+    const std::string at = polygon ? At(Join(path, "workspaces"), i - furniture.size())
+                                   : At(Join(path, "furniture"), i);
     WorldSpec::Furniture piece;
     piece.name = String(f, "name");
     if (!names.insert(piece.name).second) {
       return InvalidFieldError(at + ".name", "duplicate name '" + piece.name + "'");
     }
     Vec2 center = Vec2::Zero();
-    ReadVec(f.at("center"), &center);
-    ReadVec(f.at("size"), &piece.box.size);
-    piece.box.yaw = Number(f, "yaw", 0.0);
-    piece.box.center = Vec3(center.x(), center.y(), 0.5 * piece.box.size.z());
-    piece.workspace = Bool(f, "workspace", false);
+    if (polygon) {  // a workspace traced as a polygon with its height: the box around it
+      std::vector<Vec2> points;
+      for (const json& p : f.at("polygon")) ReadVec(p, &points.emplace_back());
+      auto box = object_search::BoxAroundPolygon(points, Number(f, "height", 0.0));
+      if (!box.ok()) return InvalidFieldError(at + ".polygon", box.status().message());
+      piece.box = *box;
+      piece.workspace = true;
+      center = piece.box.center.head<2>();
+    } else {
+      ReadVec(f.at("center"), &center);
+      ReadVec(f.at("size"), &piece.box.size);
+      piece.box.yaw = Number(f, "yaw", 0.0);
+      piece.box.center = Vec3(center.x(), center.y(), 0.5 * piece.box.size.z());
+      piece.workspace = Bool(f, "workspace", false);
+    }
     if (piece.workspace) {
       grid_cells += GridCells({{piece.name, center, piece.box.yaw, piece.box.size.x(),
                                 piece.box.size.y(), piece.box.size.z()}},
@@ -481,7 +548,13 @@ StatusOr<WorldSpec> ReadWorldSpec(const json& j, const std::string& path, const 
   if (grid_cells == 0) {
     return InvalidFieldError(Join(path, "furniture"), "at least one piece must be a workspace");
   }
-  const json& regions = j.at("baseRegions");
+  const json& regions = j.contains("baseRegions") ? j.at("baseRegions") : none;
+  if (regions.empty() &&
+      4 * static_cast<int64_t>(spec.Workspaces().size()) > limits.max_base_regions) {
+    return InvalidFieldError(Join(path, "baseRegions"),
+                             "needed: the regions around the workspaces would be more than " +
+                                 std::to_string(limits.max_base_regions));
+  }
   if (static_cast<int64_t>(regions.size()) > limits.max_base_regions) {
     return InvalidFieldError(Join(path, "baseRegions"),
                              "at most " + std::to_string(limits.max_base_regions) + " regions");
@@ -520,8 +593,19 @@ StatusOr<WorldSpec> ReadWorldSpec(const json& j, const std::string& path, const 
 json WorldSpecJson(const WorldSpec& spec) {
   json j;
   j["robot"] = RobotJson(spec.robot);
-  j["room"] = {{"min", Vec(spec.room_min)}, {"max", Vec(spec.room_max)}};
-  j["mapResolution"] = spec.map_resolution;
+  if (spec.occupied.empty()) {
+    j["room"] = {{"min", Vec(spec.room_min)}, {"max", Vec(spec.room_max)}};
+    j["mapResolution"] = spec.map_resolution;
+  } else {  // the occupancy grid it was read from: its cells as occupied (100) or free (0)
+    const object_search::OccupancyMap map(spec.room_min, spec.room_max, spec.map_resolution);
+    std::string cells(spec.occupied.size(), '\0');
+    for (size_t i = 0; i < cells.size(); ++i) cells[i] = spec.occupied[i] ? 100 : 0;
+    j["occupancyGrid"] = {{"resolution", spec.map_resolution},
+                          {"origin", {spec.room_min.x(), spec.room_min.y(), 0.0}},
+                          {"width", map.nx()},
+                          {"height", map.ny()},
+                          {"data", Base64Encode(cells)}};
+  }
   j["furniture"] = json::array();
   for (const WorldSpec::Furniture& f : spec.furniture) {
     // Furniture stands on the floor: ReadWorldSpec puts its center at half its height.
@@ -531,9 +615,11 @@ json WorldSpecJson(const WorldSpec& spec) {
                               {"yaw", f.box.yaw},
                               {"workspace", f.workspace}});
   }
-  j["baseRegions"] = json::array();
-  for (const object_search::BaseRegion& r : spec.base_regions) {
-    j["baseRegions"].push_back({{"min", Vec(r.min)}, {"max", Vec(r.max)}});
+  if (!spec.base_regions.empty()) {  // none: the server places them around the workspaces
+    j["baseRegions"] = json::array();
+    for (const object_search::BaseRegion& r : spec.base_regions) {
+      j["baseRegions"].push_back({{"min", Vec(r.min)}, {"max", Vec(r.max)}});
+    }
   }
   if (!spec.discrete_poses.empty()) {
     j["discretePoses"] = json::array();

@@ -33,6 +33,11 @@ struct Box {
   bool BlocksSegment(const Vec3& a, const Vec3& b, double clearance = 1e-6) const;
 };
 
+/// The upright box standing on the floor (bottom at z = 0, top at `height`) whose footprint is
+/// the smallest-area rectangle holding the polygon's points (a table top traced in a map): the
+/// rectangle along one edge of their convex hull. INVALID_ARGUMENT when the points span no area.
+StatusOr<Box> BoxAroundPolygon(const std::vector<Vec2>& polygon, double height);
+
 /// A Box with its yaw's cosine and sine computed once, for tests against many points and rays
 /// (the camera's occlusion checks); the same results as the Box methods of the same names.
 struct BoxFrame {

@@ -237,14 +237,25 @@ struct PriorMap {
   Vec2 room_max = Vec2(3, 3);
   double map_resolution = 0.05;
   std::vector<Furniture> furniture;
+  /// Where the base may stand; empty: around each workspace (BaseRegionsAround).
   std::vector<BaseRegion> base_regions;
   std::vector<RobotConfig> discrete_poses;
   RobotConfig start;
   SearchParams params;
+  /// The cells of a SLAM occupancy grid the base may not stand on (occupied or unknown: 1),
+  /// row by row from room_min at map_resolution, covering the room; empty: the room is free
+  /// but for the furniture.
+  std::vector<uint8_t> occupied;
 
   /// The furniture tops that are workspaces, as grid-world surfaces.
   std::vector<Workspace> Workspaces() const;
 };
+
+/// Base regions around the workspaces of `prior`, for a map that gives none: four strips along
+/// the sides of each workspace's footprint (its axis-aligned bounds), from the robot's footprint
+/// radius plus the base clearance out to its reach (at least 0.3 m wide), as the paper's scenes
+/// place them.
+std::vector<BaseRegion> BaseRegionsAround(const PriorMap& prior);
 
 /// The robot's initial knowledge of a prior map: the occupancy map of the room with the furniture,
 /// the base regions, the grid world over the workspaces (kGridResolution), no object but the

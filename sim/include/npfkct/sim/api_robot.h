@@ -13,6 +13,12 @@
 
 namespace npfkct::sim {
 
+/// A simulated YOLO-style detector of the target's class run on `frame` (rendered by `sim`): a
+/// box around the pixels of each scene object that shows 100 pixels or more and that it fires
+/// on, the target with probability 1 - noise.false_detection and any other object with
+/// probability noise.false_detection, with a score of 0.85 (+- noise.detection).
+std::vector<perception::ImageBox> DetectorBoxes(const Simulator& sim, const Frame& frame, Rng& rng);
+
 /// A simulator plus what the robot has declared so far (removals depend on it).
 class ApiRobot {
  public:

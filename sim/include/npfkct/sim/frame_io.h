@@ -9,10 +9,8 @@
 
 #include <opencv2/core.hpp>
 #include <string>
-#include <vector>
 
 #include "npfkct/object_search/world.h"
-#include "npfkct/perception/perception.h"
 #include "npfkct/sim/simulator.h"
 
 namespace npfkct::sim {
@@ -24,12 +22,6 @@ cv::Mat FrameDepth(const Frame& frame);
 /// The frame as a coloured point cloud, in the camera's optical frame (x right, y down,
 /// z forward) or, with `world_frame`, in the world frame.
 pcl::PointCloud<pcl::PointXYZRGB>::Ptr FrameCloud(const Frame& frame, bool world_frame);
-
-/// A simulated YOLO-style detector of the target's class run on `frame` (rendered by `sim`): a
-/// box around the pixels of each scene object that shows 100 pixels or more and that it fires
-/// on, the target with probability 1 - noise.false_detection and any other object with
-/// probability noise.false_detection, with a score of 0.85 (+- noise.detection).
-std::vector<perception::ImageBox> DetectorBoxes(const Simulator& sim, const Frame& frame, Rng& rng);
 
 /// The picture of one step: the belief picture of npfkct/render (titled `caption`: the grid
 /// world's odds with a colour bar, labelled objects and face odds, the robot and its view,

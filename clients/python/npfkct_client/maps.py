@@ -1,0 +1,126 @@
+"""SLAM maps for a session's world: ROS map_server's YAML + PGM pair as the occupancyGrid the
+server takes (the fields of nav_msgs/OccupancyGrid)."""
+
+import base64
+import os
+from typing import Any, Dict, List, Tuple
+
+
+def _read_pgm(data: bytes) -> Tuple[int, int, int, List[int]]:
+    """Width, height, maxval and the pixels (top row first) of a binary (P5) or plain (P2) PGM."""
+    tokens: List[bytes] = []
+    i = 0
+    magic = data[:2]
+    if magic not in (b"P5", b"P2"):
+        raise ValueError("not a PGM image (P5 or P2)")
+    i = 2
+    while len(tokens) < 3:  # width, height, maxval; comments start with '#'
+        while i < len(data) and data[i:i + 1].isspace():
+            i += 1
+        if data[i:i + 1] == b"#":
+            while i < len(data) and data[i:i + 1] != b"\n":
+                i += 1
+            continue
+        start = i
+        while i < len(data) and not data[i:i + 1].isspace():
+            i += 1
+        if start == i:
+            raise ValueError("truncated PGM header")
+        tokens.append(data[start:i])
+    width, height, maxval = (int(t) for t in tokens)
+    if width < 1 or height < 1 or not 1 <= maxval <= 65535:
+        raise ValueError("bad PGM size or maxval")
+    count = width * height
+    if magic == b"P2":
+        pixels = [int(t) for t in data[i:].split()[:count]]
+    else:
+        i += 1  # the single whitespace after maxval
+        step = 1 if maxval < 256 else 2
+        raw = data[i:i + count * step]
+        pixels = list(raw) if step == 1 else [raw[k] << 8 | raw[k + 1] for k in range(0, len(raw), 2)]
+    if len(pixels) != count:
+        raise ValueError(f"PGM has {len(pixels)} pixels, {width} x {height} expected")
+    return width, height, maxval, pixels
+
+
+def occupancy_grid_from_map_files(yaml_path: str) -> Dict[str, Any]:
+    """The world's "occupancyGrid" from map_server's YAML (image, resolution, origin, negate,
+    occupied_thresh, free_thresh; mode trinary) and the PGM it names: a cell occupied (100)
+    above occupied_thresh, free (0) below free_thresh, unknown (-1) between; rows flipped so
+    that row 0 is the lowest y, as nav_msgs/OccupancyGrid has them. Needs PyYAML."""
+    import yaml  # PyYAML (Debian: python3-yaml)
+
+    with open(yaml_path, encoding="utf-8") as f:
+        meta = yaml.safe_load(f)
+    image = meta["image"]
+    if not os.path.isabs(image):
+        image = os.path.join(os.path.dirname(os.path.abspath(yaml_path)), image)
+    with open(image, "rb") as f:
+        width, height, maxval, pixels = _read_pgm(f.read())
+    negate = bool(meta.get("negate", 0))
+    occupied, free = float(meta.get("occupied_thresh", 0.65)), float(meta.get("free_thresh", 0.196))
+    cells = bytearray(width * height)
+    for row in range(height):
+        top = height - 1 - row  # the PGM's first row is the map's highest y
+        for col in range(width):
+            v = pixels[top * width + col]
+            p = v / maxval if negate else (maxval - v) / maxval
+            cells[row * width + col] = 100 if p > occupied else 0 if p < free else 0xFF  # -1
+    origin = [float(v) for v in meta.get("origin", [0.0, 0.0, 0.0])]
+    return {"resolution": float(meta["resolution"]), "origin": origin, "width": width,
+            "height": height, "data": base64.b64encode(bytes(cells)).decode()}
+
+
+def write_map_files(world: Dict[str, Any], directory: str, name: str = "map",
+                    resolution: float = 0.05) -> str:
+    """Rasterises a hand-written world (room and furniture, as a scenario file has them) into
+    map_server's pair, as a SLAM map of that room would look: walls one cell thick on the
+    room's border and each piece of furniture's footprint occupied (0), the floor free (254).
+    Writes NAME.pgm and NAME.yaml into `directory` and returns the YAML's path."""
+    import math
+
+    lo = world.get("room", {}).get("min", [-3.0, -3.0])
+    hi = world.get("room", {}).get("max", [3.0, 3.0])
+    width = max(1, round((hi[0] - lo[0]) / resolution))
+    height = max(1, round((hi[1] - lo[1]) / resolution))
+    pixels = bytearray([254]) * (width * height)
+    footprints = []
+    for f in world.get("furniture", []):
+        yaw = f.get("yaw", 0.0)
+        footprints.append((f["center"], f["size"], math.cos(yaw), math.sin(yaw)))
+    for row in range(height):  # row 0: the lowest y, written last
+        y = lo[1] + (row + 0.5) * resolution
+        for col in range(width):
+            x = lo[0] + (col + 0.5) * resolution
+            occupied = row in (0, height - 1) or col in (0, width - 1)
+            for (cx, cy), size, c, s in footprints:
+                u, v = c * (x - cx) + s * (y - cy), -s * (x - cx) + c * (y - cy)
+                occupied = occupied or (abs(u) <= 0.5 * size[0] and abs(v) <= 0.5 * size[1])
+            if occupied:
+                pixels[(height - 1 - row) * width + col] = 0
+    with open(os.path.join(directory, name + ".pgm"), "wb") as f:
+        f.write(b"P5\n%d %d\n255\n" % (width, height) + bytes(pixels))
+    path = os.path.join(directory, name + ".yaml")
+    with open(path, "w", encoding="utf-8") as f:
+        f.write(f"image: {name}.pgm\nresolution: {resolution}\n"
+                f"origin: [{float(lo[0])}, {float(lo[1])}, 0.0]\n"
+                "negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n")
+    return path
+
+
+def traced_workspaces(world: Dict[str, Any]) -> List[Dict[str, Any]]:
+    """The workspace furniture of a hand-written world as traced polygons with their heights
+    (each footprint's four corners), as the world's "workspaces" takes them."""
+    import math
+
+    out = []
+    for f in world.get("furniture", []):
+        if not f.get("workspace"):
+            continue
+        (cx, cy), (sx, sy, sz) = f["center"], f["size"]
+        c, s = math.cos(f.get("yaw", 0.0)), math.sin(f.get("yaw", 0.0))
+        corners = [(-0.5 * sx, -0.5 * sy), (0.5 * sx, -0.5 * sy), (0.5 * sx, 0.5 * sy),
+                   (-0.5 * sx, 0.5 * sy)]
+        out.append({"name": f["name"], "height": sz,
+                    "polygon": [[cx + c * u - s * v, cy + s * u + c * v] for u, v in corners]})
+    return out

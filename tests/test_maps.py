@@ -1,0 +1,125 @@
+"""A prior map from SLAM: a ROS map_server map (YAML + PGM) as the session's occupancy grid, the
+workspaces traced as polygons with their heights, the base regions placed around them; bad grids
+and polygons get 400s naming the field."""
+
+import base64
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+import requests
+
+from conftest import ROOT, SimRobot, world_of
+from npfkct_client import (NpfkctClient, occupancy_grid_from_map_files, traced_workspaces,
+                           write_map_files)
+
+TABLE = [[1.0, -0.4], [2.2, -0.4], [2.2, 0.4], [1.0, 0.4]]  # Loose1's table, x 1.0-2.2, y +-0.4
+
+
+def write_loose1_map(directory):
+    """Loose1's room rasterised as map_server writes it (npfkct_client.write_map_files: walls on
+    the border and the table's footprint occupied, black; the floor free), and five unknown
+    cells (205) at the start of the PGM's first row, the highest y."""
+    path = write_map_files(world_of("loose1"), directory, "loose1")
+    pgm = os.path.join(directory, "loose1.pgm")
+    with open(pgm, "rb") as f:
+        data = bytearray(f.read())
+    header = len(b"P5\n140 130\n255\n")
+    assert data[:header] == b"P5\n140 130\n255\n"
+    data[header:header + 5] = bytes([205] * 5)
+    with open(pgm, "wb") as f:
+        f.write(bytes(data))
+    return path
+
+
+def map_world(yaml_path):
+    """Loose1's world from the map files: the grid, the table traced, no base regions."""
+    loose1 = world_of("loose1")
+    return {"robot": loose1["robot"], "start": loose1["start"],
+            "occupancyGrid": occupancy_grid_from_map_files(yaml_path),
+            "workspaces": traced_workspaces(loose1)}
+
+
+def test_the_map_files_read_as_the_occupancy_grid(tmp_path):
+    grid = occupancy_grid_from_map_files(write_loose1_map(str(tmp_path)))
+    assert (grid["width"], grid["height"], grid["resolution"]) == (140, 130, 0.05)
+    assert grid["origin"] == [-3.0, -3.0, 0.0]
+    cells = base64.b64decode(grid["data"])
+    assert len(cells) == 140 * 130
+    at = lambda x, y: cells[int((y + 3.0) / 0.05) * 140 + int((x + 3.0) / 0.05)]
+    assert at(1.6, 0.0) == 100 and at(-1.0, 0.0) == 0 and at(-2.99, -2.99) == 100
+    assert cells[(130 - 1) * 140 + 2] == 0xFF  # the PGM's top-left corner: unknown, the top row
+    traced = traced_workspaces(world_of("loose1"))
+    assert [(w["name"], w["height"]) for w in traced] == [("table", 0.75)]
+    assert [v for p in traced[0]["polygon"] for v in p] == pytest.approx(
+        [v for p in TABLE for v in p])
+
+
+def test_a_session_on_a_slam_map_finds_the_target(server, tmp_path):
+    client = NpfkctClient(server.url)
+    world = map_world(write_loose1_map(str(tmp_path)))
+    session = client.create_session(world, seed=2)
+    belief = client.belief(session.id)
+    assert len(belief["furniture"]) == 1
+    table = belief["furniture"][0]  # the box around the traced polygon
+    assert sorted(table["size"][:2]) == pytest.approx([0.8, 1.2])
+    assert table["center"][:2] == pytest.approx([1.6, 0.0])
+    # Four strips around the table, from the footprint (0.3 m) plus clearance (0.05 m) to the
+    # reach (1 m): the left one is x in [0.0, 0.65].
+    assert len(belief["baseRegions"]) == 4
+    assert belief["baseRegions"][0]["min"][0] == pytest.approx(0.0)
+    assert belief["baseRegions"][0]["max"][0] == pytest.approx(0.65)
+    robot = SimRobot("loose1", seed=2)
+    try:
+        for _ in range(30):
+            plan = client.plan(session.id, time_ms=250)
+            if plan.action.type == "MOVE":  # the base stands where the map is free
+                c = plan.action.configuration
+                assert any(r["min"][0] <= c.x <= r["max"][0] and r["min"][1] <= c.y <= r["max"][1]
+                           for r in belief["baseRegions"])
+            reply = robot.execute(plan.action.to_json())
+            observed = client.observe(session.id, plan.action_id, body=reply["observation"])
+            if observed.done:
+                break
+        assert observed.done, "the target was not removed within 30 steps"
+    finally:
+        robot.close()
+        client.delete_session(session.id)
+
+
+def test_the_command_line_client_takes_a_map(server, tmp_path):
+    yaml_path = write_loose1_map(str(tmp_path))
+    out = subprocess.run([sys.executable, "-m", "npfkct_client", "--server", server.url, "create",
+                          "--scenario", os.path.join(ROOT, "scenarios", "loose1.json"),
+                          "--map", yaml_path], capture_output=True, text=True, timeout=60,
+                         env=dict(os.environ, PYTHONPATH=os.path.join(ROOT, "clients", "python")))
+    assert out.returncode == 0, out.stderr
+    assert json.loads(out.stdout)["state"] == "READY"
+
+
+def test_bad_grids_and_polygons_name_their_field(server, tmp_path):
+    world = map_world(write_loose1_map(str(tmp_path)))
+    grid = world["occupancyGrid"]
+    cases = [
+        ({"occupancyGrid": dict(grid, width=2000, height=1000)}, "world.occupancyGrid.width"),
+        ({"occupancyGrid": dict(grid, width=139)}, "world.occupancyGrid.data"),
+        ({"occupancyGrid": dict(grid, origin=[-3.0, -3.0, 0.5])}, "world.occupancyGrid.origin[2]"),
+        ({"occupancyGrid": dict(grid, data="@@@")}, "world.occupancyGrid.data"),
+        ({"occupancyGrid": dict(grid, resolution=0)}, "world.occupancyGrid.resolution"),
+        ({"room": {"min": [-3, -3], "max": [4, 3.5]}}, "world.room"),
+        ({"workspaces": [{"name": "t", "polygon": [[0, 0], [1, 1], [2, 2]], "height": 0.7}]},
+         "world.workspaces[0].polygon"),
+        ({"workspaces": [{"name": "t", "polygon": TABLE[:2], "height": 0.7}]},
+         "world.workspaces[0].polygon"),
+        ({"workspaces": [{"name": f"t{i}", "polygon": [[x + i * 0.2 for x in p] for p in TABLE],
+                          "height": 0.7} for i in range(17)]}, "world.baseRegions"),
+        ({"workspaces": [], "furniture": []}, "world.furniture"),
+    ]
+    for edit, field in cases:
+        body = {"world": dict(world, **edit)}
+        r = requests.post(server.url + "/v1/sessions", json=body, timeout=30)
+        assert r.status_code == 400, (field, r.text[:300])
+        violations = r.json()["error"]["details"][0]["fieldViolations"]
+        assert violations[0]["field"] == field, (field, r.text[:300])
