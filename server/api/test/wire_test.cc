@@ -34,6 +34,31 @@ TEST(Base64, RoundTripsAndNamesTheFieldOnBadInput) {
   EXPECT_FALSE(Base64Decode(std::string(400, 'A'), "f", 100).ok());  // over the size limit
 }
 
+// Whole blocks go four characters at a time; whitespace, padding or a bad character anywhere
+// hands the rest to the character-at-a-time path, with the same result.
+TEST(Base64, BlocksAndTheRestDecodeAlike) {
+  std::string bytes;
+  for (int i = 0; i < 3000; ++i) bytes += static_cast<char>((i * 7919) & 0xff);
+  for (size_t length : {size_t{0}, size_t{1}, size_t{2}, size_t{3}, size_t{1000}, size_t{2999}}) {
+    const std::string s = bytes.substr(0, length);
+    const std::string text = Base64Encode(s);
+    EXPECT_EQ(Base64Decode(text, "f").value(), s) << length;
+    std::string wrapped;  // MIME-style lines of 76 characters
+    for (size_t k = 0; k < text.size(); k += 76) wrapped += text.substr(k, 76) + "\r\n";
+    EXPECT_EQ(Base64Decode(wrapped, "f").value(), s) << length;
+    std::string url_safe = text;  // the URL-safe alphabet
+    std::replace(url_safe.begin(), url_safe.end(), '+', '-');
+    std::replace(url_safe.begin(), url_safe.end(), '/', '_');
+    EXPECT_EQ(Base64Decode(url_safe, "f").value(), s) << length;
+  }
+  const std::string text = Base64Encode(bytes);
+  for (size_t at : {size_t{0}, size_t{5}, size_t{2000}, text.size() - 1}) {
+    std::string bad = text;
+    bad[at] = '*';
+    EXPECT_FALSE(Base64Decode(bad, "f").ok()) << at;
+  }
+}
+
 TEST(ProbeImage, ReadsTheSizeFromTheHeaderAlone) {
   auto png = ProbeImage(Png(40, 30), "p");
   ASSERT_TRUE(png.ok());
