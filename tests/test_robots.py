@@ -1,13 +1,18 @@
 """Any robot through the real server: a session's robot from its URDF (robot/urdf/) or from a
 description of its camera chain; plans stay within the robot's joints, and a robot without a
-lift plans with the lift at 0. Bad robots get a 400 naming the field."""
+lift plans with the lift at 0. Bad robots get a 400 naming the field. A robot of its own on a
+SLAM map with its detector's boxes finds the target."""
 
+import json
 import os
+import subprocess
 import tempfile
 
+import pytest
 import requests
 
-from conftest import ROOT, ServerProcess, world_of
+from conftest import ROBOT_BIN, ROOT, ServerProcess, world_of
+from npfkct_client import occupancy_grid_from_map_files, traced_workspaces, write_map_files
 
 
 def urdf(name):
@@ -128,4 +133,66 @@ def test_mutated_urdfs_get_an_answer_and_never_hurt_the_server():
                 assert r.json()["error"]["message"].startswith("world.robot"), r.text[:200]
         assert requests.get(server.url + "/healthz", timeout=5).status_code == 200
     finally:
+        assert server.stop() == 0
+
+
+DIFFDRIVE = {"name": "diffdrive", "baseLink": "base_link", "cameraLink": "camera_link",
+             "footprintRadius": 0.25, "reach": 0.8}
+# The same robot as a description: one fixed joint from the base to the camera (the URDF's mast
+# and camera joints composed: 0.1 m forward, 1.1 m up, pitched down 0.5 rad).
+DIFFDRIVE_JSON = {"name": "diffdrive", "footprintRadius": 0.25, "reach": 0.8,
+                  "joints": [{"name": "camera_mount", "type": "fixed", "xyz": [0.1, 0.0, 1.1],
+                              "rpy": [0.0, 0.5, 0.0]}]}
+
+
+@pytest.mark.parametrize("form", ["urdf", "description"])
+def test_a_robot_of_its_own_on_a_slam_map_with_a_detectors_boxes_finds_the_target(form, tmp_path):
+    """Issue 40's end-to-end path: a differential base with a fixed camera (no lift, no pan, no
+    tilt to plan) from its URDF or its description, on Loose1's room given as map_server's YAML +
+    PGM with the table traced, the simulated robot rendering with that robot's camera and
+    reporting its detector's 2D boxes with the depth: the target is found."""
+    robot = (dict(DIFFDRIVE, urdf=urdf("diffdrive_fixed_camera.urdf")) if form == "urdf"
+             else DIFFDRIVE_JSON)
+    with open(os.path.join(ROOT, "scenarios", "loose1.json"), encoding="utf-8") as f:
+        scenario = json.load(f)
+    scenario["robot"] = robot  # the simulated robot renders with this robot's camera
+    scenario_path = str(tmp_path / "loose1-diffdrive.json")
+    with open(scenario_path, "w", encoding="utf-8") as f:
+        json.dump(scenario, f)
+    loose1 = world_of("loose1")
+    world = {"robot": robot, "start": loose1["start"],
+             "occupancyGrid": occupancy_grid_from_map_files(write_map_files(loose1,
+                                                                            str(tmp_path))),
+             "workspaces": traced_workspaces(loose1)}
+    server = ServerProcess()
+    sim = subprocess.Popen([ROBOT_BIN, "--scenario", scenario_path, "--seed", "3", "--boxes"],
+                           stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        r = requests.post(server.url + "/v1/sessions", json={"world": world, "seed": 3},
+                          timeout=60)
+        assert r.status_code == 200, r.text
+        sid, done, boxed = r.json()["id"], False, 0
+        for _ in range(40):
+            plan = requests.post(f"{server.url}/v1/sessions/{sid}:plan",
+                                 json={"budget": {"cpuMs": 250}}, timeout=60).json()
+            action = plan["action"]
+            if action["type"] == "MOVE":  # the base pose alone: nothing else moves the camera
+                c = action["configuration"]
+                assert (c["lift"], c["pan"], c["tilt"]) == (0.0, 0.0, 0.0), c
+            sim.stdin.write(json.dumps(action) + "\n")
+            sim.stdin.flush()
+            reply = json.loads(sim.stdout.readline())
+            body = dict(reply["observation"], actionId=plan["actionId"])
+            boxed += bool(body.get("imageBoxes"))
+            o = requests.post(f"{server.url}/v1/sessions/{sid}:observe", json=body, timeout=60)
+            assert o.status_code == 200, o.text[:300]
+            done = o.json()["done"]
+            assert done == reply["outcome"]["terminal"]
+            if done:
+                break
+        assert done, "the target was not removed within 40 steps"
+        assert boxed > 0
+    finally:
+        sim.stdin.close()
+        sim.wait(timeout=10)
         assert server.stop() == 0
