@@ -145,25 +145,33 @@ DIFFDRIVE_JSON = {"name": "diffdrive", "footprintRadius": 0.25, "reach": 0.8,
                               "rpy": [0.0, 0.5, 0.0]}]}
 
 
-@pytest.mark.parametrize("form", ["urdf", "description"])
-def test_a_robot_of_its_own_on_a_slam_map_with_a_detectors_boxes_finds_the_target(form, tmp_path):
+@pytest.mark.parametrize("form,scene", [("urdf", "loose1"), ("description", "loose1"),
+                                        ("urdf", "generated")])
+def test_a_robot_of_its_own_on_a_slam_map_with_a_detectors_boxes_finds_the_target(
+        form, scene, tmp_path):
     """Issue 40's end-to-end path: a differential base with a fixed camera (no lift, no pan, no
-    tilt to plan) from its URDF or its description, on Loose1's room given as map_server's YAML +
-    PGM with the table traced, the simulated robot rendering with that robot's camera and
-    reporting its detector's 2D boxes with the depth: the target is found."""
+    tilt to plan) from its URDF or its description, on the scene's room given as map_server's
+    YAML + PGM with the workspaces traced (Loose1, and a generated scene: npfkct-scenegen's seed
+    15, four pieces of furniture; a fixed camera needs 16-32 steps and more in others), the
+    simulated robot rendering with that robot's camera and reporting its detector's 2D boxes
+    with the depth: the target is found."""
     robot = (dict(DIFFDRIVE, urdf=urdf("diffdrive_fixed_camera.urdf")) if form == "urdf"
              else DIFFDRIVE_JSON)
-    with open(os.path.join(ROOT, "scenarios", "loose1.json"), encoding="utf-8") as f:
-        scenario = json.load(f)
+    if scene == "loose1":
+        with open(os.path.join(ROOT, "scenarios", "loose1.json"), encoding="utf-8") as f:
+            scenario = json.load(f)
+    else:
+        scenario = json.loads(subprocess.run(
+            [os.path.join(os.path.dirname(ROBOT_BIN), "npfkct-scenegen"), "--seed", "15",
+             "--placement", "open"], check=True, capture_output=True, text=True).stdout)
     scenario["robot"] = robot  # the simulated robot renders with this robot's camera
-    scenario_path = str(tmp_path / "loose1-diffdrive.json")
+    scenario_path = str(tmp_path / "scene-diffdrive.json")
     with open(scenario_path, "w", encoding="utf-8") as f:
         json.dump(scenario, f)
-    loose1 = world_of("loose1")
-    world = {"robot": robot, "start": loose1["start"],
-             "occupancyGrid": occupancy_grid_from_map_files(write_map_files(loose1,
+    world = {"robot": robot, "start": scenario["start"],
+             "occupancyGrid": occupancy_grid_from_map_files(write_map_files(scenario,
                                                                             str(tmp_path))),
-             "workspaces": traced_workspaces(loose1)}
+             "workspaces": traced_workspaces(scenario)}
     server = ServerProcess()
     sim = subprocess.Popen([ROBOT_BIN, "--scenario", scenario_path, "--seed", "3", "--boxes"],
                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
