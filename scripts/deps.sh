@@ -30,7 +30,7 @@ NPFKCT_PACKAGES=(
   python3 python3-requests python3-pytest python3-jsonschema python3-yaml
   python3-venv python3-setuptools python3-wheel
   ros-core-dev python3-rospy python3-rosgraph python3-roslaunch
-  python3-std-msgs python3-sensor-msgs python3-geometry-msgs
+  python3-std-msgs python3-sensor-msgs python3-geometry-msgs python3-nav-msgs
   # clients/ros/npfkct_ros: catkin and genmsg/genpy generate its messages and actions (from
   # std/geometry/trajectory/actionlib msgs); actionlib and tf2_ros run it.
   catkin ros-message-generation ros-message-runtime python3-genpy

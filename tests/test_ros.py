@@ -173,6 +173,41 @@ def test_find_object_finishes_an_episode(launch, server):
             assert same_config(f.observed, f.configuration, tol=0.05), f
 
 
+def test_find_object_on_a_slam_map(launch, server, tmp_path):
+    """~map_topic: the session's world from a latched nav_msgs/OccupancyGrid (Loose1's room
+    rasterised) and ~workspaces (its table traced), the scenario giving only robot and start;
+    the base regions are the server's, around the table. The episode ends with the target."""
+    import base64
+    import json
+    from nav_msgs.msg import OccupancyGrid
+    from conftest import world_of
+    from npfkct_client import occupancy_grid_from_map_files, traced_workspaces, write_map_files
+    loose1 = world_of("loose1")
+    grid = occupancy_grid_from_map_files(write_map_files(loose1, str(tmp_path)))
+    msg = OccupancyGrid()
+    msg.header.frame_id = "map"
+    msg.info.resolution = grid["resolution"]
+    msg.info.width, msg.info.height = grid["width"], grid["height"]
+    msg.info.origin.position.x, msg.info.origin.position.y = grid["origin"][:2]
+    msg.info.origin.orientation.w = 1.0
+    msg.data = [b - 256 if b > 127 else b for b in base64.b64decode(grid["data"])]
+    publisher = rospy.Publisher("/map", OccupancyGrid, queue_size=1, latch=True)
+    publisher.publish(msg)
+    try:
+        run = launch(map_topic="/map", workspaces=json.dumps(traced_workspaces(loose1)))
+        run.send(target_description="the target of loose1")
+        state, result = run.wait()
+        assert state == GoalStatus.SUCCEEDED, (result, run.log())
+        regions = NpfkctClient(server.url).belief(result.session_id)["baseRegions"]
+        # Four strips from the footprint and clearance (0.35 m) to the reach (1 m) around the
+        # table (x 1.0-2.2): not the scenario's hand-written regions (x 0.05-0.7 on that side).
+        assert len(regions) == 4
+        assert regions[0]["min"][0] == pytest.approx(0.0)
+        assert regions[0]["max"][0] == pytest.approx(0.65)
+    finally:
+        publisher.unregister()
+
+
 def test_stale_pose_is_not_observed(launch):
     """The pose arrives 1 s after the detections: the node waits for it instead of pairing the
     detections with the previous pose (the old node's race)."""

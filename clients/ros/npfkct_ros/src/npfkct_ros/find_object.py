@@ -17,12 +17,14 @@ import rospy
 import tf2_ros
 from actionlib_msgs.msg import GoalStatus
 from geometry_msgs.msg import PoseStamped
+from nav_msgs.msg import OccupancyGrid
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from npfkct_ros import retry
 from npfkct_ros.client_path import ApiError, NpfkctClient, world_of_scenario
 from npfkct_ros.geometry import Rigid, quat_from_rpy
+from npfkct_ros.maps import occupancy_grid_json, world_from_map
 from npfkct_ros.msg import (Detection3DArray, FindObjectAction, FindObjectFeedback,
                             FindObjectResult, FollowJointTrajectoryAction,
                             FollowJointTrajectoryGoal, ObjectCommandAction, ObjectCommandGoal,
@@ -68,6 +70,11 @@ class FindObjectServer:
             "target_description": p("~target_description", ""),
             "target_photos": list(p("~target_photos", [])),
         }
+        # A SLAM map (nav_msgs/OccupancyGrid, latched) and the workspaces traced in it: the
+        # session's world instead of the scenario's room and furniture.
+        self.map_topic = str(p("~map_topic", ""))
+        self.workspaces = list(p("~workspaces", []))
+        self.map = None
         self.stale_tolerance = float(p("~stale_tolerance", 0.0))
         self.pose_timeout = float(p("~pose_timeout", 5.0))
         self.action_timeout = float(p("~action_timeout", 60.0))
@@ -89,6 +96,8 @@ class FindObjectServer:
         self.object_command = actionlib.SimpleActionClient("object_command", ObjectCommandAction)
         rospy.Subscriber("joint_states", JointState, self.on_joints, queue_size=50)
         rospy.Subscriber("detections", Detection3DArray, self.on_detections, queue_size=10)
+        if self.map_topic:
+            rospy.Subscriber(self.map_topic, OccupancyGrid, self.on_map, queue_size=1)
         self.server = actionlib.SimpleActionServer("find_object", FindObjectAction,
                                                    execute_cb=self.execute, auto_start=False)
         rospy.on_shutdown(self.on_shutdown)
@@ -103,6 +112,26 @@ class FindObjectServer:
         with self.cond:
             self.joint_history.append((msg.header.stamp, positions))
             self.cond.notify_all()
+
+    def on_map(self, msg):
+        """Keeps the newest map."""
+        with self.cond:
+            self.map = msg
+            self.cond.notify_all()
+
+    def session_world(self, scenario):
+        """The session's world: the scenario's prior map, or with ~map_topic the newest map
+        (waited for up to ~pose_timeout) and ~workspaces, the scenario giving the robot, start
+        and parameters."""
+        base = world_of_scenario(scenario) if scenario else {}
+        if not self.map_topic:
+            return base
+        with self.cond:
+            self.cond.wait_for(lambda: self.map is not None, timeout=self.pose_timeout)
+            grid = self.map
+        if grid is None:
+            raise GoalError(f"no map on {self.map_topic} within {self.pose_timeout} s")
+        return world_from_map(base, occupancy_grid_json(grid), self.workspaces)
 
     def on_detections(self, msg):
         """Keeps the newest detections."""
@@ -140,8 +169,9 @@ class FindObjectServer:
         """Creates the session and loops plan -> execute -> observe; fills `result`."""
         d = self.defaults
         scenario = goal.scenario or d["scenario"]
-        if not scenario:
-            raise GoalError("no scenario: set the goal's scenario or the ~scenario parameter")
+        if not scenario and not self.map_topic:
+            raise GoalError("no scenario: set the goal's scenario, the ~scenario parameter or "
+                            "~map_topic")
         max_steps = goal.max_steps or d["max_steps"]
         budget_ms = goal.budget_ms or d["budget_ms"]
         self.check_frames()
@@ -149,8 +179,9 @@ class FindObjectServer:
         for path in list(goal.target_photos) or d["target_photos"]:
             with open(path, "rb") as f:
                 photos.append(f.read())
+        world = self.session_world(scenario)
         session = self.http(lambda: self.client.create_session(
-            world_of_scenario(scenario), planner=goal.planner or d["planner"],
+            world, planner=goal.planner or d["planner"],
             seed=goal.seed or d["seed"], model=d["model"] or None,
             target_description=goal.target_description or d["target_description"] or None,
             target_photos=photos or None))
