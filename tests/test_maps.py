@@ -116,6 +116,23 @@ def test_bad_grids_and_polygons_name_their_field(server, tmp_path):
         ({"workspaces": [{"name": f"t{i}", "polygon": [[x + i * 0.2 for x in p] for p in TABLE],
                           "height": 0.7} for i in range(17)]}, "world.baseRegions"),
         ({"workspaces": [], "furniture": []}, "world.furniture"),
+        # An outside check's finds: a map past the coordinates the API takes (its sessions were
+        # planned beyond them and lost on restart), a side the belief picture cannot warp, a
+        # cell value the message does not have, a workspace longer than any furniture, one off
+        # the map.
+        ({"occupancyGrid": dict(grid, origin=[9990.0, -50.0, 0.0], resolution=1.0, width=1000,
+                                height=100, data=base64.b64encode(bytes(100000)).decode())},
+         "world.occupancyGrid.width"),
+        ({"occupancyGrid": dict(grid, width=32767, height=30,
+                                data=base64.b64encode(bytes(32767 * 30)).decode())},
+         "world.occupancyGrid.width"),
+        ({"occupancyGrid": dict(grid, data=base64.b64encode(
+            bytes([101]) + base64.b64decode(grid["data"])[1:]).decode())},
+         "world.occupancyGrid.data"),
+        ({"workspaces": [{"name": "long", "polygon": [[-20, 0], [5, 0], [5, 0.3], [-20, 0.3]],
+                          "height": 0.7}]}, "world.workspaces[0].polygon"),
+        ({"workspaces": [{"name": "far", "polygon": [[50, 50], [51, 50], [51, 51], [50, 51]],
+                          "height": 0.7}]}, "world.baseRegions"),
     ]
     for edit, field in cases:
         body = {"world": dict(world, **edit)}
@@ -123,3 +140,12 @@ def test_bad_grids_and_polygons_name_their_field(server, tmp_path):
         assert r.status_code == 400, (field, r.text[:300])
         violations = r.json()["error"]["details"][0]["fieldViolations"]
         assert violations[0]["field"] == field, (field, r.text[:300])
+
+
+def test_line_wrapped_base64_of_the_grid_is_read(server, tmp_path):
+    """MIME-style base64 (a line break every 76 characters) of exactly width x height cells."""
+    world = map_world(write_loose1_map(str(tmp_path)))
+    cells = base64.b64decode(world["occupancyGrid"]["data"])
+    world["occupancyGrid"]["data"] = base64.encodebytes(cells).decode()
+    r = requests.post(server.url + "/v1/sessions", json={"world": world}, timeout=30)
+    assert r.status_code == 200, r.text[:300]

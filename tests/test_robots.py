@@ -204,3 +204,24 @@ def test_a_robot_of_its_own_on_a_slam_map_with_a_detectors_boxes_finds_the_targe
         sim.stdin.close()
         sim.wait(timeout=10)
         assert server.stop() == 0
+
+
+def test_a_robots_camera_is_its_own(server):
+    """A description's camera (field of view, depth range) is what the session sees with: a
+    camera that sees half as far draws a smaller frustum; a bad one is a 400 naming the field."""
+    def frustum_area(robot):
+        r = create(server.url, robot)
+        assert r.status_code == 200, r.text
+        polygon = requests.get(f"{server.url}/v1/sessions/{r.json()['id']}/belief",
+                               timeout=30).json()["camera"]["frustum"]
+        return 0.5 * abs(sum(x0 * y1 - x1 * y0 for (x0, y0), (x1, y1)
+                             in zip(polygon, polygon[1:] + polygon[:1])))
+    wide = frustum_area(DIFFDRIVE_JSON)
+    short = frustum_area(dict(DIFFDRIVE_JSON, camera={"far": 1.1}))
+    assert 0 < short < 0.8 * wide, (short, wide)
+    for camera, field in (({"near": 2.0, "far": 1.0}, "world.robot.camera.near"),
+                          ({"horizontalFov": 3.1}, "world.robot.camera.horizontalFov"),
+                          ({"far": 60}, "world.robot.camera.far")):
+        r = create(server.url, dict(DIFFDRIVE_JSON, camera=camera))
+        assert r.status_code == 400, r.text
+        assert r.json()["error"]["details"][0]["fieldViolations"][0]["field"] == field, r.text

@@ -185,6 +185,18 @@ Status RobotDescription::Validate() {
     return InvalidFieldError("footprintRadius", "must be in (0, 5] m");
   }
   if (!(reach >= 0.0 && reach <= 10.0)) return InvalidFieldError("reach", "must be in [0, 10] m");
+  if (!(camera.horizontal_fov > 0.01 && camera.horizontal_fov <= 3.0)) {
+    return InvalidFieldError("camera.horizontalFov", "must be in (0.01, 3] rad");
+  }
+  if (!(camera.aspect >= 0.05 && camera.aspect <= 20.0) ||
+      !(std::atan(camera.aspect * std::tan(0.5 * camera.horizontal_fov)) < 1.5)) {
+    return InvalidFieldError("camera.aspect", "must be in [0.05, 20], the vertical field of view "
+                                              "under 3 rad");
+  }
+  if (!(camera.near > 0.0 && camera.near < camera.far)) {
+    return InvalidFieldError("camera.near", "must be in (0, far)");
+  }
+  if (!(camera.far <= 50.0)) return InvalidFieldError("camera.far", "must be at most 50 m");
   double* limits[4][2] = {
       {nullptr, nullptr}, {&lift_min, &lift_max}, {&pan_min, &pan_max}, {&tilt_min, &tilt_max}};
   bool taken[4] = {false, false, false, false};

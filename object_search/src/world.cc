@@ -188,6 +188,7 @@ World World::Make(RobotDescription robot, SearchParams params, std::vector<Box> 
                   RobotConfig start) {
   World w;
   w.robot = std::move(robot);
+  w.camera = w.robot.camera;
   w.params = params;
   w.furniture = std::move(furniture);
   w.occupancy = std::move(occupancy);
@@ -418,6 +419,11 @@ StatusOr<World> BuildWorld(const PriorMap& prior) {
       return !(std::min(r.max.x(), map.max().x()) > std::max(r.min.x(), map.min().x()) &&
                std::min(r.max.y(), map.max().y()) > std::max(r.min.y(), map.min().y()));
     });
+    if (regions.empty()) {
+      return InvalidFieldError("baseRegions",
+                               "needed: no region around the workspaces lies in the room (are the "
+                               "workspaces inside the map?)");
+    }
   }
   if (!map.cells().empty()) {
     for (size_t i = 0; i < regions.size(); ++i) {

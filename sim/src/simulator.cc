@@ -100,6 +100,7 @@ Color PatternColor(uint32_t seed, int face, double u, double v) {
 
 Simulator::Simulator(Scenario scenario, uint64_t seed) : scenario_(std::move(scenario)) {
   preset_ = scenario_.robot;
+  camera_ = preset_.camera;
   occupancy_ =
       object_search::OccupancyMap(scenario_.room_min, scenario_.room_max, scenario_.map_resolution);
   for (const Furniture& f : scenario_.furniture) occupancy_.AddBox(f.box);

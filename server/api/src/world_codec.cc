@@ -20,6 +20,12 @@ using object_search::Vec3;
 using object_search::kGridResolution;
 
 // ceil(x) as a count, saturating far below int64 overflow.
+// The most cells a side of the occupancy map may have (the belief picture's warp takes images
+// of fewer than 32,767 pixels a side), and the longest side of a piece of furniture (m, the
+// schema's).
+constexpr int64_t kMaxMapSide = 20'000;
+constexpr double kMaxFurnitureSide = 20.0;
+
 int64_t CeilCount(double x) {
   if (!(x > 0.0)) return 1;
   if (x > 1e15) return int64_t{1} << 50;
@@ -128,13 +134,24 @@ Status UnderPath(const std::string& path, const Status& s) {
                    : InvalidFieldError(Join(path, v[0].field), v[0].description);
 }
 
-// A description's joints, name, footprint and reach from a schema-checked object (or a
+// A robot's camera {horizontalFov, aspect, near, far}, each optional (appendix J's default).
+void ReadCamera(const json& j, object_search::CameraModel* camera) {
+  if (!j.is_object() || !j.contains("camera") || !j.at("camera").is_object()) return;
+  const json& c = j.at("camera");
+  camera->horizontal_fov = Number(c, "horizontalFov", camera->horizontal_fov);
+  camera->aspect = Number(c, "aspect", camera->aspect);
+  camera->near = Number(c, "near", camera->near);
+  camera->far = Number(c, "far", camera->far);
+}
+
+// A description's joints, name, footprint, reach and camera from a schema-checked object (or a
 // snapshot's), validated; errors name the field under `path`.
 StatusOr<RobotDescription> ReadDescription(const json& j, const std::string& path) {
   RobotDescription r;
   r.name = Utf8Prefix(String(j, "name", "custom"), 64);
   r.footprint_radius = Number(j, "footprintRadius", r.footprint_radius);
   r.reach = Number(j, "reach", r.reach);
+  ReadCamera(j, &r.camera);
   const auto joints = j.find("joints");
   if (joints == j.end() || !joints->is_array() ||
       joints->size() > static_cast<size_t>(RobotDescription::kMaxJoints)) {
@@ -192,6 +209,8 @@ StatusOr<RobotDescription> ReadRobotSpec(const json& j, const std::string& path)
   s.tilt_joint = String(j, "tiltJoint");
   auto r = robot::DescriptionFromUrdf(String(j, "urdf"), s);
   if (!r.ok()) return UnderPath(path, r.status());
+  ReadCamera(j, &r->camera);
+  if (Status v = r->Validate(); !v.ok()) return UnderPath(path, v);
   return r;
 }
 
@@ -258,6 +277,11 @@ json RobotDescriptionJson(const RobotDescription& r) {
   return {{"name", r.name},
           {"footprintRadius", r.footprint_radius},
           {"reach", r.reach},
+          {"camera",
+           {{"horizontalFov", r.camera.horizontal_fov},
+            {"aspect", r.camera.aspect},
+            {"near", r.camera.near},
+            {"far", r.camera.far}}},
           {"joints", std::move(joints)}};
 }
 
@@ -441,6 +465,18 @@ Status ReadOccupancyGrid(const json& g, const std::string& path, const Limits& l
                              "a rotated map is not supported: its yaw must be 0");
   }
   const Vec2 lo(origin[0].get<double>(), origin[1].get<double>());
+  // The map's far edges stay within the coordinates the API takes (a pose beyond them could be
+  // planned and then not observed, and the session's snapshot not read back).
+  const Vec2 hi = lo + Vec2(static_cast<double>(width), static_cast<double>(height)) * resolution;
+  if (!(hi.x() <= limits.max_coordinate && hi.y() <= limits.max_coordinate)) {
+    return InvalidFieldError(Join(path, hi.x() > limits.max_coordinate ? "width" : "height"),
+                             "the map would reach past " + std::to_string(limits.max_coordinate) +
+                                 " m from the origin of the map frame");
+  }
+  if (width > kMaxMapSide || height > kMaxMapSide) {
+    return InvalidFieldError(Join(path, width > kMaxMapSide ? "width" : "height"),
+                             "at most " + std::to_string(kMaxMapSide) + " cells a side");
+  }
   auto data = Base64Decode(g.at("data").get<std::string>(), Join(path, "data"),
                            static_cast<size_t>(width * height));
   if (!data.ok()) return data.status();
@@ -457,6 +493,11 @@ Status ReadOccupancyGrid(const json& g, const std::string& path, const Limits& l
   spec->occupied.resize(data->size());
   for (size_t i = 0; i < data->size(); ++i) {
     const int v = static_cast<int8_t>((*data)[i]);
+    if (v < -1 || v > 100) {
+      return InvalidFieldError(Join(path, "data"), "cell " + std::to_string(i) + " is " +
+                                                       std::to_string(v) +
+                                                       "; a cell is -1 (unknown) or 0-100");
+    }
     spec->occupied[i] = v < 0 || v >= threshold ? 1 : 0;
   }
   return OkStatus();
@@ -490,6 +531,12 @@ StatusOr<WorldSpec> ReadWorldSpec(const json& j, const std::string& path, const 
     }
   }
   const int64_t map_cells = MapCells(spec.room_min, spec.room_max, spec.map_resolution);
+  if (CeilCount((spec.room_max.x() - spec.room_min.x()) / spec.map_resolution) > kMaxMapSide ||
+      CeilCount((spec.room_max.y() - spec.room_min.y()) / spec.map_resolution) > kMaxMapSide) {
+    return InvalidFieldError(Join(path, "mapResolution"),
+                             "the occupancy map of the room would have more than " +
+                                 std::to_string(kMaxMapSide) + " cells a side");
+  }
   if (map_cells > limits.max_map_cells) {
     return InvalidFieldError(Join(path, "mapResolution"),
                              "the occupancy map of the room would have " +
@@ -523,6 +570,12 @@ StatusOr<WorldSpec> ReadWorldSpec(const json& j, const std::string& path, const 
       for (const json& p : f.at("polygon")) ReadVec(p, &points.emplace_back());
       auto box = object_search::BoxAroundPolygon(points, Number(f, "height", 0.0));
       if (!box.ok()) return InvalidFieldError(at + ".polygon", box.status().message());
+      if (box->size.x() > kMaxFurnitureSide || box->size.y() > kMaxFurnitureSide) {
+        return InvalidFieldError(at + ".polygon",
+                                 "the rectangle around it is more than " +
+                                     std::to_string(static_cast<int>(kMaxFurnitureSide)) +
+                                     " m long, as no piece of furniture may be");
+      }
       piece.box = *box;
       piece.workspace = true;
       center = piece.box.center.head<2>();
@@ -538,7 +591,8 @@ StatusOr<WorldSpec> ReadWorldSpec(const json& j, const std::string& path, const 
                                 piece.box.size.y(), piece.box.size.z()}},
                               kGridResolution);
       if (grid_cells > limits.max_grid_cells) {
-        return InvalidFieldError(at + ".size", "the workspaces would have more than " +
+        return InvalidFieldError(at + (polygon ? ".polygon" : ".size"),
+                                 "the workspaces would have more than " +
                                                    std::to_string(limits.max_grid_cells) +
                                                    " grid-world cells of 2 cm together");
       }

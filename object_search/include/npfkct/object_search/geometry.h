@@ -92,6 +92,20 @@ struct CameraJoint {
   friend bool operator==(const CameraJoint&, const CameraJoint&) = default;
 };
 
+/// The camera's field of view (paper appendix J: 60 degrees horizontal, aspect 480/600, near
+/// 0.5 m, far 1.7 m).
+struct CameraModel {
+  double horizontal_fov = 1.0471975511965976;  // 60 degrees
+  double aspect = 480.0 / 600.0;               // height / width
+  double near = 0.5;
+  double far = 1.7;
+
+  double TanHalfHorizontal() const;
+  double TanHalfVertical() const;
+
+  friend bool operator==(const CameraModel&, const CameraModel&) = default;
+};
+
 /// A mobile robot as the planner sees it: a round base on the floor (x forward, z up, at the
 /// configuration's x, y, yaw), the chain of joints from it to the camera (whose last frame is the
 /// camera's body: x along the optical axis, y left, z up), the limits of the lift, pan and tilt
@@ -111,6 +125,8 @@ struct RobotDescription {
   double footprint_radius = 0.3;
   /// Reach of the manipulator from the base center (moveability).
   double reach = 1.0;
+  /// Its camera's field of view and depth range (what it sees from a configuration).
+  CameraModel camera;
 
   /// The Fetch robot: torso lift 0..0.4 m raising a pan-tilt head.
   static RobotDescription Fetch();
@@ -121,25 +137,15 @@ struct RobotDescription {
   static StatusOr<RobotDescription> ByName(const std::string& name);
   /// Checks every field (the message names the offending one: "joints[2].axis", ...): at most
   /// kMaxJoints joints, finite values, unit-or-nonzero axes (normalised), lower <= upper, at most
-  /// one joint per role and roles only on moving joints, a positive footprint and reach; then
-  /// sets the action limits from the role joints.
+  /// one joint per role and roles only on moving joints, a positive footprint and reach, a
+  /// camera with a field of view in (0.01, 3] rad, aspect in [0.05, 20] and 0 < near < far <= 50
+  /// m; then sets the action limits from the role joints.
   Status Validate();
   bool has_lift() const { return lift_max > lift_min; }
 
   friend bool operator==(const RobotDescription&, const RobotDescription&) = default;
 };
 
-/// The camera's field of view (paper appendix J: 60 degrees horizontal, aspect 480/600, near
-/// 0.5 m, far 1.7 m).
-struct CameraModel {
-  double horizontal_fov = 1.0471975511965976;  // 60 degrees
-  double aspect = 480.0 / 600.0;               // height / width
-  double near = 0.5;
-  double far = 1.7;
-
-  double TanHalfHorizontal() const;
-  double TanHalfVertical() const;
-};
 
 /// A camera pose: optical center and orthonormal axes (forward, left, up) in the world.
 struct CameraPose {
