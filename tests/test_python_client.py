@@ -49,6 +49,28 @@ def test_other_planners_serve_episodes(server, planner):
     assert run_episode(client, "loose1", planner=planner) is not None
 
 
+def drive_frames(client, session, robot, observe_frame, steps=30):
+    """Plans and executes up to `steps` steps, observing each rendered frame with
+    observe_frame(plan, observation body) (a step whose camera saw nothing in range goes as the
+    body); ends the session; asserts the target was removed."""
+    try:
+        for _ in range(steps):
+            plan = client.plan(session.id, time_ms=250)
+            reply = robot.execute(plan.action.to_json())
+            o = reply["observation"]
+            if "pointCloud" not in o:  # the camera saw nothing in range
+                observed = client.observe(session.id, plan.action_id, body=o)
+            else:
+                observed = observe_frame(plan, o)
+            assert observed.done == reply["outcome"]["terminal"]
+            if observed.done:
+                break
+        assert observed.done, f"the target was not removed within {steps} steps"
+    finally:
+        robot.close()
+        client.delete_session(session.id)
+
+
 def test_raw_frames_through_the_typed_client(server):
     """Rendered RGB-D frames sent as PointCloud + PNG: the server's perception finds the
     objects and the episode ends with the target removed."""
@@ -59,29 +81,19 @@ def test_raw_frames_through_the_typed_client(server):
                                     target_photos=robot.target_photos())
     assert session.raw["target"] == {"description": "patterned box", "photoCount": 4}
     seen = set()
-    try:
-        for _ in range(30):
-            plan = client.plan(session.id, time_ms=250)
-            reply = robot.execute(plan.action.to_json())
-            o = reply["observation"]
-            if "pointCloud" not in o:  # the camera saw nothing in range
-                observed = client.observe(session.id, plan.action_id, body=o)
-            else:
-                observed = client.observe(
-                    session.id, plan.action_id, succeeded=o["succeeded"],
-                    robot_state=RobotConfig.from_json(o["robotState"]),
-                    point_cloud=PointCloud(base64.b64decode(o["pointCloud"]["data"]), "xyzrgb"),
-                    image=base64.b64decode(o["image"]["data"]), camera=o["camera"])
-                assert observed.perception["timingsMs"]["total"] > 0
-                seen |= {d["id"] for d in observed.perception["detections"]}
-            assert observed.done == reply["outcome"]["terminal"]
-            if observed.done:
-                break
-        assert observed.done, "the target was not removed within 30 steps"
-        assert len(seen) >= 2 and all(i.startswith("obj-") for i in seen)
-    finally:
-        robot.close()
-        client.delete_session(session.id)
+
+    def observe_frame(plan, o):
+        observed = client.observe(
+            session.id, plan.action_id, succeeded=o["succeeded"],
+            robot_state=RobotConfig.from_json(o["robotState"]),
+            point_cloud=PointCloud(base64.b64decode(o["pointCloud"]["data"]), "xyzrgb"),
+            image=base64.b64decode(o["image"]["data"]), camera=o["camera"])
+        assert observed.perception["timingsMs"]["total"] > 0
+        seen.update(d["id"] for d in observed.perception["detections"])
+        return observed
+
+    drive_frames(client, session, robot, observe_frame)
+    assert len(seen) >= 2 and all(i.startswith("obj-") for i in seen)
 
 
 def test_a_detectors_boxes_through_the_typed_client(server):
@@ -92,34 +104,23 @@ def test_a_detectors_boxes_through_the_typed_client(server):
     robot = SimRobot("hidden1", seed=5, boxes=True)
     session = client.create_session(world_of("hidden1"), seed=5)
     boxed = set()
-    try:
-        for _ in range(30):
-            plan = client.plan(session.id, time_ms=250)
-            reply = robot.execute(plan.action.to_json())
-            o = reply["observation"]
-            if "pointCloud" not in o:  # the camera saw nothing in range
-                observed = client.observe(session.id, plan.action_id, body=o)
-            else:
-                assert "image" not in o
-                boxes = [ImageBox.from_xyxy(b["x"], b["y"], b["x"] + b["width"],
-                                            b["y"] + b["height"], b["score"])
-                         for b in o["imageBoxes"]]
-                observed = client.observe(
-                    session.id, plan.action_id, succeeded=o["succeeded"],
-                    robot_state=RobotConfig.from_json(o["robotState"]),
-                    point_cloud=PointCloud(base64.b64decode(o["pointCloud"]["data"]), "xyzrgb"),
-                    camera=o["camera"], image_boxes=boxes)
-                given = observed.perception.get("boxObjects", [])
-                assert len(given) == len(boxes)
-                boxed |= {i for i in given if i is not None}
-            assert observed.done == reply["outcome"]["terminal"]
-            if observed.done:
-                break
-        assert observed.done, "the target was not removed within 30 steps"
-        assert boxed and all(i.startswith("obj-") for i in boxed)
-    finally:
-        robot.close()
-        client.delete_session(session.id)
+
+    def observe_frame(plan, o):
+        assert "image" not in o
+        boxes = [ImageBox.from_xyxy(b["x"], b["y"], b["x"] + b["width"], b["y"] + b["height"],
+                                    b["score"]) for b in o["imageBoxes"]]
+        observed = client.observe(
+            session.id, plan.action_id, succeeded=o["succeeded"],
+            robot_state=RobotConfig.from_json(o["robotState"]),
+            point_cloud=PointCloud(base64.b64decode(o["pointCloud"]["data"]), "xyzrgb"),
+            camera=o["camera"], image_boxes=boxes)
+        given = observed.perception.get("boxObjects", [])
+        assert len(given) == len(boxes)
+        boxed.update(i for i in given if i is not None)
+        return observed
+
+    drive_frames(client, session, robot, observe_frame)
+    assert boxed and all(i.startswith("obj-") for i in boxed)
 
 
 def test_3d_boxes_with_one_score_each(server):

@@ -179,13 +179,8 @@ void QueryOf(const World& world, const RobotConfig& config, int candidate,
   // frustum.
   const uint32_t unconfirmed = object_search::UnconfirmedFaces(world, candidate, +1);
   if (unconfirmed != 0) {
-    const auto corners = b.Corners();
-    std::array<std::pair<double, int>, 8> by_distance;
-    for (int k = 0; k < 8; ++k) by_distance[k] = {(corners[k] - pose.position).squaredNorm(), k};
-    std::partial_sort(by_distance.begin(), by_distance.begin() + 4, by_distance.end());
     std::vector<Vec3> points;
-    for (int n = 0; n < 4; ++n) {
-      const int k = by_distance[n].second;
+    for (int k : object_search::NearestCorners(b.Corners(), pose.position)) {
       if (unconfirmed >> k & 1u) points.push_back(object_search::FacePoint(b, k));
     }
     const size_t candidates = points.size();

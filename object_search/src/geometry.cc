@@ -304,6 +304,14 @@ double WrapAngle(double a) {
   return a - std::numbers::pi;
 }
 
+std::array<int, 4> NearestCorners(const std::array<Vec3, 8>& corners, const Vec3& from) {
+  std::array<std::pair<double, int>, 8> by_distance;
+  for (int k = 0; k < 8; ++k) by_distance[k] = {(corners[k] - from).squaredNorm(), k};
+  std::partial_sort(by_distance.begin(), by_distance.begin() + 4, by_distance.end());
+  return {by_distance[0].second, by_distance[1].second, by_distance[2].second,
+          by_distance[3].second};
+}
+
 StatusOr<Box> BoxAroundPolygon(const std::vector<Vec2>& polygon, double height) {
   if (polygon.size() < 3) return InvalidArgumentError("a polygon needs 3 points or more");
   // The convex hull (Andrew's monotone chain), counter-clockwise.

@@ -147,11 +147,7 @@ uint64_t ObjectSearchModel::VisibleObjects(
     if (!Sees(pose, s, frames, i)) continue;
     visible |= (uint64_t{1} << i);
     if (nearest != nullptr) {
-      const auto corners = frames[i].Corners();
-      std::array<std::pair<double, int>, 8> d;
-      for (int k = 0; k < 8; ++k) d[k] = {(corners[k] - pose.position).squaredNorm(), k};
-      std::partial_sort(d.begin(), d.begin() + 4, d.end());
-      for (int k = 0; k < 4; ++k) (*nearest)[i][k] = d[k].second;
+      (*nearest)[i] = NearestCorners(frames[i].Corners(), pose.position);
     }
   }
   return visible;

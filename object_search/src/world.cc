@@ -482,12 +482,8 @@ Status ApplyDiscreteOutcome(World* world, int object, int kind_offset, bool succ
 std::vector<int> SeenCorners(const Box& box, const CameraModel& camera, const CameraPose& pose,
                              const std::vector<Box>& occluders) {
   const auto corners = box.Corners();
-  std::array<std::pair<double, int>, 8> by_distance;
-  for (int k = 0; k < 8; ++k) by_distance[k] = {(corners[k] - pose.position).squaredNorm(), k};
-  std::partial_sort(by_distance.begin(), by_distance.begin() + 4, by_distance.end());
   std::vector<int> out;
-  for (int n = 0; n < 4; ++n) {
-    const int k = by_distance[n].second;
+  for (int k : NearestCorners(corners, pose.position)) {
     const Vec3 p = corners[k] + 0.05 * (box.center - corners[k]);
     if (!InFrustum(camera, pose, p)) continue;
     const bool hidden = std::any_of(occluders.begin(), occluders.end(), [&](const Box& b) {

@@ -1109,11 +1109,7 @@ std::vector<object_search::FaceDetection> VisibleFaces(const std::vector<Box>& b
   std::vector<object_search::FaceDetection> faces;
   const Box& box = boxes[c];
   const auto corners = box.Corners();
-  std::array<std::pair<double, int>, 8> by_distance;
-  for (int k = 0; k < 8; ++k) by_distance[k] = {(corners[k] - camera_position).squaredNorm(), k};
-  std::partial_sort(by_distance.begin(), by_distance.begin() + 4, by_distance.end());
-  for (int n = 0; n < 4; ++n) {
-    const int k = by_distance[n].second;
+  for (int k : object_search::NearestCorners(corners, camera_position)) {
     const Vec3 p = corners[k] + 0.05 * (box.center - corners[k]);
     const Eigen::Vector4d q = map_to_camera * Eigen::Vector4d(p.x(), p.y(), p.z(), 1);
     if (q.z() <= 0) continue;

@@ -268,11 +268,7 @@ std::vector<int> Simulator::VisibleCorners(int i, const RobotConfig& config,
   };
   if (hidden(o.box.center)) return out;
   const auto corners = o.box.Corners();
-  std::array<std::pair<double, int>, 8> by_distance;
-  for (int k = 0; k < 8; ++k) by_distance[k] = {(corners[k] - pose.position).squaredNorm(), k};
-  std::partial_sort(by_distance.begin(), by_distance.begin() + 4, by_distance.end());
-  for (int n = 0; n < 4; ++n) {
-    const int k = by_distance[n].second;
+  for (int k : object_search::NearestCorners(corners, pose.position)) {
     const Vec3 p = corners[k] + 0.05 * (o.box.center - corners[k]);
     if (object_search::InFrustum(camera_, pose, p) && !hidden(p)) out.push_back(k);
   }

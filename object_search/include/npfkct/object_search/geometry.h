@@ -33,6 +33,10 @@ struct Box {
   bool BlocksSegment(const Vec3& a, const Vec3& b, double clearance = 1e-6) const;
 };
 
+/// The indices of the four of a box's `corners` (Box::Corners' order) nearest to `from`, the
+/// nearest first: the face grids a camera at `from` could see.
+std::array<int, 4> NearestCorners(const std::array<Vec3, 8>& corners, const Vec3& from);
+
 /// The upright box standing on the floor (bottom at z = 0, top at `height`) whose footprint is
 /// the smallest-area rectangle holding the polygon's points (a table top traced in a map): the
 /// rectangle along one edge of their convex hull. INVALID_ARGUMENT when the points span no area.
