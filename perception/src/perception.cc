@@ -1001,8 +1001,6 @@ Status CheckOpticalFrame(const Cloud& cloud, const CameraIntrinsics& in) {
   return OkStatus();
 }
 
-// Takes the frame, gives an error unless every check above passes and the image, when given,
-// is 3-channel of the camera's size.
 // A number as it was given (up to 17 significant digits): a message never rounds a box's edge
 // onto the image's.
 std::string Exact(double v) {
@@ -1046,6 +1044,8 @@ Status CheckImageBoxes(const std::vector<ImageBox>& boxes, const CameraIntrinsic
   return OkStatus();
 }
 
+// Takes the frame, gives an error unless every check above passes and the image, when given,
+// is 3-channel of the camera's size, and the detector's boxes, when given, pass theirs.
 Status CheckFrame(const SensorFrame& frame, const PerceptionOptions& o) {
   if (Status s = frame.intrinsics.Validate(); !s.ok()) return s;
   if (Status s = CheckCloud(frame.cloud, o); !s.ok()) return s;

@@ -19,13 +19,13 @@ using object_search::Vec3;
 
 using object_search::kGridResolution;
 
-// ceil(x) as a count, saturating far below int64 overflow.
 // The most cells a side of the occupancy map may have (the belief picture's warp takes images
 // of fewer than 32,767 pixels a side), and the longest side of a piece of furniture (m, the
 // schema's).
 constexpr int64_t kMaxMapSide = 20'000;
 constexpr double kMaxFurnitureSide = 20.0;
 
+// ceil(x) as a count, saturating far below int64 overflow.
 int64_t CeilCount(double x) {
   if (!(x > 0.0)) return 1;
   if (x > 1e15) return int64_t{1} << 50;
