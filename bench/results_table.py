@@ -59,6 +59,8 @@
                                    The perception pipeline's time per stage
                                    (npfkct-perception-bench, perception_stages.json).
   results_table.py load FILE       One server under many sessions (bench/load_bench.py).
+  results_table.py maps DIR        A SLAM map against the hand-written one, and raw frames on a
+                                   house-sized map (bench/bench_maps.py, bench_house_map.py).
   results_table.py fleet FILE      A fleet's throughput and failover (bench/fleet_bench.py).
 
 Intervals are two-sided 95% Student's t intervals of the mean (n - 1 degrees of freedom); the bench
@@ -817,6 +819,42 @@ def perception_stages(path):
           f" | {p['target_recall']:.3f} | {p['other_rejected']:.3f} |")
 
 
+def maps_table(directory):
+    """A SLAM map against the hand-written one (bench/bench_maps.py, SCENE.json) and raw frames
+    on a house-sized map (bench/bench_house_map.py, house_grid.json and plain_room.json)."""
+    print("| Scene | hand-written: reward, steps | SLAM map: reward, steps | paired difference |")
+    print("|---|---|---|---|")
+    for name in sorted(glob.glob(os.path.join(directory, "*.json"))):
+        with open(name, encoding="utf-8") as f:
+            r = json.load(f)
+        if "forms" not in r:
+            continue
+        cells = []
+        for form in ("hand-written", "slam-map"):
+            c = r["forms"][form]
+            cells.append(f"{c['mean_reward'] / 1000:.1f}k ± {c['ci95'] / 1000:.1f}k, "
+                         f"{c['mean_steps']:.2f} ± {c['ci95_steps']:.2f} "
+                         f"({c['success_rate']:.0%} success)")
+        d = r["paired_reward_difference"]
+        print(f"| {r['scenario']} ({r['trials']} seeds, {r['cpu_ms']:.0f} ms) | {cells[0]} | "
+              f"{cells[1]} | {d['mean'] / 1000:+.1f}k ± {d['ci95'] / 1000:.1f}k |")
+    print()
+    print("| Map | first frame (CPU) | later frames, median (CPU) | registration, median "
+          "(wall) | memory kept per session |")
+    print("|---|---|---|---|---|")
+    for name in ("house_grid.json", "plain_room.json"):
+        path = os.path.join(directory, name)
+        if not os.path.exists(path):
+            continue
+        with open(path, encoding="utf-8") as f:
+            h = json.load(f)
+        first = h["first_frame_cpu_ms"]
+        stages = h["median_later_frame_pipeline_ms"]
+        print(f"| {h['map']} | {min(first):.1f}-{max(first):.1f} ms | "
+              f"{h['median_later_frame_cpu_ms']:.1f} ms ({h['later_frames']} frames) | "
+              f"{stages['registration']:.1f} ms | {h['kept_mb_per_session_mean']:.1f} MB |")
+
+
 def load_table(path):
     """The server under many sessions (bench/load_bench.py, one JSON line per run)."""
     print("| Sessions | Plan budget | Plans/s | Plan overhead p50 / p99 (ms) | "
@@ -1184,6 +1222,20 @@ of Loose1, Hidden1 and Complex1.
     python3 bench/results_table.py perception-stages bench/results/perception_stages.json
 """, [lambda r: flat(os.path.join(r, "perception.jsonl")), lambda r: print(),
       lambda r: perception_stages(os.path.join(r, "perception_stages.json"))]),
+    ("Prior maps from SLAM", """\
+`bench/bench_maps.py` drives a scene's truth with `npfkct-drive` against a session made from its
+hand-written furniture and base regions, and against one made from the same room rasterised
+into map_server's YAML + PGM (walls on the border, the furniture's footprints occupied) with the
+workspaces traced as polygons and no base regions (npfkct, 0.25 s of CPU per step, the same seeds
+for both). `bench/bench_house_map.py` sends rendered 640x480 frames of Loose1's episodes through
+the server for three sessions on a 40 m x 40 m grid at 5 cm with three tables, and (`--plain`)
+on Loose1's own room: the server's CPU per `:observe`, registration's wall-clock time within it,
+and the memory each session keeps.
+
+    bench/bench_maps.py --scenario loose1   (and hidden1, complex1)
+    bench/bench_house_map.py; bench/bench_house_map.py --plain
+    python3 bench/results_table.py maps bench/results/maps
+""", [lambda r: maps_table(os.path.join(r, "maps"))]),
     ("Server load", """\
 `bench/load_bench.py` drives N sessions at once against one server, each planning with a 100 ms
 budget and observing through the simulated robot, on a 2-core machine. Overhead is the `:plan`
@@ -1243,6 +1295,7 @@ def main():
                 "sensitivity": (1, 1), "estimator": (1, 2), "mirror": (1, 1), "trace": (1, 1), "compare": (2, 2),
                 "flat": (1, 1), "threads": (2, 2), "model-speed": (1, 1), "classic": (1, 1),
                 "filter": (2, 2), "perception-stages": (1, 1), "load": (1, 1), "fleet": (1, 1),
+                "maps": (1, 1),
                 "docs": (0, 1)}
     args = sys.argv[2:]
     if len(sys.argv) < 2 or sys.argv[1] not in commands:
@@ -1293,6 +1346,8 @@ def main():
         perception_stages(*args)
     elif command == "load":
         load_table(*args)
+    elif command == "maps":
+        maps_table(*args)
     elif command == "fleet":
         fleet_table(*args)
     else:
