@@ -56,6 +56,11 @@ int main(int argc, char** argv) {
     std::cerr << "npfkct-sim-robot: " << scenario.status().message() << "\n";
     return 2;
   }
+  using Sensing = npfkct::sim::ApiRobot::Sensing;
+  const Sensing sensing = raw       ? Sensing::kRaw
+                          : boxes   ? Sensing::kBoxes
+                          : boxes3d ? Sensing::kBoxes3d
+                                    : Sensing::kDetections;
   npfkct::sim::ApiRobot robot(*scenario, seed);
   if (photos) {
     json out = json::array();
@@ -71,10 +76,7 @@ int main(int argc, char** argv) {
         action.ok()    ? robot.Execute(*action)
         : IsLook(line) ? robot.Look()
                        : robot.Refuse("malformed action (" + action.status().message() + ")");
-    const api::ObserveRequest observation = raw       ? robot.ObserveRaw(!outcome.illegal)
-                                            : boxes   ? robot.ObserveBoxes(!outcome.illegal)
-                                            : boxes3d ? robot.ObserveBoxes3d(!outcome.illegal)
-                                                      : robot.Observe(!outcome.illegal);
+    const api::ObserveRequest observation = robot.ObserveAs(sensing, !outcome.illegal);
     const npfkct::StatusOr<std::string> body = api::EncodeObserve(observation);
     if (!body.ok()) {
       std::cerr << "npfkct-sim-robot: " << body.status().ToString() << "\n";

@@ -34,9 +34,7 @@ struct Options {
   int max_steps = 0;
   bool keep = false;
   bool quiet = false;
-  bool raw = false;
-  bool boxes = false;
-  bool boxes3d = false;
+  npfkct::sim::ApiRobot::Sensing sensing = npfkct::sim::ApiRobot::Sensing::kDetections;
   double timeout_s = 120;
 };
 
@@ -85,10 +83,7 @@ int Drive(const Options& o, const npfkct::sim::Scenario& scenario, npfkct::sim::
     discounted += discount * outcome.reward;
     discount *= scenario.params.discount;
     ++steps;
-    api::ObserveRequest observation = o.raw       ? robot.ObserveRaw(!outcome.illegal)
-                                      : o.boxes   ? robot.ObserveBoxes(!outcome.illegal)
-                                      : o.boxes3d ? robot.ObserveBoxes3d(!outcome.illegal)
-                                                  : robot.Observe(!outcome.illegal);
+    api::ObserveRequest observation = robot.ObserveAs(o.sensing, !outcome.illegal);
     observation.action_id = plan->action_id;
     auto observed = client.Observe(id, observation);
     if (!observed.ok()) return Fail("observing", observed.status());
@@ -143,19 +138,25 @@ int main(int argc, char** argv) {
   app.add_option("--max-steps", o.max_steps, "step limit (default: the scenario's)");
   app.add_flag("--keep", o.keep, "keep the session on the server at the end");
   app.add_flag("--quiet", o.quiet, "print only the outcome");
-  app.add_flag("--raw", o.raw,
+  bool raw = false, boxes = false, boxes3d = false;
+  app.add_flag("--raw", raw,
                "send rendered RGB-D frames (point cloud + PNG) for the server's perception instead "
                "of the simulator's geometric detections");
-  app.add_flag("--boxes", o.boxes,
+  app.add_flag("--boxes", boxes,
                "send rendered depth with a simulated YOLO-style detector's 2D boxes of the target "
                "(imageBoxes) instead of the simulator's geometric detections")
       ->excludes("--raw");
-  app.add_flag("--boxes3d", o.boxes3d,
+  app.add_flag("--boxes3d", boxes3d,
                "send the simulator's detections as 3D boxes with one score each (a 3D box "
                "detector's) instead of per-face scores")
       ->excludes("--raw")
       ->excludes("--boxes");
   CLI11_PARSE(app, argc, argv);
+  using Sensing = npfkct::sim::ApiRobot::Sensing;
+  o.sensing = raw       ? Sensing::kRaw
+              : boxes   ? Sensing::kBoxes
+              : boxes3d ? Sensing::kBoxes3d
+                        : Sensing::kDetections;
 
   auto scenario = npfkct::sim::LoadScenario(o.scenario);
   if (!scenario.ok()) {
@@ -187,7 +188,7 @@ int main(int argc, char** argv) {
     create.planner.model_given = true;
   }
   create.seed = o.seed;
-  if (o.raw) create.target.photos = robot.TargetPhotos();
+  if (o.sensing == Sensing::kRaw) create.target.photos = robot.TargetPhotos();
   // A reply that is not what the API describes ends the run with an error naming its field.
   auto session = client.CreateSession(create);
   if (!session.ok()) return Fail("creating the session", session.status());

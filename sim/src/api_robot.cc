@@ -139,6 +139,20 @@ api::ObserveRequest ApiRobot::ObserveBoxes3d(bool succeeded) {
   return out;
 }
 
+api::ObserveRequest ApiRobot::ObserveAs(Sensing sensing, bool succeeded) {
+  switch (sensing) {
+    case Sensing::kRaw:
+      return ObserveRaw(succeeded);
+    case Sensing::kBoxes:
+      return ObserveBoxes(succeeded);
+    case Sensing::kBoxes3d:
+      return ObserveBoxes3d(succeeded);
+    case Sensing::kDetections:
+      break;
+  }
+  return Observe(succeeded);
+}
+
 std::vector<std::string> ApiRobot::TargetPhotos() const {
   std::vector<std::string> out;
   for (const cv::Mat& photo : ObjectPhotos(sim_.objects()[sim_.target_index()])) {

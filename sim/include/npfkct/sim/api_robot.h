@@ -39,16 +39,19 @@ class ApiRobot {
   /// as the robot's localization reports it (the truth plus noise.localization*). When the camera
   /// saw nothing within range, only the pose.
   api::ObserveRequest ObserveRaw(bool succeeded, int width = 640, int height = 480);
-  /// The same frame's depth (the point cloud, without the image) with the boxes of a simulated
-  /// YOLO-style detector of the target's class: a box around the pixels of each object that
-  /// shows 100 pixels or more and that it fires on, the target with probability
-  /// 1 - noise.false_detection and any other object with probability noise.false_detection,
-  /// with a score of 0.85 (+- noise.detection).
+  /// The same frame's depth (the point cloud, without the image) with the boxes of the
+  /// simulated detector (DetectorBoxes).
   api::ObserveRequest ObserveBoxes(bool succeeded, int width = 640, int height = 480);
   /// The geometric detections of Observe as a 3D box detector reports them: each object's box
   /// with one score (the mean of its faces' scores) in place of per-face scores; objects seen
   /// with no face keep none.
   api::ObserveRequest ObserveBoxes3d(bool succeeded);
+  /// How the robot reports what it saw: geometric detections (Observe), rendered frames
+  /// (ObserveRaw), depth with 2D boxes (ObserveBoxes) or 3D boxes with one score
+  /// (ObserveBoxes3d).
+  enum class Sensing { kDetections, kRaw, kBoxes, kBoxes3d };
+  /// The observation of `sensing`'s kind at 640 x 480.
+  api::ObserveRequest ObserveAs(Sensing sensing, bool succeeded);
   /// Photos of the target (PNG bytes), as the robot's operator would give them.
   std::vector<std::string> TargetPhotos() const;
 
