@@ -22,7 +22,7 @@ import tempfile
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 BUILD = os.environ.get("BUILD_DIR", os.path.join(ROOT, "build"))
 sys.path.insert(0, os.path.join(ROOT, "clients", "python"))
-from npfkct_client import occupancy_grid_from_map_files, traced_workspaces, write_map_files  # noqa
+from npfkct_client import slam_world, write_map_files  # noqa
 from npfkct_client.cli import world_of_scenario  # noqa
 
 # Two-sided 95% quantiles of Student's t by degrees of freedom (30 and more: 2.0).
@@ -49,9 +49,7 @@ def main():
     scenario = os.path.join(ROOT, "scenarios", args.scenario + ".json")
     world = world_of_scenario(scenario)
     scratch = tempfile.mkdtemp(prefix="npfkct-maps-")
-    slam = {key: world[key] for key in ("robot", "start", "params") if key in world}
-    slam["occupancyGrid"] = occupancy_grid_from_map_files(write_map_files(world, scratch))
-    slam["workspaces"] = traced_workspaces(world)
+    slam = slam_world(world, write_map_files(world, scratch))
     slam_path = os.path.join(scratch, "world.json")
     with open(slam_path, "w", encoding="utf-8") as f:
         json.dump(slam, f)

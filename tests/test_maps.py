@@ -12,8 +12,8 @@ import pytest
 import requests
 
 from conftest import ROOT, SimRobot, world_of
-from npfkct_client import (NpfkctClient, occupancy_grid_from_map_files, traced_workspaces,
-                           write_map_files)
+from npfkct_client import (NpfkctClient, occupancy_grid_from_map_files, slam_world,
+                           traced_workspaces, write_map_files)
 
 TABLE = [[1.0, -0.4], [2.2, -0.4], [2.2, 0.4], [1.0, 0.4]]  # Loose1's table, x 1.0-2.2, y +-0.4
 
@@ -36,10 +36,7 @@ def write_loose1_map(directory):
 
 def map_world(yaml_path):
     """Loose1's world from the map files: the grid, the table traced, no base regions."""
-    loose1 = world_of("loose1")
-    return {"robot": loose1["robot"], "start": loose1["start"],
-            "occupancyGrid": occupancy_grid_from_map_files(yaml_path),
-            "workspaces": traced_workspaces(loose1)}
+    return slam_world(world_of("loose1"), yaml_path)
 
 
 def test_the_map_files_read_as_the_occupancy_grid(tmp_path):

@@ -12,7 +12,7 @@ import pytest
 import requests
 
 from conftest import ROBOT_BIN, ROOT, ServerProcess, world_of
-from npfkct_client import occupancy_grid_from_map_files, traced_workspaces, write_map_files
+from npfkct_client import slam_world, write_map_files
 
 
 def urdf(name):
@@ -168,10 +168,7 @@ def test_a_robot_of_its_own_on_a_slam_map_with_a_detectors_boxes_finds_the_targe
     scenario_path = str(tmp_path / "scene-diffdrive.json")
     with open(scenario_path, "w", encoding="utf-8") as f:
         json.dump(scenario, f)
-    world = {"robot": robot, "start": scenario["start"],
-             "occupancyGrid": occupancy_grid_from_map_files(write_map_files(scenario,
-                                                                            str(tmp_path))),
-             "workspaces": traced_workspaces(scenario)}
+    world = slam_world(scenario, write_map_files(scenario, str(tmp_path)))
     server = ServerProcess()
     sim = subprocess.Popen([ROBOT_BIN, "--scenario", scenario_path, "--seed", "3", "--boxes"],
                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)

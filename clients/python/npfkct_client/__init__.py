@@ -17,7 +17,8 @@ from npfkct_client.client import (
     RobotConfig,
     Session,
 )
-from npfkct_client.maps import occupancy_grid_from_map_files, traced_workspaces, write_map_files
+from npfkct_client.maps import (occupancy_grid_from_map_files, slam_world, traced_workspaces,
+                                write_map_files)
 
 __all__ = [
     "__version__",
@@ -34,6 +35,7 @@ __all__ = [
     "RobotConfig",
     "Session",
     "occupancy_grid_from_map_files",
+    "slam_world",
     "traced_workspaces",
     "write_map_files",
 ]

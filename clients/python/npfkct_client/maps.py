@@ -124,3 +124,13 @@ def traced_workspaces(world: Dict[str, Any]) -> List[Dict[str, Any]]:
         out.append({"name": f["name"], "height": sz,
                     "polygon": [[cx + c * u - s * v, cy + s * u + c * v] for u, v in corners]})
     return out
+
+
+def slam_world(world: Dict[str, Any], yaml_path: str) -> Dict[str, Any]:
+    """A hand-written world in the SLAM form: its robot, start and parameters, the occupancy grid
+    of the map files at `yaml_path` (write_map_files makes them from the world) and its
+    workspaces traced (traced_workspaces), no base regions (the server places them)."""
+    out = {key: world[key] for key in ("robot", "start", "params") if key in world}
+    out["occupancyGrid"] = occupancy_grid_from_map_files(yaml_path)
+    out["workspaces"] = traced_workspaces(world)
+    return out

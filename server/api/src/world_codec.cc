@@ -593,8 +593,8 @@ StatusOr<WorldSpec> ReadWorldSpec(const json& j, const std::string& path, const 
       if (grid_cells > limits.max_grid_cells) {
         return InvalidFieldError(at + (polygon ? ".polygon" : ".size"),
                                  "the workspaces would have more than " +
-                                                   std::to_string(limits.max_grid_cells) +
-                                                   " grid-world cells of 2 cm together");
+                                     std::to_string(limits.max_grid_cells) +
+                                     " grid-world cells of 2 cm together");
       }
     }
     spec.furniture.push_back(std::move(piece));
@@ -603,8 +603,8 @@ StatusOr<WorldSpec> ReadWorldSpec(const json& j, const std::string& path, const 
     return InvalidFieldError(Join(path, "furniture"), "at least one piece must be a workspace");
   }
   const json& regions = j.contains("baseRegions") ? j.at("baseRegions") : none;
-  if (regions.empty() &&
-      4 * static_cast<int64_t>(spec.Workspaces().size()) > limits.max_base_regions) {
+  if (regions.empty() && static_cast<int64_t>(object_search::BaseRegionsAround(spec).size()) >
+                             limits.max_base_regions) {
     return InvalidFieldError(Join(path, "baseRegions"),
                              "needed: the regions around the workspaces would be more than " +
                                  std::to_string(limits.max_base_regions));
