@@ -4,6 +4,7 @@ and polygons get 400s naming the field."""
 
 import base64
 import json
+import math
 import os
 import subprocess
 import sys
@@ -113,6 +114,12 @@ def test_bad_grids_and_polygons_name_their_field(server, tmp_path):
         ({"workspaces": [{"name": f"t{i}", "polygon": [[x + i * 0.2 for x in p] for p in TABLE],
                           "height": 0.7} for i in range(17)]}, "world.baseRegions"),
         ({"workspaces": [], "furniture": []}, "world.furniture"),
+        # Past the counts: 101 workspaces, a polygon of 65 points.
+        ({"workspaces": [{"name": f"t{i}", "polygon": TABLE, "height": 0.7} for i in range(101)]},
+         "world.workspaces"),
+        ({"workspaces": [{"name": "t", "height": 0.7, "polygon": [
+            [1.0 + 0.5 * math.cos(k * math.pi / 32.5), 0.5 * math.sin(k * math.pi / 32.5)]
+            for k in range(65)]}]}, "world.workspaces[0].polygon"),
         # An outside check's finds: a map past the coordinates the API takes (its sessions were
         # planned beyond them and lost on restart), a side the belief picture cannot warp, a
         # cell value the message does not have, a workspace longer than any furniture, one off
