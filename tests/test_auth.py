@@ -67,3 +67,64 @@ def test_the_key_may_come_from_the_environment():
 
 def test_loopback_needs_no_key(server):
     assert requests.get(server.url + "/v1/sessions", timeout=10).status_code == 200
+
+
+def test_a_robot_with_the_key_is_served_through_a_flood_of_unauthenticated_connections():
+    """An outside check held 520 idle connections without a key open: every client, robots with
+    the key included, got 429 for as long as they stayed. At the limit a newcomer now takes the
+    place of a connection that never carried the key (lingering after a refusal, idle, or still
+    sending its head; oldest first), and a connection that carried it is never closed for one."""
+    import http.client
+    import socket
+
+    key = "fl00d"
+    good = {"Authorization": "Bearer " + key}
+    s = ServerProcess("--api-key", key, "--max-connections", "32")
+    flood = []
+    try:
+        # A robot's keep-alive connection, used once with the key before the flood.
+        robot = http.client.HTTPConnection("127.0.0.1", s.port, timeout=30)
+        robot.request("GET", "/v1/sessions", headers=good)
+        first = robot.getresponse()
+        assert first.status == 200 and first.read()
+        # 96 idle connections, 24 sending half a head, 24 refused bodies lingering: three times
+        # the limit.
+        for i in range(96):
+            flood.append(socket.create_connection(("127.0.0.1", s.port), timeout=10))
+        for i in range(24):
+            c = socket.create_connection(("127.0.0.1", s.port), timeout=10)
+            c.sendall(b"GET /v1/sessions HTTP/1.1\r\nHost: x\r\n")
+            flood.append(c)
+        for i in range(24):
+            c = socket.create_connection(("127.0.0.1", s.port), timeout=10)
+            c.sendall(b"POST /v1/sessions HTTP/1.1\r\nHost: x\r\nContent-Length: 1000000\r\n\r\n")
+            flood.append(c)
+        # The robot's connection is still open and serves its next request.
+        robot.request("GET", "/v1/sessions", headers=good)
+        again = robot.getresponse()
+        assert again.status == 200 and again.read()
+        # A robot connecting now is served: a session created and a plan made.
+        created = requests.post(s.url + "/v1/sessions", headers=good, timeout=30,
+                                json={"world": world_of("loose1"), "seed": 1})
+        assert created.status_code == 200, created.text
+        sid = created.json()["id"]
+        plan = requests.post(f"{s.url}/v1/sessions/{sid}:plan", headers=good, timeout=60,
+                             json={"budget": {"cpuMs": 50}})
+        assert plan.status_code == 200, plan.text
+        assert requests.get(s.url + "/healthz", timeout=10).status_code == 200
+        # The flood's connections were closed one for each newcomer; the server still holds at
+        # most its limit, so at least len(flood) - 32 of them were closed.
+        closed = 0
+        for c in flood:
+            c.settimeout(0.5)
+            try:
+                closed += c.recv(65536) == b"" or c.recv(65536) == b""
+            except (ConnectionResetError, socket.timeout, BrokenPipeError):
+                closed += 0
+        assert closed >= len(flood) - 32 - 4, closed
+        robot.close()
+        assert s.alive()
+    finally:
+        for c in flood:
+            c.close()
+        assert s.stop() == 0

@@ -312,6 +312,9 @@ struct HttpFront::Conn {
   size_t accounted = 0;  // bytes counted in the front's in-flight total
   size_t discard = 0;    // closing: request bytes still to read and drop (lingering close)
   bool closing = false;
+  // A request on it carried the server's bearer token: never evicted for a newcomer.
+  bool trusted = false;
+  Clock::time_point accepted;
   Connection view;
 };
 
@@ -391,6 +394,10 @@ class HttpFront::Reactor {
   std::unique_ptr<Conn> SendRest(std::unique_ptr<Conn> c);
   void Settle(std::unique_ptr<Conn> c);
   void Accept();
+  // At the connection limit: closes the connection that is least likely a client's being served
+  // (lingering after a refusal, then idle or still sending its head, oldest first; never one that
+  // carried the bearer token, sends a body or waits for its response); false if none may go.
+  bool EvictOne();
   void OnEvent(int fd);
   void Linger(std::unique_ptr<Conn> c);
   void Receive(std::unique_ptr<Conn> c);
@@ -467,8 +474,10 @@ int HttpFront::Reactor::AdvanceHead(std::unique_ptr<Conn>& c) {
   }
   // A body is read, counted and answered with 100 Continue only for a client with the server's
   // bearer token: without it, clients could hold the in-flight bound unauthenticated.
-  if (!o.body_authorization.empty() && c->framing.has_body() &&
-      !SameSecret(c->request.Header("Authorization"), o.body_authorization)) {
+  const bool authorized = !o.body_authorization.empty() &&
+                          SameSecret(c->request.Header("Authorization"), o.body_authorization);
+  if (authorized) c->trusted = true;
+  if (!o.body_authorization.empty() && c->framing.has_body() && !authorized) {
     // The body it announced is read and dropped, never kept, so that the client (a robot with a
     // mistyped key sending photos) reads the 401 instead of a reset connection.
     const size_t announced =
@@ -632,6 +641,9 @@ void HttpFront::Reactor::Accept() {
   for (;;) {
     const int fd = ::accept4(f_.listen_fd_, nullptr, nullptr, SOCK_NONBLOCK | SOCK_CLOEXEC);
     if (fd >= 0) {
+      // Idle or unauthenticated connections must not keep a robot with the key out: at the limit
+      // a newcomer takes the place of one of them, and is refused only when none is left.
+      if (f_.open_connections_.load() >= f_.options_.max_connections) EvictOne();
       f_.Admit(fd);
       continue;
     }
@@ -646,6 +658,28 @@ void HttpFront::Reactor::Accept() {
     }
     return;
   }
+}
+
+bool HttpFront::Reactor::EvictOne() {
+  auto rank = [](const Conn& c) {
+    if (c.closing) return 0;
+    if (c.trusted || c.writing || c.head_done) return 3;  // kept
+    return c.head_started ? 2 : 1;
+  };
+  auto victim = conns_.end();
+  for (auto it = conns_.begin(); it != conns_.end(); ++it) {
+    const int r = rank(*it->second);
+    if (r == 3) continue;
+    if (victim == conns_.end() || r < rank(*victim->second) ||
+        (r == rank(*victim->second) && it->second->accepted < victim->second->accepted)) {
+      victim = it;
+    }
+  }
+  if (victim == conns_.end()) return false;
+  std::unique_ptr<Conn> c = std::move(victim->second);
+  conns_.erase(victim);
+  f_.Close(std::move(c));
+  return true;
 }
 
 // Closing: reads and drops what the client still sends, up to the refusal's drain.
@@ -905,7 +939,8 @@ void HttpFront::Admit(int fd) {
   auto c = std::make_unique<Conn>();
   c->fd = fd;
   c->view.fd = fd;
-  c->deadline = Clock::now() + Seconds(options_.idle_timeout_s);
+  c->accepted = Clock::now();
+  c->deadline = c->accepted + Seconds(options_.idle_timeout_s);
   std::lock_guard<std::mutex> lock(incoming_mutex_);
   incoming_.push_back(std::move(c));
 }

@@ -40,7 +40,10 @@ namespace npfkct::server {
 struct HttpFrontOptions {
   int workers = 16;                  ///< Threads running request handlers.
   int health_workers = 2;            ///< Threads serving only GET /healthz and GET /metrics.
-  int max_connections = 512;         ///< Open connections; more are refused (429).
+  /// Open connections. A newcomer past it closes an idle, lingering or head-sending connection
+  /// that never carried the bearer token (oldest first), and is refused (429) only when every
+  /// connection is authenticated or busy with a request.
+  int max_connections = 512;
   double head_timeout_s = 10.0;      ///< From the first byte of a request to the end of its head.
   double body_timeout_s = 60.0;      ///< From the end of the head to the end of the body.
   double idle_timeout_s = 5.0;       ///< Keep-alive: between requests on one connection.
