@@ -1,7 +1,10 @@
-"""schemas/openapi.yaml through the two tools API users run on it: swagger-parser's validate
-(every $ref dereferenced, the result checked against the OpenAPI 3.1 schema) and Redocly CLI's
-lint with the recommended rules (redocly.yaml). Both come from npm (tests/js, pinned by its
-package-lock.json) and run on Node.js; scripts/test.sh installs nodejs and npm."""
+"""schemas/openapi.yaml through the three tools API users run on it: swagger-parser's validate
+(every $ref dereferenced, the result checked against the OpenAPI 3.1 schema), Redocly CLI's lint
+with the recommended rules (redocly.yaml) and Spectral's lint with its OpenAPI rules
+(.spectral.yaml), each at 0 errors and 0 warnings. All come from npm (tests/js, pinned by its
+package.json and package-lock.json: swagger-parser 10.1.1, Redocly CLI 1.34.5, Spectral CLI
+6.16.3) and run on Node.js; scripts/test.sh installs nodejs and npm. Redocly CLI 2.x needs Node.js
+20.19, which Debian 12 does not have; the document passes it too (docs/api.md says how)."""
 
 import json
 import os
@@ -38,22 +41,31 @@ def redocly_lint(work, path):
     return report["totals"], report["problems"]
 
 
+def spectral_lint(work, path):
+    """Spectral's results (each with its code and severity: 0 error, 1 warning, 2 info, 3 hint)."""
+    out = subprocess.run([os.path.join(work, "node_modules", ".bin", "spectral"), "lint",
+                          "--ruleset", os.path.join(ROOT, ".spectral.yaml"), "--format", "json",
+                          "--quiet", path],
+                         capture_output=True, text=True, timeout=120, env=NODE_ENV, cwd=ROOT)
+    text = out.stdout[out.stdout.index("["):out.stdout.rindex("]") + 1]
+    return json.loads(text)
+
+
 def test_swagger_parser_validates_the_document(tools):
     out = swagger_parser_validate(tools, OPENAPI)
     assert out.returncode == 0, out.stderr
     assert out.stdout.startswith("ok: npfkct planning server"), out.stdout
 
 
-def test_redocly_lint_has_no_errors(tools):
+def test_redocly_lint_has_no_errors_and_no_warnings(tools):
     totals, problems = redocly_lint(tools, OPENAPI)
-    errors = [p for p in problems if p["severity"] == "error"]
-    assert totals["errors"] == 0 and errors == [], json.dumps(errors, indent=1)
-    # What is left are warnings, each known: /healthz and /metrics answer no 4XX of their own,
-    # and Redocly's example check cannot follow a schema's relative $id to the file beside it
-    # (tests/test_schemas.py validates every example with jsonschema instead).
-    rules = sorted(p["ruleId"] for p in problems)
-    assert set(rules) <= {"operation-4xx-response", "no-invalid-media-type-examples"}, rules
-    assert rules.count("operation-4xx-response") <= 2, rules
+    assert totals["errors"] == 0 and totals["warnings"] == 0, json.dumps(problems, indent=1)
+    assert problems == [], json.dumps(problems, indent=1)
+
+
+def test_spectral_lint_has_no_errors_and_no_warnings(tools):
+    results = spectral_lint(tools, OPENAPI)
+    assert results == [], json.dumps(results, indent=1)
 
 
 def test_the_tools_refuse_what_the_issue_found(tools, tmp_path):
@@ -72,3 +84,12 @@ def test_the_tools_refuse_what_the_issue_found(tools, tmp_path):
     totals, problems = redocly_lint(tools, str(broken / "openapi.yaml"))
     assert totals["errors"] >= 1
     assert "operation-summary" in {p["ruleId"] for p in problems}
+    # An operation without tags or a description, and a document without a contact: Spectral's
+    # warnings.
+    text = (broken / "openapi.yaml").read_text()
+    for line in ("      tags: [planners]\n", "  contact:\n    name: npfkct maintainers\n"):
+        assert line in text
+        text = text.replace(line, "")
+    (broken / "openapi.yaml").write_text(text)
+    codes = {r["code"] for r in spectral_lint(tools, str(broken / "openapi.yaml"))}
+    assert {"operation-tags", "info-contact"} <= codes, codes

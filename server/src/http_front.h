@@ -38,8 +38,8 @@ namespace npfkct::server {
 
 /// Settings of the front.
 struct HttpFrontOptions {
-  int workers = 16;                  ///< Threads running request handlers.
-  int health_workers = 2;            ///< Threads serving only GET /healthz and GET /metrics.
+  int workers = 16;        ///< Threads running request handlers.
+  int health_workers = 2;  ///< Threads serving only GET /healthz and GET /metrics.
   /// Open connections. A newcomer past it closes an idle, lingering or head-sending connection
   /// that never carried the bearer token (oldest first), and is refused (429) only when every
   /// connection is authenticated or busy with a request.

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <optional>
 #include <random>
+#include <vector>
 
 #include "console.h"
 #include "http_front.h"
@@ -123,8 +124,11 @@ HttpResponse Answer(const HttpRequest& req, RouteContext& ctx, const char** rout
   RouteMatch match = MatchRoute(req.method, req.path);
   *route_name = match.route ? match.route->path : match.allow.empty() ? "unknown" : "other";
   if (match.allow.empty()) {
-    return ErrorResponse(
-        NotFoundError("no route for " + req.method + " " + req.path.substr(0, 200)));
+    std::string message = "no route for " + req.method + " " + req.path.substr(0, 200);
+    if (const Route* meant = NearestRoute(req.method, req.path)) {
+      message += "; did you mean " + std::string(meant->method) + " " + meant->path + "?";
+    }
+    return ErrorResponse(NotFoundError(message));
   }
   if (!match.route) {
     HttpResponse res =
@@ -174,6 +178,69 @@ RouteMatch MatchRoute(std::string_view method, std::string_view path) {
     }
   }
   return match;
+}
+
+namespace {
+
+// Edits (insertions, deletions, substitutions) that turn a into b.
+size_t EditDistance(std::string_view a, std::string_view b) {
+  std::vector<size_t> row(b.size() + 1);
+  for (size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (size_t i = 1; i <= a.size(); ++i) {
+    size_t diagonal = row[0];
+    row[0] = i;
+    for (size_t j = 1; j <= b.size(); ++j) {
+      const size_t above = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] != b[j - 1])});
+      diagonal = above;
+    }
+  }
+  return row[b.size()];
+}
+
+// What follows the last '/' or ':' of a path.
+std::string_view LastToken(std::string_view path) {
+  const size_t at = path.find_last_of("/:");
+  return at == std::string_view::npos ? path : path.substr(at + 1);
+}
+
+}  // namespace
+
+const Route* NearestRoute(std::string_view method, std::string_view path) {
+  // The path as a template: lower case, no trailing slash, "/v1" in front of an API path without
+  // it, and the segment after "/sessions/" as "{id}".
+  std::string p;
+  for (char c : path.substr(0, 200))
+    p += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  while (p.size() > 1 && p.back() == '/') p.pop_back();
+  if (p.starts_with("/sessions") || p.starts_with("/planners")) p = "/v1" + p;
+  if (const size_t at = p.find("/sessions/"); at != std::string::npos) {
+    const size_t begin = at + 10;
+    const size_t end = std::min(p.find_first_of("/:", begin), p.size());
+    if (end > begin) p.replace(begin, end - begin, "{id}");
+  }
+  const std::string_view token = LastToken(p);
+  const size_t near = std::min<size_t>(3, p.size() / 3);  // farther is not a near miss
+  const Route* best = nullptr;
+  size_t best_distance = 0;
+  for (const Route& r : kRoutes) {
+    const std::string_view route = r.path, verb = LastToken(route);
+    size_t d = EditDistance(p, route);
+    // A bare or misspelt verb ("/plan", "/v1/observation"): the route of that verb, the same
+    // word before a longer one.
+    if (verb.size() >= 4 && token.size() >= 4 && verb != "{id}" &&
+        (token.starts_with(verb.substr(0, 4)) || verb.starts_with(token))) {
+      d = std::min<size_t>(d, token == verb ? near : near + 1);
+    } else if (d > near) {
+      continue;
+    }
+    if (!best || d < best_distance ||
+        (d == best_distance && r.method == method && std::string_view(best->path) == route)) {
+      best = &r;
+      best_distance = d;
+    }
+  }
+  return best;
 }
 
 HttpResponse Respond(const HttpRequest& req, RouteContext& ctx) {

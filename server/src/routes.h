@@ -65,6 +65,11 @@ struct RouteMatch {
 };
 RouteMatch MatchRoute(std::string_view method, std::string_view path);
 
+/// The route a request no route fits probably meant (a slash for the colon of a custom verb, a
+/// missing "/v1", a trailing slash, a misspelt or bare verb such as "/plan"); null when none is
+/// close. Only the first 200 characters of the path are read.
+const Route* NearestRoute(std::string_view method, std::string_view path);
+
 /// Answers a request: a method the server does not know or an ambiguous target 400, a path over
 /// 1,024 characters 414, a path no route fits 404, a method no route of the path has 405 (with
 /// Allow), a browser's refused request 403, a multipart body 415, an API route without the API

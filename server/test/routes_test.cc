@@ -85,6 +85,33 @@ TEST(RouteTable, EveryRouteIsMatchedByItsOwnMethodAndTemplateOnly) {
   EXPECT_EQ(MatchRoute("GET", "/v1/sessions/abc:plan").allow, "POST");
 }
 
+TEST(RouteTable, ANearMissNamesTheRouteItProbablyMeant) {
+  const std::pair<const char*, const char*> cases[][2] = {
+      {{"POST", "/v1/sessions/0123abcd/plan"}, {"POST", "/v1/sessions/{id}:plan"}},
+      {{"POST", "/v1/sessions/x/observe"}, {"POST", "/v1/sessions/{id}:observe"}},
+      {{"POST", "/plan"}, {"POST", "/v1/sessions/{id}:plan"}},
+      {{"POST", "/v1/observation"}, {"POST", "/v1/sessions/{id}:observe"}},
+      {{"GET", "/sessions"}, {"GET", "/v1/sessions"}},
+      {{"POST", "/v1/session"}, {"POST", "/v1/sessions"}},
+      {{"GET", "/v1/sessions/abc/"}, {"GET", "/v1/sessions/{id}"}},
+      {{"DELETE", "/sessions/abc"}, {"DELETE", "/v1/sessions/{id}"}},
+      {{"GET", "/v1/Sessions/abc/Belief"}, {"GET", "/v1/sessions/{id}/belief"}},
+      {{"GET", "/health"}, {"GET", "/healthz"}},
+      {{"GET", "/v1/planner"}, {"GET", "/v1/planners"}},
+  };
+  for (const auto& [request, meant] : cases) {
+    const Route* r = NearestRoute(request.first, request.second);
+    ASSERT_NE(r, nullptr) << request.second;
+    EXPECT_EQ(std::string(r->method) + " " + r->path, std::string(meant.first) + " " + meant.second)
+        << request.first << " " << request.second;
+  }
+  for (const char* far : {"/", "/favicon.ico", "/wp-login.php", "/v2/things/abc", "/x"}) {
+    EXPECT_EQ(NearestRoute("GET", far), nullptr) << far;
+  }
+  // Only the first 200 characters are read.
+  EXPECT_EQ(NearestRoute("GET", std::string(100000, 'a')), nullptr);
+}
+
 TEST_F(RoutesTest, WrongMethodsAndUnknownPathsAreAnsweredAsAlways) {
   Open();
   HttpResponse res = Respond(Request("PUT", "/v1/sessions"), *ctx_);
@@ -94,7 +121,10 @@ TEST_F(RoutesTest, WrongMethodsAndUnknownPathsAreAnsweredAsAlways) {
   EXPECT_NE(res.body.find("UNIMPLEMENTED"), std::string::npos) << res.body;
   res = Respond(Request("POST", "/v1/sessions/abc/plan", {}, "{}"), *ctx_);
   EXPECT_EQ(res.status, 404);
-  EXPECT_NE(res.body.find("no route for POST /v1/sessions/abc/plan"), std::string::npos);
+  EXPECT_NE(res.body.find("no route for POST /v1/sessions/abc/plan; did you mean POST "
+                          "/v1/sessions/{id}:plan?"),
+            std::string::npos)
+      << res.body;
   res = Respond(Request("BREW", "/healthz"), *ctx_);
   EXPECT_EQ(res.status, 400);
   EXPECT_NE(res.body.find("method BREW is not supported (GET, HEAD, POST, DELETE)"),
