@@ -26,7 +26,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 BUILD = os.environ.get("BUILD_DIR", os.path.join(ROOT, "build"))
 sys.path.insert(0, os.path.join(ROOT, "clients", "python"))
 from npfkct_client import traced_workspaces  # noqa: E402
-from npfkct_client.cli import world_of_scenario  # noqa: E402
+from npfkct_client import World  # noqa: E402
 
 SIDE, RES = 40.0, 0.05
 
@@ -44,7 +44,7 @@ def rss_mb(pid):
 
 
 def house_world():
-    loose1 = world_of_scenario(os.path.join(ROOT, "scenarios", "loose1.json"))
+    loose1 = World.from_scenario(os.path.join(ROOT, "scenarios", "loose1.json"))
     n = round(SIDE / RES)
     cells = bytearray(n * n)
     for i in range(n):
@@ -76,7 +76,7 @@ def main():
                                "--log-level", "warn"], stdout=subprocess.PIPE, text=True)
     url = "http://" + server.stdout.readline().split()[-1]
     pid = server.pid
-    world = (world_of_scenario(scenario) if args.plain else house_world())
+    world = (World.from_scenario(scenario) if args.plain else house_world())
     first, later, kept, pipeline = [], [], [], []
     try:
         base = rss_mb(pid)

@@ -23,7 +23,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 BUILD = os.environ.get("BUILD_DIR", os.path.join(ROOT, "build"))
 sys.path.insert(0, os.path.join(ROOT, "clients", "python"))
 from npfkct_client import slam_world, write_map_files  # noqa
-from npfkct_client.cli import world_of_scenario  # noqa
+from npfkct_client import World  # noqa
 
 # Two-sided 95% quantiles of Student's t by degrees of freedom (30 and more: 2.0).
 T95 = {1: 12.706, 2: 4.303, 3: 3.182, 4: 2.776, 5: 2.571, 6: 2.447, 7: 2.365, 8: 2.306,
@@ -47,7 +47,7 @@ def main():
     parser.add_argument("--planner", default="npfkct")
     args = parser.parse_args()
     scenario = os.path.join(ROOT, "scenarios", args.scenario + ".json")
-    world = world_of_scenario(scenario)
+    world = World.from_scenario(scenario)
     scratch = tempfile.mkdtemp(prefix="npfkct-maps-")
     slam = slam_world(world, write_map_files(world, scratch))
     slam_path = os.path.join(scratch, "world.json")

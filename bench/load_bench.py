@@ -26,7 +26,7 @@ import time
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, "clients", "python"))
 from npfkct_client import NpfkctClient  # noqa: E402
-from npfkct_client.cli import world_of_scenario  # noqa: E402
+from npfkct_client import World  # noqa: E402
 
 
 def rss_kib(pid):
@@ -75,7 +75,7 @@ def main():
                               stdout=subprocess.PIPE, text=True)
     port = int(server.stdout.readline().strip().rsplit(":", 1)[1])
     url = f"http://127.0.0.1:{port}"
-    world = world_of_scenario(args.scenario)
+    world = World.from_scenario(args.scenario)
     time.sleep(0.2)
     rss_before = rss_kib(server.pid)
     plan_overhead, plan_total, observe_latency = [], [], []

@@ -46,8 +46,8 @@ def scenario_path(name):
 
 def world_of(name):
     """The prior-map part of a scenario file: what a robot tells the server."""
-    from npfkct_client.cli import world_of_scenario
-    return world_of_scenario(scenario_path(name))
+    from npfkct_client import World
+    return World.from_scenario(scenario_path(name))
 
 
 class ServerProcess:

@@ -2,12 +2,14 @@
 --insecure; with --api-key (or NPFKCT_API_KEY) /v1 needs the bearer token and health and metrics
 do not."""
 
+import json
 import os
 import subprocess
+import sys
 
 import requests
 
-from conftest import SERVER_BIN, ServerProcess, world_of
+from conftest import ROOT, SERVER_BIN, ServerProcess, world_of
 
 
 def refused(*args, env=None):
@@ -127,4 +129,31 @@ def test_a_robot_with_the_key_is_served_through_a_flood_of_unauthenticated_conne
     finally:
         for c in flood:
             c.close()
+        assert s.stop() == 0
+
+
+def test_the_python_sdk_and_cli_take_the_server_and_key_from_the_environment():
+    key = "env-k3y"
+    s = ServerProcess("--api-key", key)
+    try:
+        env = dict(os.environ, NPFKCT_SERVER=s.url, NPFKCT_API_KEY=key,
+                   PYTHONPATH=os.path.join(ROOT, "clients", "python"))
+        sdk = ("from npfkct_client import NpfkctClient, World\n"
+               "c = NpfkctClient()\n"
+               "with c.create_session(World.from_scenario('scenarios/loose1.json')) as s:\n"
+               "    print(s.id, len(c.list_sessions()))\n")
+        out = subprocess.run([sys.executable, "-c", sdk], cwd=ROOT, env=env, capture_output=True,
+                             text=True, timeout=60)
+        assert out.returncode == 0, out.stderr
+        assert out.stdout.split()[1] == "1"
+        cli = subprocess.run([sys.executable, "-m", "npfkct_client", "list"], cwd=ROOT, env=env,
+                             capture_output=True, text=True, timeout=60)
+        assert cli.returncode == 0, cli.stderr
+        assert json.loads(cli.stdout) == {"sessions": []}
+        # Without the key the same command is refused by the server, naming the header.
+        env.pop("NPFKCT_API_KEY")
+        cli = subprocess.run([sys.executable, "-m", "npfkct_client", "list"], cwd=ROOT, env=env,
+                             capture_output=True, text=True, timeout=60)
+        assert cli.returncode == 1 and "UNAUTHENTICATED" in cli.stderr, cli.stderr
+    finally:
         assert s.stop() == 0

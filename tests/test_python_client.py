@@ -1,19 +1,22 @@
 """Full episodes through the Python client against the real server."""
 
 import base64
+import concurrent.futures
 import json
 import os
+import re
 import shutil
 import struct
 import subprocess
 import sys
+import time
 
 import pytest
 
 from conftest import ROOT, SCENARIOS, SimRobot, world_of
 
 from npfkct_client import (ApiError, Box, Detection, Face, ImageBox, NpfkctClient, PointCloud,
-                           RobotConfig)
+                           RobotConfig, World)
 
 
 def run_episode(client, scenario, planner="npfkct", time_ms=250, max_steps=50):
@@ -250,3 +253,84 @@ def test_the_client_installs_with_pip_and_runs_as_a_command(server, tmp_path):
                          timeout=60, cwd=tmp_path, env=env)
     assert got.returncode == 0, got.stderr
     assert json.loads(got.stdout)["id"] == session["id"]
+
+
+def test_the_readmes_sdk_block_runs_as_written(server):
+    """The README's five-call loop, as pasted into python3 at the repository's root with the
+    server named by NPFKCT_SERVER: the session is deleted when its with block ends, and a plan
+    started with plan_async and cancelled leaves nothing behind."""
+    with open(os.path.join(ROOT, "README.md"), encoding="utf-8") as f:
+        block = re.search(r"<!-- sdk -->\n```python\n(.*?)\n```", f.read(), re.S).group(1)
+    env = dict(os.environ, NPFKCT_SERVER=server.url,
+               PYTHONPATH=os.path.join(ROOT, "clients", "python"))
+    env.pop("NPFKCT_API_KEY", None)
+    out = subprocess.run([sys.executable, "-c", block], cwd=ROOT, env=env, capture_output=True,
+                         text=True, timeout=120)
+    assert out.returncode == 0, out.stdout + out.stderr
+    kind, value, simulations, done = out.stdout.split()
+    assert kind in ("MOVE", "DECLARE_TARGET", "DECLARE_OBSTACLE", "REMOVE")
+    assert float(value) > 0 and int(simulations) > 0 and done == "False"
+    assert NpfkctClient(server.url).list_sessions() == []
+
+
+def server_cpu_seconds(server):
+    """User and system CPU time of the server process so far."""
+    with open(f"/proc/{server.proc.pid}/stat", encoding="ascii") as f:
+        fields = f.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def test_session_objects_and_plan_async_cancel(server):
+    """Session objects: plan, observe, refresh and delete on the session; plan_async returns a
+    future; its cancel() stops the server's search within 100 ms of the server's CPU time (a
+    60 s CPU budget otherwise), after which the session plans again."""
+    client = NpfkctClient(server.url)
+    with client.create_session(World.from_scenario(os.path.join(SCENARIOS, "loose1.json")),
+                               planner="npfkct", seed=2) as s:
+        first = s.plan(simulations=200)
+        assert first.stats.simulations == 200 and first.stats["simulations"] == 200
+        assert first.value == first.expected_value and first.session.state == "ACTION_PENDING"
+        assert s.refresh().pending_action_id == first.action_id
+        s.observe(first.action_id, robot_state=first.action.configuration or RobotConfig(),
+                  detections=[])
+        before = server_cpu_seconds(server)
+        future = s.plan_async(cpu_ms=60000)
+        # The search is under way once the server has spent 0.3 s of CPU on it.
+        deadline = time.monotonic() + 60
+        while server_cpu_seconds(server) - before < 0.3:
+            assert not future.done() and time.monotonic() < deadline
+            time.sleep(0.01)
+        assert future.cancel()
+        cancelled_at = server_cpu_seconds(server)
+        with pytest.raises(concurrent.futures.CancelledError):
+            future.result(timeout=30)
+        assert future.cancelled() and future.done() and not future.cancel()
+        # The server stops: its CPU time grows by less than 100 ms from the cancel on.
+        settled, last = time.monotonic() + 30, -1.0
+        while time.monotonic() < settled:
+            now = server_cpu_seconds(server)
+            if now == last:
+                break
+            last = now
+            time.sleep(0.5)
+        assert last - cancelled_at < 0.1, last - cancelled_at
+        # No action is pending: the session plans again (ABORTED while the server lets go).
+        for _ in range(100):
+            try:
+                again = s.plan(simulations=50)
+                break
+            except ApiError as e:
+                assert e.status == "ABORTED", e
+                time.sleep(0.05)
+        assert again.stats.simulations == 50
+        # A future that finished cannot be cancelled, and gives its plan.
+        s.observe(again.action_id, robot_state=again.action.configuration or RobotConfig(),
+                  detections=[])
+        done = s.plan_async(simulations=20)
+        assert done.result(timeout=60).stats.simulations == 20 and not done.cancel()
+        name = s.id
+    assert client.list_sessions() == []
+    with pytest.raises(ApiError) as e:
+        client.get_session(name)
+    assert e.value.status == "NOT_FOUND"
+    s.delete()  # twice: no error

@@ -13,12 +13,15 @@ from npfkct_client.client import (
     NpfkctClient,
     Observation,
     Plan,
+    PlanFuture,
     PointCloud,
     RobotConfig,
     Session,
+    Stats,
 )
 from npfkct_client.maps import (occupancy_grid_from_map_files, slam_world, traced_workspaces,
                                 write_map_files)
+from npfkct_client.world import World
 
 __all__ = [
     "__version__",
@@ -31,9 +34,12 @@ __all__ = [
     "NpfkctClient",
     "Observation",
     "Plan",
+    "PlanFuture",
     "PointCloud",
     "RobotConfig",
     "Session",
+    "Stats",
+    "World",
     "occupancy_grid_from_map_files",
     "slam_world",
     "traced_workspaces",

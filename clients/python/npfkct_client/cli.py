@@ -5,6 +5,9 @@
   npfkct-client --server URL plan ID [--time-ms MS] [--cpu-ms MS] [--simulations N]
   npfkct-client --server URL observe ID --action-id A --body FILE   (an :observe body as JSON)
   npfkct-client --server URL get ID | belief ID [--png OUT] | list | delete ID | health
+
+The server and the API key default to $NPFKCT_SERVER (else http://127.0.0.1:8080) and
+$NPFKCT_API_KEY.
 """
 
 import argparse
@@ -13,25 +16,17 @@ import sys
 
 from npfkct_client import __version__
 from npfkct_client.client import ApiError, NpfkctClient
-from npfkct_client.maps import occupancy_grid_from_map_files
-
-WORLD_KEYS = ("robot", "room", "mapResolution", "occupancyGrid", "furniture", "workspaces",
-              "baseRegions", "discretePoses", "start", "params")
-
-
-def world_of_scenario(path: str):
-    """The prior-map part of a scenario file."""
-    with open(path, encoding="utf-8") as f:
-        scenario = json.load(f)
-    return {k: scenario[k] for k in WORLD_KEYS if k in scenario}
+from npfkct_client.world import World
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="npfkct-client", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
-    parser.add_argument("--server", default="http://127.0.0.1:8080")
-    parser.add_argument("--api-key", help="bearer key of a server run with --api-key")
+    parser.add_argument("--server", help="the server's URL (default: $NPFKCT_SERVER, else "
+                        "http://127.0.0.1:8080)")
+    parser.add_argument("--api-key", help="bearer key of a server run with --api-key (default: "
+                        "$NPFKCT_API_KEY)")
     sub = parser.add_subparsers(dest="command", required=True)
     create = sub.add_parser("create", help="create a session from a scenario's prior map")
     create.add_argument("--scenario", required=True)
@@ -62,18 +57,16 @@ def main(argv=None) -> int:
     client = NpfkctClient(args.server, api_key=args.api_key)
     try:
         if args.command == "create":
-            world = world_of_scenario(args.scenario)
+            world = World.from_scenario(args.scenario)
             if args.map:
-                world.pop("room", None)
-                world.pop("mapResolution", None)
-                world["occupancyGrid"] = occupancy_grid_from_map_files(args.map)
+                world = world.with_map_files(args.map)
             out = client.create_session(world, planner=args.planner, seed=args.seed,
                                         model=args.model).raw
         elif args.command == "plan":
             p = client.plan(args.id, time_ms=args.time_ms, simulations=args.simulations,
                             cpu_ms=args.cpu_ms)
             out = {"actionId": p.action_id, "action": p.action.to_json(),
-                   "expectedValue": p.expected_value, "stats": p.stats, "budget": p.budget}
+                   "expectedValue": p.expected_value, "stats": p.stats.raw, "budget": p.budget}
         elif args.command == "observe":
             with open(args.body, encoding="utf-8") as f:
                 body = json.load(f)

@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import base64
+import concurrent.futures
 import dataclasses
 import email.utils
 import json
 import math
+import os
 import socket
 import struct
 import threading
@@ -196,7 +198,9 @@ class ImageBox:
 
 @dataclasses.dataclass
 class Session:
-    """A session resource."""
+    """A session resource, as a reply described it. A session that a client made or fetched is
+    also a handle on the server's session: plan, observe and delete call the server, and `with`
+    deletes it on exit (`with client.create_session(world) as s: ...`)."""
 
     id: str
     name: str
@@ -206,9 +210,10 @@ class Session:
     object_count: int
     pending_action_id: Optional[str]
     raw: Dict[str, Any]
+    client: Optional["NpfkctClient"] = dataclasses.field(default=None, repr=False, compare=False)
 
     @classmethod
-    def from_json(cls, j: Dict[str, Any]) -> "Session":
+    def from_json(cls, j: Dict[str, Any], client: Optional["NpfkctClient"] = None) -> "Session":
         pending = j.get("pendingAction")
         return cls(
             id=j["id"],
@@ -219,7 +224,87 @@ class Session:
             object_count=j["objectCount"],
             pending_action_id=pending["actionId"] if pending else None,
             raw=j,
+            client=client,
         )
+
+    @property
+    def done(self) -> bool:
+        """Whether the target was removed (the episode is over)."""
+        return self.state == "DONE"
+
+    def _client(self) -> "NpfkctClient":
+        if self.client is None:
+            raise ValueError("this Session was read from JSON without a client: "
+                             "use NpfkctClient.get_session")
+        return self.client
+
+    def plan(self, time_ms: Optional[float] = None, simulations: Optional[int] = None,
+             cpu_ms: Optional[float] = None) -> "Plan":
+        """NpfkctClient.plan on this session."""
+        return self._client().plan(self.id, time_ms=time_ms, simulations=simulations,
+                                   cpu_ms=cpu_ms)
+
+    def plan_async(self, time_ms: Optional[float] = None, simulations: Optional[int] = None,
+                   cpu_ms: Optional[float] = None) -> "PlanFuture":
+        """NpfkctClient.plan_async on this session."""
+        return self._client().plan_async(self.id, time_ms=time_ms, simulations=simulations,
+                                         cpu_ms=cpu_ms)
+
+    def observe(self, action_id: str, **kwargs: Any) -> "Observation":
+        """NpfkctClient.observe on this session (the same keyword arguments)."""
+        return self._client().observe(self.id, action_id, **kwargs)
+
+    def refresh(self) -> "Session":
+        """The session as the server holds it now."""
+        return self._client().get_session(self.id)
+
+    def belief(self) -> Dict[str, Any]:
+        return self._client().belief(self.id)
+
+    def belief_png(self) -> bytes:
+        return self._client().belief_png(self.id)
+
+    def delete(self) -> None:
+        """Deletes the session (a plan running on it stops); deleting it twice is no error."""
+        try:
+            self._client().delete_session(self.id)
+        except ApiError as e:
+            if e.status != "NOT_FOUND":
+                raise
+
+    def __enter__(self) -> "Session":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.delete()
+
+
+@dataclasses.dataclass
+class Stats:
+    """What a plan's search did (schemas/common.schema.json, Stats)."""
+
+    simulations: int
+    elapsed_ms: float
+    cpu_ms: Optional[float]
+    tree_nodes: int
+    max_depth: int
+    root_actions: int
+    root_visits: int
+    reused_visits: int  # visits of the previous step's tree that this search started from
+    budget_exhausted: Optional[str]
+    raw: Dict[str, Any]
+
+    @classmethod
+    def from_json(cls, j: Dict[str, Any]) -> "Stats":
+        return cls(simulations=j["simulations"], elapsed_ms=j["elapsedMs"],
+                   cpu_ms=j.get("cpuMs"), tree_nodes=j["treeNodes"], max_depth=j["maxDepth"],
+                   root_actions=j["rootActions"], root_visits=j["rootVisits"],
+                   reused_visits=j["reusedVisits"], budget_exhausted=j.get("budgetExhausted"),
+                   raw=j)
+
+    def __getitem__(self, key: str) -> Any:
+        """The reply's own field by its JSON name (stats["simulations"])."""
+        return self.raw[key]
 
 
 @dataclasses.dataclass
@@ -229,20 +314,25 @@ class Plan:
     action_id: str
     action: Action
     expected_value: float
-    stats: Dict[str, Any]
+    stats: Stats
     session: Session
     budget: Dict[str, Any] = dataclasses.field(default_factory=dict)  # as the planner used it
 
     @classmethod
-    def from_json(cls, j: Dict[str, Any]) -> "Plan":
+    def from_json(cls, j: Dict[str, Any], client: Optional["NpfkctClient"] = None) -> "Plan":
         return cls(
             action_id=j["actionId"],
             action=Action.from_json(j["action"]),
             expected_value=j["expectedValue"],
-            stats=j["stats"],
-            session=Session.from_json(j["session"]),
+            stats=Stats.from_json(j["stats"]),
+            session=Session.from_json(j["session"], client),
             budget=j.get("budget", {}),
         )
+
+    @property
+    def value(self) -> float:
+        """The search's expected discounted reward of the action."""
+        return self.expected_value
 
 
 @dataclasses.dataclass
@@ -296,6 +386,7 @@ class _Call:
         self.lock = threading.Lock()
         self.sock = None
         self.expired = False
+        self.cancelled = False  # expired by PlanFuture.cancel, not by the deadline
 
     def watch(self, sock):
         with self.lock:
@@ -367,16 +458,74 @@ class _WatchedAdapter(requests.adapters.HTTPAdapter):
         return _watched(super().proxy_manager_for(*args, **kwargs))
 
 
+class PlanFuture:
+    """A plan running in the background (NpfkctClient.plan_async). cancel() hangs up on it: the
+    server stops the search within milliseconds, and the session has no pending action, so it may
+    plan again (a plan right after a cancel may be answered ABORTED while the server notices;
+    retry it)."""
+
+    def __init__(self, run: Callable[["_Call"], "Plan"]):
+        self._call = _Call()
+        self._future: concurrent.futures.Future = concurrent.futures.Future()
+        self._thread = threading.Thread(target=self._run, args=(run,), daemon=True)
+        self._thread.start()
+
+    def _run(self, run: Callable[["_Call"], "Plan"]) -> None:
+        if not self._future.set_running_or_notify_cancel():
+            return
+        try:
+            plan = run(self._call)
+        except BaseException as e:  # handed to result()
+            if self._call.cancelled:
+                e = concurrent.futures.CancelledError()
+            self._future.set_exception(e)
+        else:
+            self._future.set_result(plan)
+
+    def cancel(self) -> bool:
+        """Stops the plan (the connection is closed, and the server stops with it); False when it
+        had already finished."""
+        if self._future.done():
+            return False
+        with self._call.lock:
+            self._call.cancelled = True
+        self._call.expire()
+        return True
+
+    def cancelled(self) -> bool:
+        return self._future.done() and isinstance(self._future.exception(),
+                                                  concurrent.futures.CancelledError)
+
+    def done(self) -> bool:
+        return self._future.done()
+
+    def result(self, timeout: Optional[float] = None) -> "Plan":
+        """The plan; raises ApiError as plan() does, concurrent.futures.CancelledError after a
+        cancel, TimeoutError when it is not done within `timeout` seconds."""
+        return self._future.result(timeout)
+
+    def exception(self, timeout: Optional[float] = None) -> Optional[BaseException]:
+        return self._future.exception(timeout)
+
+    def add_done_callback(self, fn: Callable[["PlanFuture"], Any]) -> None:
+        self._future.add_done_callback(lambda _: fn(self))
+
+
 class NpfkctClient:
     """Client of one npfkct server. Every call raises ApiError on an error response, and on a
     reply larger than `max_reply_bytes`, not JSON or nested deeper than Python's parser goes;
     `timeout` bounds the whole call from the request on (a server sending a byte at a time is
-    cut off)."""
+    cut off). The server's URL and API key default to $NPFKCT_SERVER (else
+    http://127.0.0.1:8080) and $NPFKCT_API_KEY. A client may be shared by threads."""
 
-    def __init__(self, base_url: str, api_key: Optional[str] = None, timeout: float = 120.0,
-                 max_reply_bytes: int = 64 << 20):
+    def __init__(self, base_url: Optional[str] = None, api_key: Optional[str] = None,
+                 timeout: float = 120.0, max_reply_bytes: int = 64 << 20):
         if not (isinstance(timeout, (int, float)) and 0 < timeout <= 1e6):
             raise ValueError("timeout: seconds, > 0 and <= 1e6")
+        if base_url is None:
+            base_url = os.environ.get("NPFKCT_SERVER") or "http://127.0.0.1:8080"
+        if api_key is None:
+            api_key = os.environ.get("NPFKCT_API_KEY") or None
         self.base_url = base_url.rstrip("/")
         self.timeout = timeout
         self.max_reply_bytes = max_reply_bytes
@@ -426,8 +575,9 @@ class NpfkctClient:
             raise ApiError(status, "DATA_LOSS", "the reply nests too deeply") from None
 
     def _call(self, method: str, path: str, body: Optional[Dict[str, Any]] = None,
-              params: Optional[Dict[str, Any]] = None, raw: bool = False):
-        call = _Call()
+              params: Optional[Dict[str, Any]] = None, raw: bool = False,
+              call: Optional[_Call] = None):
+        call = call or _Call()
         _WATCHED.call = call
         timer = threading.Timer(self.timeout, call.expire)
         timer.daemon = True
@@ -444,6 +594,8 @@ class NpfkctClient:
             except (requests.RequestException, OSError) as e:
                 if not call.expired and not isinstance(e, requests.Timeout):
                     raise
+                if call.cancelled:
+                    raise ApiError(0, "CANCELLED", "the call was cancelled") from None
                 raise ApiError(0, "DEADLINE_EXCEEDED",
                                f"the server did not answer within {self.timeout} s") from None
             if 300 <= response.status_code < 400:
@@ -517,10 +669,11 @@ class NpfkctClient:
                 body["target"]["description"] = target_description
             if target_photos:
                 body["target"]["photos"] = [base64.b64encode(p).decode() for p in target_photos]
-        return _typed(Session.from_json, self._call("POST", "/v1/sessions", body))
+        return _typed(lambda j: Session.from_json(j, self), self._call("POST", "/v1/sessions", body))
 
     def get_session(self, session_id: str) -> Session:
-        return _typed(Session.from_json, self._call("GET", f"/v1/sessions/{session_id}"))
+        return _typed(lambda j: Session.from_json(j, self),
+                      self._call("GET", f"/v1/sessions/{session_id}"))
 
     def list_sessions(self, page_size: int = 50) -> List[Session]:
         sessions: List[Session] = []
@@ -533,7 +686,7 @@ class NpfkctClient:
             if token:
                 params["pageToken"] = token
             page = self._call("GET", "/v1/sessions", params=params)
-            sessions += _typed(lambda p: [Session.from_json(s) for s in p["sessions"]], page)
+            sessions += _typed(lambda p: [Session.from_json(s, self) for s in p["sessions"]], page)
             token = _typed(lambda p: p.get("nextPageToken", ""), page)
             if not token:
                 return sessions
@@ -549,6 +702,17 @@ class NpfkctClient:
              simulations: Optional[int] = None, cpu_ms: Optional[float] = None) -> Plan:
         """Plans within a budget of wall-clock milliseconds, CPU milliseconds of the planning
         thread and/or simulations (none: the server's default)."""
+        return self._plan(session_id, time_ms, simulations, cpu_ms, None)
+
+    def plan_async(self, session_id: str, time_ms: Optional[float] = None,
+                   simulations: Optional[int] = None,
+                   cpu_ms: Optional[float] = None) -> PlanFuture:
+        """plan() in a thread of its own: a PlanFuture, whose cancel() stops the server's search
+        (while the robot still moves, say, and a new observation makes the plan moot)."""
+        return PlanFuture(lambda call: self._plan(session_id, time_ms, simulations, cpu_ms, call))
+
+    def _plan(self, session_id: str, time_ms: Optional[float], simulations: Optional[int],
+              cpu_ms: Optional[float], call: Optional[_Call]) -> Plan:
         budget: Dict[str, Any] = {}
         if time_ms is not None:
             budget["timeMs"] = time_ms
@@ -557,7 +721,8 @@ class NpfkctClient:
         if simulations is not None:
             budget["simulations"] = simulations
         body = {"budget": budget} if budget else {}
-        return _typed(Plan.from_json, self._call("POST", f"/v1/sessions/{session_id}:plan", body))
+        return _typed(lambda j: Plan.from_json(j, self),
+                      self._call("POST", f"/v1/sessions/{session_id}:plan", body, call=call))
 
     def observe(self, session_id: str, action_id: str,
                 robot_state: Optional[RobotConfig] = None,
@@ -593,7 +758,7 @@ class NpfkctClient:
         body = dict(body, actionId=action_id)
         j = self._call("POST", f"/v1/sessions/{session_id}:observe", body)
         return _typed(lambda j: Observation(done=j["done"], reward=j["reward"],
-                                            session=Session.from_json(j["session"]),
+                                            session=Session.from_json(j["session"], self),
                                             perception=j.get("perception")), j)
 
     def belief(self, session_id: str) -> Dict[str, Any]:

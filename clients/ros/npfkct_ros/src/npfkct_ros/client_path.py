@@ -4,13 +4,11 @@ tree next to this package (clients/ros/npfkct_ros/src/npfkct_ros -> clients/pyth
 import os
 import sys
 
-__all__ = ["ApiError", "NpfkctClient", "world_of_scenario"]
+__all__ = ["ApiError", "NpfkctClient", "World"]
 
 try:
-    from npfkct_client import ApiError, NpfkctClient
-    from npfkct_client.cli import world_of_scenario
+    from npfkct_client import ApiError, NpfkctClient, World
 except ImportError:
     sys.path.insert(0, os.path.normpath(os.path.join(
         os.path.dirname(os.path.abspath(__file__)), "..", "..", "..", "..", "python")))
-    from npfkct_client import ApiError, NpfkctClient
-    from npfkct_client.cli import world_of_scenario
+    from npfkct_client import ApiError, NpfkctClient, World

@@ -22,7 +22,7 @@ from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from npfkct_ros import retry
-from npfkct_ros.client_path import ApiError, NpfkctClient, world_of_scenario
+from npfkct_ros.client_path import ApiError, NpfkctClient, World
 from npfkct_ros.geometry import Rigid, quat_from_rpy
 from npfkct_ros.maps import occupancy_grid_json, world_from_map
 from npfkct_ros.msg import (Detection3DArray, FindObjectAction, FindObjectFeedback,
@@ -123,7 +123,7 @@ class FindObjectServer:
         """The session's world: the scenario's prior map, or with ~map_topic the newest map
         (waited for up to ~pose_timeout) and ~workspaces, the scenario giving the robot, start
         and parameters."""
-        base = world_of_scenario(scenario) if scenario else {}
+        base = World.from_scenario(scenario) if scenario else {}
         if not self.map_topic:
             return base
         with self.cond:
