@@ -32,10 +32,11 @@ NPFKCT_PACKAGES=(
   ros-core-dev python3-rospy python3-rosgraph python3-roslaunch
   python3-std-msgs python3-sensor-msgs python3-geometry-msgs python3-nav-msgs
   # clients/ros/npfkct_ros: catkin and genmsg/genpy generate its messages and actions (from
-  # std/geometry/trajectory/actionlib msgs); actionlib and tf2_ros run it.
+  # std/geometry/trajectory/actionlib msgs); actionlib and tf2_ros run it; it publishes
+  # visualization_msgs markers.
   catkin ros-message-generation ros-message-runtime python3-genpy
   ros-trajectory-msgs ros-actionlib-msgs python3-trajectory-msgs python3-actionlib-msgs
-  python3-actionlib python3-tf2-ros
+  python3-actionlib python3-tf2-ros python3-visualization-msgs
 )
 
 # Fleet mode (--store postgresql://...): the PostgreSQL client library the store is built with.

@@ -6,10 +6,13 @@ DECLARE_* / REMOVE: an ObjectCommand goal); wait for the first Detection3DArray 
 the action was sent; pair it with the robot's state at the detections' stamp (tf map -> base,
 joint_states), refusing a pose or joints older than the detections by more than
 ~stale_tolerance; move the detections into the map frame through tf; observe; publish feedback.
-A cancelled (preempted) goal deletes its session, and so does shutting the node down."""
+A cancelled (preempted) goal deletes its session, and so does shutting the node down. After each
+plan and each observation the belief and the next view go out as RViz markers on
+`belief_markers` (visualization_msgs/MarkerArray, while someone subscribes; markers.py)."""
 
 import math
 import threading
+import types
 from collections import deque
 
 import actionlib
@@ -18,18 +21,24 @@ import tf2_ros
 from actionlib_msgs.msg import GoalStatus
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import OccupancyGrid
+from geometry_msgs.msg import Point
 from sensor_msgs.msg import JointState
+from std_msgs.msg import ColorRGBA
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+from visualization_msgs.msg import Marker, MarkerArray
 
 from npfkct_ros import retry
-from npfkct_ros.client_path import ApiError, NpfkctClient, World
+from npfkct_client import ApiError, NpfkctClient, World
 from npfkct_ros.geometry import Rigid, quat_from_rpy
 from npfkct_ros.maps import occupancy_grid_json, world_from_map
+from npfkct_ros.markers import belief_markers
 from npfkct_ros.msg import (Detection3DArray, FindObjectAction, FindObjectFeedback,
                             FindObjectResult, FollowJointTrajectoryAction,
                             FollowJointTrajectoryGoal, ObjectCommandAction, ObjectCommandGoal,
                             RobotConfig)
 
+MARKER_MSGS = types.SimpleNamespace(Marker=Marker, MarkerArray=MarkerArray, Point=Point,
+                                    ColorRGBA=ColorRGBA)
 OBJECT_COMMANDS = {"DECLARE_TARGET": ObjectCommandGoal.DECLARE_TARGET,
                    "DECLARE_OBSTACLE": ObjectCommandGoal.DECLARE_OBSTACLE,
                    "REMOVE": ObjectCommandGoal.REMOVE}
@@ -91,6 +100,8 @@ class FindObjectServer:
         self.session_lock = threading.Lock()
 
         self.base_pub = rospy.Publisher("base_goal", PoseStamped, queue_size=1, latch=True)
+        self.markers_pub = rospy.Publisher("belief_markers", MarkerArray, queue_size=1,
+                                           latch=True)
         self.trajectory = actionlib.SimpleActionClient("follow_joint_trajectory",
                                                        FollowJointTrajectoryAction)
         self.object_command = actionlib.SimpleActionClient("object_command", ObjectCommandAction)
@@ -193,6 +204,7 @@ class FindObjectServer:
         while step < max_steps:
             self.check_preempt()
             action_id, action, value = self.plan(session.id, budget_ms)
+            self.publish_markers(session.id)
             sent = rospy.Time.now()
             rospy.logdebug("npfkct: step %d: %s sent to the robot", step + 1, action["type"])
             succeeded, asked = self.send_to_robot(action, sent)
@@ -204,6 +216,7 @@ class FindObjectServer:
             body = {"succeeded": succeeded, "robotState": state,
                     "detections": self.detections_in_map(detections)}
             done, reward, session = self.observe(session.id, action_id, body)
+            self.publish_markers(session.id)
             step += 1
             result.steps = session.step
             result.reward += reward
@@ -284,6 +297,18 @@ class FindObjectServer:
             rospy.logwarn("npfkct: a retried observe had reached the server; reward unknown")
             return session.state == "DONE", 0.0, session
         return observed.done, observed.reward, observed.session
+
+    def publish_markers(self, session_id):
+        """The session's belief and next view as RViz markers, when someone listens (one GET of
+        the belief; a failure is logged, never the goal's end)."""
+        if self.markers_pub.get_num_connections() == 0:
+            return
+        try:
+            belief = self.client.belief(session_id)
+            self.markers_pub.publish(
+                belief_markers(belief, self.map_frame, rospy.Time.now(), MARKER_MSGS))
+        except (ApiError, OSError, KeyError, TypeError, ValueError) as e:
+            rospy.logwarn("npfkct: belief markers not published: %s", e)
 
     def delete_session(self, why):
         """Deletes the running goal's session (one try each way: shutdown cannot wait long)."""

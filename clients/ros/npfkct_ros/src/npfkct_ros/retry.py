@@ -11,7 +11,7 @@ import time
 
 import requests
 
-from npfkct_ros.client_path import ApiError
+from npfkct_client import ApiError
 
 RETRIED_HTTP = (429, 503)
 
