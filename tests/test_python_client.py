@@ -334,3 +334,52 @@ def test_session_objects_and_plan_async_cancel(server):
         client.get_session(name)
     assert e.value.status == "NOT_FOUND"
     s.delete()  # twice: no error
+
+
+def test_the_ros_nodes_episode_runs_without_ros(server):
+    """npfkct_ros.episode (the ROS node's session and step loop, plain Python): a robot front of
+    a few lines, here the simulated robot, finds the target in Loose1, each step heard once; the
+    robot's reported MOVE counts as executed only where its base reached the goal."""
+    sys.path.insert(0, os.path.join(ROOT, "clients", "ros", "npfkct_ros", "src"))
+    try:
+        from npfkct_ros.episode import Episode, Robot
+        from npfkct_ros.retry import RetryPolicy
+    finally:
+        sys.path.pop(0)
+
+    class SimulatedRobot(Robot):
+        def __init__(self):
+            self.sim, self.reply, self.logs = SimRobot("loose1", seed=4), None, []
+
+        def now(self):
+            return time.monotonic()
+
+        def execute(self, action, sent):
+            self.reply = self.sim.execute(action)
+            return self.reply["observation"]["succeeded"]
+
+        def observe(self, sent):
+            seen = self.reply["observation"]
+            return seen["robotState"], seen.get("detections", [])
+
+        def sleep(self, seconds):
+            time.sleep(seconds)
+
+        def log(self, level, message):
+            self.logs.append((level, message))
+
+    robot = SimulatedRobot()
+    steps = []
+    try:
+        episode = Episode(NpfkctClient(server.url), RetryPolicy(), robot)
+        session = episode.create(World.from_scenario(os.path.join(SCENARIOS, "loose1.json")),
+                                 seed=4)
+        success, count, reward, message = episode.run(
+            250, 50, lambda step, *rest: steps.append(step))
+        assert success and message.startswith("target removed"), (message, robot.logs)
+        assert steps == list(range(1, count + 1)) and reward > 5e4
+        assert NpfkctClient(server.url).get_session(session.id).state == "DONE"
+        episode.delete("test over")
+        assert NpfkctClient(server.url).list_sessions() == []
+    finally:
+        robot.sim.close()

@@ -1,4 +1,5 @@
-"""The FindObject action server: one npfkct session per goal, driven step by step.
+"""The FindObject action server: one npfkct session per goal, driven step by step (the session
+and the step loop are episode.py's, plain Python; this module is the ROS 1 robot around it).
 
 Each step: plan on the server; send the action to the robot (MOVE: a PoseStamped base goal in
 the map frame on `base_goal` and a FollowJointTrajectory goal for the lift and head joints;
@@ -10,7 +11,6 @@ A cancelled (preempted) goal deletes its session, and so does shutting the node 
 plan and each observation the belief and the next view go out as RViz markers on
 `belief_markers` (visualization_msgs/MarkerArray, while someone subscribes; markers.py)."""
 
-import math
 import threading
 import types
 from collections import deque
@@ -27,8 +27,9 @@ from std_msgs.msg import ColorRGBA
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from visualization_msgs.msg import Marker, MarkerArray
 
-from npfkct_ros import retry
 from npfkct_client import ApiError, NpfkctClient, World
+from npfkct_ros import retry
+from npfkct_ros.episode import Episode, GoalError, Preempted, Robot
 from npfkct_ros.geometry import Rigid, quat_from_rpy
 from npfkct_ros.maps import occupancy_grid_json, world_from_map
 from npfkct_ros.markers import belief_markers
@@ -44,21 +45,9 @@ OBJECT_COMMANDS = {"DECLARE_TARGET": ObjectCommandGoal.DECLARE_TARGET,
                    "REMOVE": ObjectCommandGoal.REMOVE}
 
 
-class GoalError(Exception):
-    """Ends a goal as aborted, with this message in the result."""
-
-
-class Preempted(Exception):
-    """The goal was cancelled (or replaced) or the node is shutting down."""
-
-
-def angle_diff(a, b):
-    """a - b wrapped into (-pi, pi]."""
-    return math.atan2(math.sin(a - b), math.cos(a - b))
-
-
-class FindObjectServer:
-    """The node: parameters, tf, the robot's action clients and the find_object server."""
+class FindObjectServer(Robot):
+    """The node: parameters, tf, the robot's action clients and the find_object server; the
+    Robot of its goals' episodes."""
 
     def __init__(self):
         p = rospy.get_param
@@ -96,7 +85,7 @@ class FindObjectServer:
         self.cond = threading.Condition()
         self.joint_history = deque(maxlen=500)  # (stamp, {name: position}), by arrival
         self.detections = None  # the newest Detection3DArray
-        self.session_id = None  # the session of the running goal
+        self.episode = None  # the running goal's
         self.session_lock = threading.Lock()
 
         self.base_pub = rospy.Publisher("base_goal", PoseStamped, queue_size=1, latch=True)
@@ -110,7 +99,7 @@ class FindObjectServer:
         if self.map_topic:
             rospy.Subscriber(self.map_topic, OccupancyGrid, self.on_map, queue_size=1)
         self.server = actionlib.SimpleActionServer("find_object", FindObjectAction,
-                                                   execute_cb=self.execute, auto_start=False)
+                                                   execute_cb=self.on_goal, auto_start=False)
         rospy.on_shutdown(self.on_shutdown)
         self.server.start()
         rospy.loginfo("npfkct: find_object ready (server %s)", self.client.base_url)
@@ -152,7 +141,7 @@ class FindObjectServer:
 
     # -- the goal --
 
-    def execute(self, goal):
+    def on_goal(self, goal):
         """SimpleActionServer's callback: runs one episode; ends the goal."""
         result = FindObjectResult()
         try:
@@ -166,11 +155,11 @@ class FindObjectServer:
             result.message = str(e)
             rospy.logerr("npfkct: goal aborted: %s", e)
             with self.session_lock:
-                self.session_id = None  # kept on the server for inspection (its TTL ends it)
+                self.episode = None  # the session is kept for inspection (its TTL ends it)
             self.server.set_aborted(result, result.message)
             return
         with self.session_lock:
-            self.session_id = None
+            self.episode = None
         if result.success:
             self.server.set_succeeded(result, result.message)
         else:
@@ -191,60 +180,54 @@ class FindObjectServer:
             with open(path, "rb") as f:
                 photos.append(f.read())
         world = self.session_world(scenario)
-        session = self.http(lambda: self.client.create_session(
-            world, planner=goal.planner or d["planner"],
-            seed=goal.seed or d["seed"], model=d["model"] or None,
-            target_description=goal.target_description or d["target_description"] or None,
-            target_photos=photos or None))
+        episode = Episode(self.client, self.policy, self)
         with self.session_lock:
-            self.session_id = session.id
+            self.episode = episode
+        session = episode.create(
+            world, planner=goal.planner or d["planner"], seed=goal.seed or d["seed"],
+            model=d["model"] or None,
+            target_description=goal.target_description or d["target_description"] or None,
+            target_photos=photos or None)
         result.session_id = session.id
         rospy.loginfo("npfkct: session %s", session.id)
-        step = 0
-        while step < max_steps:
-            self.check_preempt()
-            action_id, action, value = self.plan(session.id, budget_ms)
-            self.publish_markers(session.id)
-            sent = rospy.Time.now()
-            rospy.logdebug("npfkct: step %d: %s sent to the robot", step + 1, action["type"])
-            succeeded, asked = self.send_to_robot(action, sent)
-            rospy.logdebug("npfkct: step %d: robot done (%s)", step + 1, succeeded)
-            detections = self.wait_detections(sent)
-            state, stamp = self.robot_state_at(detections.header.stamp)
-            if action["type"] == "MOVE" and succeeded:
-                succeeded = self.reached(asked, state)
-            body = {"succeeded": succeeded, "robotState": state,
-                    "detections": self.detections_in_map(detections)}
-            done, reward, session = self.observe(session.id, action_id, body)
-            self.publish_markers(session.id)
-            step += 1
+
+        def on_step(step, action_id, action, value, succeeded, body, reward, done, session):
             result.steps = session.step
             result.reward += reward
             feedback = FindObjectFeedback(
                 step=step, session_id=session.id, action_id=action_id,
                 action_type=action["type"], object_id=action.get("objectId", ""),
-                expected_value=value, succeeded=succeeded, observed=RobotConfig(**state),
-                detections=len(body["detections"]), reward=reward, done=done)
+                expected_value=value, succeeded=succeeded,
+                observed=RobotConfig(**body["robotState"]), detections=len(body["detections"]),
+                reward=reward, done=done)
             if action["type"] == "MOVE":
                 feedback.configuration = RobotConfig(**action["configuration"])
             self.server.publish_feedback(feedback)
-            rospy.loginfo("npfkct: step %d %s succeeded=%s reward=%g (pose at %.3f)", step,
-                          action["type"], succeeded, reward, stamp.to_sec())
-            if done:
-                result.success = True
-                result.message = f"target removed after {step} steps"
-                return
-        result.message = f"target not removed within {max_steps} steps"
+            rospy.loginfo("npfkct: step %d %s succeeded=%s reward=%g", step, action["type"],
+                          succeeded, reward)
 
-    # -- HTTP --
+        result.success, result.steps, _, result.message = episode.run(
+            budget_ms, max_steps, on_step, self.publish_markers)
 
-    def http(self, fn):
-        """fn() with retries and backoff; stops retrying when the goal is cancelled."""
-        value, _ = retry.call(fn, self.policy, sleep=self.sleep,
-                              log=lambda m: rospy.logwarn("npfkct: %s", m),
-                              stop=lambda: self.server.is_preempt_requested() or
-                              rospy.is_shutdown())
-        return value
+    # -- Robot: what an episode needs of this node --
+
+    def now(self):
+        return rospy.Time.now()
+
+    def execute(self, action, sent):
+        return self.send_to_robot(action, sent)
+
+    def observe(self, sent):
+        detections = self.wait_detections(sent)
+        state, _ = self.robot_state_at(detections.header.stamp)
+        return state, self.detections_in_map(detections)
+
+    def preempted(self):
+        return self.server.is_preempt_requested() or rospy.is_shutdown()
+
+    def log(self, level, message):
+        {"info": rospy.loginfo, "warn": rospy.logwarn}.get(level, rospy.logerr)(
+            "npfkct: %s", message)
 
     def sleep(self, seconds):
         """rospy.sleep that ends early when the node shuts down."""
@@ -252,51 +235,6 @@ class FindObjectServer:
             rospy.sleep(seconds)
         except rospy.ROSInterruptException:
             pass
-
-    def plan(self, session_id, budget_ms):
-        """(actionId, action JSON, expected value). A retried :plan whose first try reached the
-        server finds the action pending (FAILED_PRECONDITION): it is taken from the session."""
-        tries = [0]
-
-        def once():
-            tries[0] += 1
-            return self.client.plan(session_id, time_ms=budget_ms)
-
-        try:
-            plan = self.http(once)
-        except ApiError as e:
-            if e.status != "FAILED_PRECONDITION" or tries[0] < 2:
-                raise
-            pending = self.http(lambda: self.client.get_session(session_id)).raw.get(
-                "pendingAction")
-            if not pending:
-                raise
-            rospy.logwarn("npfkct: a retried plan found action %s pending; executing it",
-                          pending["actionId"])
-            return pending["actionId"], pending["action"], float("nan")
-        return plan.action_id, plan.action.to_json(), plan.expected_value
-
-    def observe(self, session_id, action_id, body):
-        """(done, reward, session). A retried :observe whose first try reached the server is
-        refused (FAILED_PRECONDITION): the session then shows the step taken; its reward is lost
-        and counted as 0."""
-        tries = [0]
-
-        def once():
-            tries[0] += 1
-            return self.client.observe(session_id, action_id, body=body)
-
-        try:
-            observed = self.http(once)
-        except ApiError as e:
-            if e.status != "FAILED_PRECONDITION" or tries[0] < 2:
-                raise
-            session = self.http(lambda: self.client.get_session(session_id))
-            if session.pending_action_id == action_id:
-                raise
-            rospy.logwarn("npfkct: a retried observe had reached the server; reward unknown")
-            return session.state == "DONE", 0.0, session
-        return observed.done, observed.reward, observed.session
 
     def publish_markers(self, session_id):
         """The session's belief and next view as RViz markers, when someone listens (one GET of
@@ -313,14 +251,9 @@ class FindObjectServer:
     def delete_session(self, why):
         """Deletes the running goal's session (one try each way: shutdown cannot wait long)."""
         with self.session_lock:
-            session_id, self.session_id = self.session_id, None
-        if session_id is None:
-            return
-        try:
-            self.client.delete_session(session_id)
-            rospy.loginfo("npfkct: %s: session %s deleted", why, session_id)
-        except (ApiError, OSError) as e:
-            rospy.logerr("npfkct: %s: deleting session %s failed: %s", why, session_id, e)
+            episode, self.episode = self.episode, None
+        if episode is not None:
+            episode.delete(why)
 
     def on_shutdown(self):
         """rospy's shutdown hook."""
@@ -328,7 +261,7 @@ class FindObjectServer:
 
     def check_preempt(self):
         """Raises Preempted when the goal was cancelled or the node is going down."""
-        if self.server.is_preempt_requested() or rospy.is_shutdown():
+        if self.preempted():
             raise Preempted()
 
     # -- tf --
@@ -440,7 +373,7 @@ class FindObjectServer:
     # -- the robot --
 
     def send_to_robot(self, action, stamp):
-        """Sends the action; waits for the robot. (executed as asked, MOVE configuration)."""
+        """Sends the action; waits for the robot; whether it reports the action done."""
         if action["type"] == "MOVE":
             c = action["configuration"]
             pose = PoseStamped()
@@ -461,7 +394,7 @@ class FindObjectServer:
             if not ok:
                 rospy.logwarn("npfkct: trajectory not executed: %s",
                               "no result" if result is None else result.error_string)
-            return ok, c
+            return ok
         goal = ObjectCommandGoal(command=OBJECT_COMMANDS[action["type"]],
                                  object_id=action["objectId"])
         goal.header.stamp, goal.header.frame_id = stamp, self.map_frame
@@ -471,7 +404,7 @@ class FindObjectServer:
             pose.to_pose(goal.bbox.center)
             goal.bbox.size.x, goal.bbox.size.y, goal.bbox.size.z = box["size"]
         result = self.run_robot_action(self.object_command, goal, "object_command")
-        return result is not None and result.succeeded, None
+        return result is not None and result.succeeded
 
     def run_robot_action(self, client, goal, name):
         """Sends a goal to one of the robot's action servers and waits for its result, polling
@@ -503,13 +436,3 @@ class FindObjectServer:
                                     f"{self.action_timeout:g} s")
                 self.cond.wait(0.1)
             return self.detections
-
-    def reached(self, asked, state):
-        """Whether the base reached the asked pose (lift and head are the trajectory's)."""
-        ok = (math.hypot(state["x"] - asked["x"], state["y"] - asked["y"]) <= self.base_tolerance
-              and abs(angle_diff(state["yaw"], asked["yaw"])) <= self.yaw_tolerance)
-        if not ok:
-            rospy.logwarn("npfkct: base at (%.3f, %.3f, %.3f), asked (%.3f, %.3f, %.3f)",
-                          state["x"], state["y"], state["yaw"], asked["x"], asked["y"],
-                          asked["yaw"])
-        return ok
