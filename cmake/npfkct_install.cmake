@@ -14,15 +14,21 @@
 #   share/npfkct/scenarios/   the scenario files (npfkct-drive --scenario)
 #   share/npfkct/schemas/     JSON Schemas and openapi.yaml
 #   share/npfkct/python/      the Python client package (bin/npfkct-client runs it)
+#
+# Each rule names its component, which is the Debian package that carries it
+# (cmake/npfkct_package.cmake): server (npfkct-server), dev (libnpfkct-dev), python
+# (python3-npfkct-client). `cmake --install` installs them all.
 include(CMakePackageConfigHelpers)
 
 set(NPFKCT_INSTALL_CMAKEDIR ${CMAKE_INSTALL_LIBDIR}/cmake/npfkct)
 set(NPFKCT_INSTALL_DATADIR ${CMAKE_INSTALL_DATADIR}/npfkct)
 
 install(PROGRAMS
-  $<TARGET_FILE:npfkct-server> $<TARGET_FILE:npfkct-drive> $<TARGET_FILE:npfkct-bench>
-  $<TARGET_FILE:npfkct-train> $<TARGET_FILE:npfkct-sim-robot> $<TARGET_FILE:npfkct-scenegen>
-  DESTINATION ${CMAKE_INSTALL_BINDIR})
+  $<TARGET_FILE:npfkct-server> $<TARGET_FILE:npfkct-drive> $<TARGET_FILE:npfkct-sim-robot>
+  $<TARGET_FILE:npfkct-scenegen>
+  DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT server)
+install(PROGRAMS $<TARGET_FILE:npfkct-bench> $<TARGET_FILE:npfkct-train>
+  DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT dev)
 
 # The libraries for embedding, with their public headers: the solver, the object-search model,
 # and the typed C++ client with the API layer it speaks through (whose types are those of the
@@ -38,17 +44,18 @@ set_target_properties(npfkct_client PROPERTIES EXPORT_NAME client)
 install(TARGETS npfkct_common npfkct_solver npfkct_object_search npfkct_render npfkct_perception
                 npfkct_robot npfkct_api npfkct_client
   EXPORT npfkctTargets
-  ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
-  LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
+  ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT dev
+  LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT dev
   INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
 install(DIRECTORY common/include/npfkct solver/include/npfkct object_search/include/npfkct
                   render/include/npfkct perception/include/npfkct robot/include/npfkct
                   server/api/include/npfkct
                   clients/cpp/include/npfkct
-  DESTINATION ${CMAKE_INSTALL_INCLUDEDIR} FILES_MATCHING PATTERN "*.h")
+  DESTINATION ${CMAKE_INSTALL_INCLUDEDIR} COMPONENT dev FILES_MATCHING PATTERN "*.h")
 install(FILES ${CMAKE_CURRENT_BINARY_DIR}/common/include/npfkct/common/version.h
-  DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/npfkct/common)
-install(EXPORT npfkctTargets NAMESPACE npfkct:: DESTINATION ${NPFKCT_INSTALL_CMAKEDIR})
+  DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/npfkct/common COMPONENT dev)
+install(EXPORT npfkctTargets NAMESPACE npfkct:: DESTINATION ${NPFKCT_INSTALL_CMAKEDIR}
+  COMPONENT dev)
 configure_package_config_file(cmake/npfkctConfig.cmake.in
   ${CMAKE_CURRENT_BINARY_DIR}/npfkctConfig.cmake
   INSTALL_DESTINATION ${NPFKCT_INSTALL_CMAKEDIR}
@@ -57,19 +64,21 @@ write_basic_package_version_file(${CMAKE_CURRENT_BINARY_DIR}/npfkctConfigVersion
   VERSION ${PROJECT_VERSION} COMPATIBILITY SameMinorVersion)
 install(FILES ${CMAKE_CURRENT_BINARY_DIR}/npfkctConfig.cmake
               ${CMAKE_CURRENT_BINARY_DIR}/npfkctConfigVersion.cmake
-  DESTINATION ${NPFKCT_INSTALL_CMAKEDIR})
+  DESTINATION ${NPFKCT_INSTALL_CMAKEDIR} COMPONENT dev)
 
 # Data: models, scenarios, schemas.
-install(FILES filter/model/filter.pt DESTINATION ${NPFKCT_INSTALL_DATADIR}/models)
-install(DIRECTORY scenarios/ DESTINATION ${NPFKCT_INSTALL_DATADIR}/scenarios
+install(FILES filter/model/filter.pt DESTINATION ${NPFKCT_INSTALL_DATADIR}/models
+  COMPONENT server)
+install(DIRECTORY scenarios/ DESTINATION ${NPFKCT_INSTALL_DATADIR}/scenarios COMPONENT server
   FILES_MATCHING PATTERN "*.json")
-install(DIRECTORY schemas/ DESTINATION ${NPFKCT_INSTALL_DATADIR}/schemas)
+install(DIRECTORY schemas/ DESTINATION ${NPFKCT_INSTALL_DATADIR}/schemas COMPONENT server)
 
 # The Python client: its package, and bin/npfkct-client that runs its CLI from there (pip install
 # ./clients/python installs the same package into a Python environment instead).
 install(DIRECTORY clients/python/npfkct_client DESTINATION ${NPFKCT_INSTALL_DATADIR}/python
-  FILES_MATCHING PATTERN "*.py")
+  COMPONENT python FILES_MATCHING PATTERN "*.py" PATTERN "__pycache__" EXCLUDE)
 file(RELATIVE_PATH NPFKCT_PYTHON_FROM_BIN ${CMAKE_INSTALL_FULL_BINDIR}
      ${CMAKE_INSTALL_FULL_DATADIR}/npfkct/python)
 configure_file(cmake/npfkct_cli.in ${CMAKE_CURRENT_BINARY_DIR}/npfkct-client @ONLY)
-install(PROGRAMS ${CMAKE_CURRENT_BINARY_DIR}/npfkct-client DESTINATION ${CMAKE_INSTALL_BINDIR})
+install(PROGRAMS ${CMAKE_CURRENT_BINARY_DIR}/npfkct-client DESTINATION ${CMAKE_INSTALL_BINDIR}
+  COMPONENT python)
