@@ -342,7 +342,7 @@ std::pair<Vec2, Vec2> CropBounds(const World& world, const std::optional<RobotCo
 namespace {
 
 constexpr int kLegendWidth = 330;
-constexpr int kLegendHeight = 470;
+constexpr int kLegendHeight = 540;
 
 // Where everything goes: the crop, the map's scale, and the panels' sizes (pixels).
 struct Layout {
@@ -438,6 +438,58 @@ void DrawOdds(cv::Mat& map, const Frame& local, const object_search::GridWorld& 
   }
 }
 
+// Inside a box the camera cannot see: takes the map panel and a footprint, gives the footprint
+// lightened and hatched, so that the heat map's "not seen" colour under it does not read as
+// "likely here".
+void Hatch(cv::Mat& map, const std::vector<cv::Point>& poly) {
+  const cv::Rect r = cv::boundingRect(poly) & cv::Rect(0, 0, map.cols, map.rows);
+  if (r.area() <= 0) return;
+  cv::Mat mask = cv::Mat::zeros(r.size(), CV_8U);
+  std::vector<cv::Point> local;
+  for (const cv::Point& p : poly) local.push_back(p - r.tl());
+  cv::fillPoly(mask, std::vector<std::vector<cv::Point>>{local}, cv::Scalar(255), cv::LINE_AA);
+  cv::Mat roi = map(r);
+  cv::Mat hatched;
+  roi.convertTo(hatched, -1, 0.45, 0.55 * 255);
+  for (int d = -r.height; d < r.width; d += 7) {
+    cv::line(hatched, cv::Point(d, r.height), cv::Point(d + r.height, 0), kMuted, 1, cv::LINE_AA);
+  }
+  hatched.copyTo(roi, mask);
+}
+
+// The axes: takes the map panel, gives it ticks in metres of the map frame along its top and
+// left edges (a round step, six to ten ticks) and the frame's name in the top-right corner.
+void DrawAxes(cv::Mat& map, const Frame& local) {
+  const double span = std::max(local.hi.x() - local.lo.x(), local.hi.y() - local.lo.y());
+  double step = 0.1;
+  for (double s : {0.1, 0.2, 0.25, 0.5, 1.0, 2.0, 2.5, 5.0, 10.0, 20.0, 50.0, 100.0, 250.0,
+                   500.0, 1000.0, 2500.0, 5000.0}) {
+    step = s;
+    if (span / s <= 10.0) break;
+  }
+  const char* fmt = step < 1.0 ? "%.2f" : "%.0f";
+  for (double x = std::ceil(local.lo.x() / step) * step; x <= local.hi.x(); x += step) {
+    const int px = local.Px(x, local.hi.y()).x;
+    cv::line(map, cv::Point(px, 0), cv::Point(px, 6), kInk, 1);
+    if (px > 44 && px < map.cols - 110) {
+      Label(map, Format(fmt, std::abs(x) < 1e-9 ? 0.0 : x), cv::Point(px + 2, 17), 0.35, kInk,
+            true);
+    }
+  }
+  for (double y = std::ceil(local.lo.y() / step) * step; y <= local.hi.y(); y += step) {
+    const int py = local.Px(local.lo.x(), y).y;
+    cv::line(map, cv::Point(0, py), cv::Point(6, py), kInk, 1);
+    if (py > 26 && py < map.rows - 40) {
+      Label(map, Format(fmt, std::abs(y) < 1e-9 ? 0.0 : y), cv::Point(8, py + 4), 0.35, kInk,
+            true);
+    }
+  }
+  const std::string frame = "map frame, m (x right, y up)";
+  int base = 0;
+  const cv::Size size = cv::getTextSize(frame, kFont, 0.38, 1, &base);
+  Label(map, frame, cv::Point(map.cols - size.width - 8, 17), 0.38, kMuted, true);
+}
+
 // Takes an object, gives the colour of its status.
 cv::Scalar StatusColor(const object_search::ObjectKnowledge& o) {
   return o.status == object_search::kDeclaredTarget     ? kTarget
@@ -458,6 +510,7 @@ std::vector<std::pair<cv::Rect, size_t>> DrawObjects(cv::Mat& map, const Frame& 
     if (o.status == object_search::kRemoved) {
       DashedPolygon(map, poly, cv::Scalar(160, 160, 160), 1);
     } else {
+      Hatch(map, poly);
       cv::polylines(map, poly, true, StatusColor(o), 2, cv::LINE_AA);
       const auto k = o.box.Corners();
       for (int corner = 0; corner < 4; ++corner) {
@@ -521,8 +574,8 @@ void DrawScaleBar(cv::Mat& map, double ppm) {
 }
 
 // The map panel: takes it blank, gives it the room, the camera's views, the heat map, the robot
-// and the next view, the objects and the labels, the scale bar and a border, in that order
-// (each drawn over the ones before).
+// and the next view, the axes, the objects (hatched inside) and the labels, the scale bar and a
+// border, in that order (each drawn over the ones before).
 void DrawMap(cv::Mat& map, const Frame& local, const World& world,
              const BeliefPictureOptions& options) {
   map.setTo(cv::Scalar(250, 250, 250));
@@ -536,6 +589,10 @@ void DrawMap(cv::Mat& map, const Frame& local, const World& world,
   if (options.next_view) DrawRobot(map, local, world, *options.next_view, kNextView, true);
   const int dot = std::clamp(cvRound(0.018 * local.ppm), 3, 7);
   LabelPlacer placer(map.size());
+  // The axes' strips along the top and left edges are kept clear of labels.
+  DrawAxes(map, local);
+  placer.Reserve(cv::Rect(0, 0, map.cols, 22));
+  placer.Reserve(cv::Rect(0, 0, 44, map.rows));
   const auto anchors = DrawObjects(map, local, world, dot, &placer);
   DrawLabels(map, local, world, anchors, &placer);
   DrawScaleBar(map, local.ppm);
@@ -590,6 +647,14 @@ void DrawLegendEntries(cv::Mat& img, int x0, int* y) {
   entry("object: id, P(target) of its faces", box_symbol(kObject));
   entry("declared target", box_symbol(kTarget));
   entry("declared obstacle", box_symbol(kObstacle));
+  entry("inside a box: not seen (hatched)", [&](cv::Point c) {
+    cv::rectangle(img, c - cv::Point(9, 7), c + cv::Point(9, 7), cv::Scalar(235, 235, 235),
+                  cv::FILLED);
+    for (int d = -8; d <= 8; d += 6) {
+      cv::line(img, c + cv::Point(d - 5, 7), c + cv::Point(d + 5, -7), kMuted, 1, cv::LINE_AA);
+    }
+    cv::rectangle(img, c - cv::Point(9, 7), c + cv::Point(9, 7), kObject, 1, cv::LINE_AA);
+  });
   entry("removed object", [&](cv::Point c) {
     DashedPolygon(
         img,
@@ -620,9 +685,10 @@ void DrawLegendEntries(cv::Mat& img, int x0, int* y) {
 void DrawSummary(cv::Mat& img, int x0, int y, const World& world,
                  const BeliefPictureOptions& options) {
   y += 8;
-  Label(img, "most likely:", cv::Point(x0, y), 0.45, kMuted, false);
+  Label(img, options.done ? "done:" : "most likely:", cv::Point(x0, y), 0.45, kMuted, false);
   y += 22;
-  Label(img, BestGuess(world), cv::Point(x0, y), 0.5, kInk, false);
+  Label(img, options.done ? std::string("found, the target was removed") : BestGuess(world),
+        cv::Point(x0, y), 0.5, kInk, false);
   y += 26;
   if (!options.next_action.empty()) {
     Label(img, "next: " + options.next_action, cv::Point(x0, y), 0.5, kNextView, false);

@@ -52,6 +52,9 @@ const state = {
   selected: selectedFromHash(),
   lastSeen: '',        // updateTime + state of the selected session when last drawn
   needsKey: false,
+  shown: null,         // the step the timeline shows; null: the latest (live)
+  beliefs: new Map(),  // the selected session's beliefs this page saw, by the step they follow
+  latest: null,        // {session, belief, steps} of the last refresh
 };
 
 // ---- helpers ----
@@ -141,6 +144,8 @@ function renderSessions(sessions) {
 function select(id) {
   state.selected = id;
   state.lastSeen = '';
+  state.shown = null;
+  state.beliefs = new Map();
   history.replaceState(null, '', '#' + encodeURIComponent(id));
   refresh();
 }
@@ -197,7 +202,13 @@ function robotShape(group, config, radius, frustum, color, dashed, unit) {
 
 // Where the target probably is: a declared target, an object whose faces look like the target
 // (P >= 0.6), else the workspace with most of the grid world's mass (as the PNG's legend says).
-function bestGuess(belief) {
+function bestGuess(belief, session, steps) {
+  if (session && session.state === 'DONE') {
+    const last = [...(steps || [])].reverse().find((s) => s.outcome && s.outcome.done);
+    const id = last && last.action.objectId;
+    return {text: id ? `found: ${id}, removed at step ${last.step}` : 'found: the target was removed',
+            object: id};
+  }
   let best = null;
   for (const o of belief.objects) {
     if (o.status === 'DECLARED_TARGET') return {text: `declared target: ${o.id}`, object: o.id};
@@ -217,22 +228,54 @@ function bestGuess(belief) {
           workspace: ws.name};
 }
 
-function renderMap(belief, guess) {
+// The map's height: what the window leaves below its top edge (the SVG keeps the view's aspect
+// and centres it), so the whole view is in sight without scrolling.
+function fitMap() {
   const map = $('map');
+  const top = map.getBoundingClientRect().top + window.scrollY;
+  map.style.height = `${Math.max(320, Math.floor(window.innerHeight - top - 12))}px`;
+}
+
+function renderMap(belief, guess, shown) {
+  const map = $('map');
+  fitMap();
   for (const child of [...map.children]) {
     if (child.tagName !== 'title' && child.tagName !== 'desc') child.remove();
   }
-  const [x0, y0] = belief.view.min, [x1, y1] = belief.view.max;
+  // The server's crop of the belief, grown to hold the robot's path up to the step shown.
+  let [x0, y0] = belief.view.min, [x1, y1] = belief.view.max;
+  const reach = (belief.robotRadius || 0.3) + 0.1;
+  for (const p of [...shown.path.filter((q) => q.robotState).map((q) => q.robotState),
+                   shown.robot]) {
+    x0 = Math.min(x0, p.x - reach);
+    y0 = Math.min(y0, p.y - reach);
+    x1 = Math.max(x1, p.x + reach);
+    y1 = Math.max(y1, p.y + reach);
+  }
   const w = x1 - x0, h = y1 - y0, unit = Math.max(w, h) / 700, font = Math.max(w, h) / 55;
   map.setAttribute('viewBox', `${x0} ${-y1} ${w} ${h}`);
   // World coordinates (y up) inside a flipped group; text is placed outside it, at (x, -y).
   const world = svg('g', {transform: 'scale(1,-1)'});
   const labels = svg('g', {class: 'labels'});
-  map.append(world, labels);
+  // Inside a box the camera cannot see: hatched, so that the heat map's "not seen" colour under
+  // it does not read as "likely here".
+  const defs = svg('defs');
+  const hatch = svg('pattern', {id: 'unknown-inside', patternUnits: 'userSpaceOnUse',
+                                width: 6 * unit, height: 6 * unit,
+                                patternTransform: 'rotate(45)'});
+  hatch.append(svg('rect', {width: 6 * unit, height: 6 * unit, fill: '#ffffff',
+                            'fill-opacity': 0.55}));
+  hatch.append(svg('line', {x1: 0, y1: 0, x2: 0, y2: 6 * unit, stroke: COLORS.muted,
+                            'stroke-width': 1.6 * unit}));
+  defs.append(hatch);
+  map.append(defs, world, labels);
   const label = (text, x, y, attrs = {}) => {
-    labels.append(svg('text', {x, y: -y, 'font-size': font, 'stroke-width': font / 4,
-                               class: 'map-label', ...attrs}, text));
+    const t = svg('text', {x, y: -y, 'font-size': font, 'stroke-width': font / 4,
+                           class: 'map-label', ...attrs}, text);
+    labels.append(t);
+    return t;
   };
+  const objectLabels = [];  // placed last, around their objects, clear of each other
   for (const r of belief.baseRegions || []) {
     world.append(svg('rect', {x: r.min[0], y: r.min[1], width: r.max[0] - r.min[0],
                               height: r.max[1] - r.min[1], fill: 'none', stroke: COLORS.region,
@@ -261,9 +304,28 @@ function renderMap(belief, guess) {
           ws.center[0] + c * lx - s * ly, ws.center[1] + s * lx + c * ly - 1.6 * font,
           {class: 'ws-label map-label', 'font-weight': guess.workspace === ws.name ? 700 : 400});
   }
-  robotShape(world, belief.robot, belief.robotRadius || 0.3, belief.camera.frustum, COLORS.robot,
-             false, unit);
-  if (belief.nextView) {
+  // The robot's path and its past camera views up to the step shown (steps' observed states).
+  const past = shown.path.filter((p) => p.robotState);
+  for (const p of past) {
+    if (p.view && p.view.length >= 3) {
+      world.append(svg('polygon', {points: points(p.view), fill: 'none', stroke: COLORS.robot,
+                                   'stroke-opacity': 0.35, 'stroke-width': unit, class: 'past-view',
+                                   'data-step': p.step}));
+    }
+  }
+  if (past.length) {
+    const trail = past.map((p) => [p.robotState.x, p.robotState.y]);
+    world.append(svg('polyline', {points: points(trail), fill: 'none', stroke: COLORS.robot,
+                                  'stroke-width': 1.5 * unit, 'stroke-opacity': 0.8,
+                                  class: 'path', 'data-points': trail.length}));
+    for (const [x, y] of trail) {
+      world.append(svg('circle', {cx: x, cy: y, r: 2.5 * unit, fill: COLORS.robot,
+                                  class: 'path-point'}));
+    }
+  }
+  robotShape(world, shown.robot, belief.robotRadius || 0.3, shown.frustum, COLORS.robot, false,
+             unit);
+  if (shown.live && belief.nextView) {
     robotShape(world, belief.nextView.configuration, belief.robotRadius || 0.3,
                belief.nextView.frustum, COLORS.next, true, unit);
   }
@@ -278,7 +340,9 @@ function renderMap(belief, guess) {
     g.append(svg('title', {}, `${o.id}: ${o.status.toLowerCase().replace('_', ' ')}, ` +
                  `P(target) ${p.toFixed(2)}; face log-odds ` +
                  o.faceLogOdds.map((v) => v.toFixed(1)).join(' ')));
-    g.append(svg('polygon', {points: points(poly), fill: 'none', stroke: color,
+    g.append(svg('polygon', {points: points(poly),
+                             fill: o.status === 'REMOVED' ? 'none' : 'url(#unknown-inside)',
+                             class: 'box', stroke: color,
                              'stroke-width': (o.status === 'REMOVED' ? 1 : 2.5) * unit,
                              ...(o.status === 'REMOVED' ?
                                {'stroke-dasharray': `${3 * unit} ${3 * unit}`} : {})}));
@@ -302,8 +366,10 @@ function renderMap(belief, guess) {
     const top = Math.max(...poly.map((q) => q[1])), left = Math.min(...poly.map((q) => q[0]));
     const status = {DECLARED_TARGET: ' TARGET', DECLARED_OBSTACLE: ' obstacle',
                     REMOVED: ' removed'}[o.status] || '';
-    label(`${o.id} P${p.toFixed(2)}${status}`, left, top + 2.2 * dot,
-          {fill: color, class: 'map-label object-label', 'data-id': o.id});
+    objectLabels.push({
+      el: label(`${o.id} P${p.toFixed(2)}${status}`, left, top + 2.2 * dot,
+                {fill: color, class: 'map-label object-label', 'data-id': o.id}),
+      poly: poly.map(([x, y]) => [x, -y])});
   }
   // Scale bar, bottom left: a round length near a seventh of the view.
   const target = Math.max(w, h) / 7;
@@ -322,6 +388,61 @@ function renderMap(belief, guess) {
   bar.append(svg('text', {x: sx, y: -sy - 0.7 * font, 'font-size': font, class: 'scale-label'},
                  length >= 1 ? `${length} m` : `${Math.round(100 * length)} cm`));
   labels.append(bar);
+  placeLabels(labels, objectLabels, [x0, -y1, w, h], font, unit);
+}
+
+// Moves each object's label to the first place near its object where it overlaps no label placed
+// before it (the workspace labels and the scale bar included) and stays inside the map: beside
+// the object first, then on rings around it, joined to it by a leader line. `view`: [x, y, w, h]
+// of the map in SVG units (y down).
+function placeLabels(group, items, view, font, unit) {
+  const [vx, vy, vw, vh] = view;
+  const pad = font * 0.15;
+  const taken = [...group.querySelectorAll('.ws-label, #scalebar')].map((e) => e.getBBox());
+  const overlap = (a, b) => Math.max(0, Math.min(a.x + a.width, b.x + b.width) - Math.max(a.x, b.x) + pad) *
+      Math.max(0, Math.min(a.y + a.height, b.y + b.height) - Math.max(a.y, b.y) + pad);
+  const outside = (b) => b.x < vx || b.y < vy || b.x + b.width > vx + vw || b.y + b.height > vy + vh;
+  // Top to bottom, as a reader scans the map.
+  items.sort((a, b) => a.poly[0][1] - b.poly[0][1]);
+  for (const item of items) {
+    const xs = item.poly.map((q) => q[0]), ys = item.poly.map((q) => q[1]);
+    const left = Math.min(...xs), right = Math.max(...xs), top = Math.min(...ys),
+        bottom = Math.max(...ys), cx = (left + right) / 2, cy = (top + bottom) / 2;
+    const box0 = item.el.getBBox();
+    const lw = box0.width, lh = box0.height;
+    // Candidate top-left corners of the label's text box: beside the object, then rings.
+    const beside = [[left, top - lh - pad], [left, bottom + pad], [right + pad, cy - lh / 2],
+                    [left - lw - pad, cy - lh / 2], [right - lw, top - lh - pad],
+                    [right - lw, bottom + pad]];
+    const rings = [];
+    for (const r of [2, 3, 4.5, 6.5, 9]) {
+      for (let k = 0; k < 16; k++) {
+        const a = (2 * Math.PI * k) / 16;
+        rings.push([cx + r * font * Math.cos(a) - lw / 2, cy + r * font * Math.sin(a) - lh / 2]);
+      }
+    }
+    let best = null;
+    for (const [i, [x, y]] of [...beside, ...rings].entries()) {
+      const b = {x, y, width: lw, height: lh};
+      const cost = taken.reduce((sum, t) => sum + overlap(b, t), 0) + (outside(b) ? 1e9 : 0);
+      if (!best || cost < best.cost) best = {x, y, cost, ring: i >= beside.length};
+      if (cost === 0) break;
+    }
+    // Text is placed by its baseline: move it by the box's offset from (x, y).
+    const dx = best.x - box0.x, dy = best.y - box0.y;
+    item.el.setAttribute('x', Number(item.el.getAttribute('x')) + dx);
+    item.el.setAttribute('y', Number(item.el.getAttribute('y')) + dy);
+    const placed = {x: best.x, y: best.y, width: lw, height: lh};
+    taken.push(placed);
+    if (best.ring) {
+      const tx = Math.min(Math.max(cx, placed.x), placed.x + lw);
+      const ty = Math.min(Math.max(cy, placed.y), placed.y + lh);
+      const leader = svg('line', {x1: cx, y1: cy, x2: tx, y2: ty, stroke: COLORS.muted,
+                                  'stroke-width': unit, class: 'leader',
+                                  'data-id': item.el.getAttribute('data-id')});
+      group.insertBefore(leader, group.firstChild);
+    }
+  }
 }
 
 function renderColorbar() {
@@ -356,6 +477,16 @@ function renderColorbar() {
   item('declared target', box(COLORS.target));
   item('declared obstacle', box(COLORS.obstacle));
   item('removed object', box(COLORS.removed, true));
+  item('inside a box: not seen (hatched)', (s) => {
+    s.append(svg('rect', {x: 5, y: 3, width: 18, height: 10, fill: '#eee', stroke: COLORS.object}));
+    for (const x of [8, 13, 18]) {
+      s.append(svg('line', {x1: x, y1: 13, x2: x + 5, y2: 3, stroke: COLORS.muted}));
+    }
+  });
+  item("robot's path and past camera views", (s) => {
+    s.append(svg('polyline', {points: '2,13 10,5 18,10 26,3', fill: 'none', stroke: COLORS.robot,
+                              'stroke-width': 1.5}));
+  });
   item('face odds at the corners (outer: lower, inner: upper)', (s) => {
     s.append(svg('circle', {cx: 14, cy: 8, r: 6, fill: rgb(probabilityColor(0.2)),
                             stroke: COLORS.ink}));
@@ -401,12 +532,13 @@ function describeOutcome(step) {
          (o.newObjects ? ` (${o.newObjects} new)` : '') + (o.raw ? ', raw frame' : '');
 }
 
-function renderSteps(steps) {
+function renderSteps(steps, current) {
   const body = $('steps').querySelector('tbody');
   body.replaceChildren();
   for (const s of steps) {
     const tr = el('tr', {'data-step': s.step});
     if (!s.outcome) tr.classList.add('pending');
+    if (s.step === current) tr.classList.add('current');
     const cells = [s.step, describeAction(s.action), describeOutcome(s),
                    s.outcome ? fmt(s.outcome.reward, 0) : '', fmt(s.expectedValue, 1),
                    fmt(s.stats.simulations), fmt(s.stats.elapsedMs, 0), fmt(s.stats.cpuMs, 0),
@@ -430,6 +562,14 @@ function renderStats(session, steps) {
               ['last plan: tree nodes', fmt(s.treeNodes)],
               ['last plan: max depth', s.maxDepth],
               ['last plan: root actions', s.rootActions]);
+    if (s.reusedVisits > 0) {
+      rows.push(['last plan: reused', `${fmt(s.reusedVisits)} visits of the previous step's tree`]);
+    }
+    if (s.simulations === 0) {
+      rows.push(['last plan: search', s.reusedVisits > 0 ?
+        'no new simulations: the action comes from the reused tree' :
+        'no simulations: the budget ran out before the search']);
+    }
     if (s.candidates) {
       rows.push(['last plan: candidates kept', `${fmt(s.candidates.accepted)} of ` +
                  fmt(s.candidates.sampled)]);
@@ -457,7 +597,50 @@ function renderObjects(belief) {
   }
 }
 
+// What the timeline shows: the latest state (live), or step k of the observed steps: the robot
+// where it stood after step k, the path and views up to it, and the belief this page saw right
+// after it (or the latest, said so, for a step the page did not watch).
+function shownStep(session, belief, steps) {
+  const observed = steps.filter((s) => s.outcome);
+  const last = observed.length ? observed[observed.length - 1].step : 0;
+  const k = state.shown === null ? last : Math.min(state.shown, last);
+  const live = state.shown === null || k === last;
+  const upto = observed.filter((s) => s.step <= k);
+  const at = upto.length ? upto[upto.length - 1] : null;
+  const seen = state.beliefs.get(k);
+  const shown = {
+    step: k, last, live, path: upto.map((s) => ({step: s.step, robotState: s.outcome.robotState,
+                                                 view: s.outcome.view})),
+    robot: belief.robot, frustum: belief.camera.frustum, belief: live ? belief : seen || belief,
+    beliefOfStep: live || !!seen,
+  };
+  if (!live && at && at.outcome.robotState) {
+    shown.robot = at.outcome.robotState;
+    shown.frustum = at.outcome.view || [];
+  }
+  return shown;
+}
+
+function renderTimeline(shown) {
+  const slider = $('timeline');
+  slider.max = String(shown.last);
+  slider.value = String(shown.step);
+  $('step-back').disabled = shown.step <= 0;
+  $('step-forward').disabled = shown.live;
+  $('live').classList.toggle('on', state.shown === null);
+  $('timeline-label').textContent = shown.live ?
+      `step ${shown.step} of ${shown.last}, live` :
+      `step ${shown.step} of ${shown.last}` + (shown.beliefOfStep ? '' :
+        ' (the belief as it is now: this page did not watch that step)');
+}
+
+function show(step) {
+  state.shown = step;
+  if (state.latest) renderDetail(state.latest.session, state.latest.belief, state.latest.steps);
+}
+
 function renderDetail(session, belief, steps) {
+  state.latest = {session, belief, steps};
   $('detail').classList.remove('hidden');
   $('session-title').textContent = `session ${session.id} · step ${session.step} · ` +
       session.state.toLowerCase().replace('_', ' ');
@@ -466,16 +649,18 @@ function renderDetail(session, belief, steps) {
   if (session.target && session.target.description) meta.push(`target: ${session.target.description}`);
   meta.push(`updated ${new Date(session.updateTime).toLocaleTimeString()}`);
   $('session-meta').textContent = meta.join(' · ');
-  const guess = bestGuess(belief);
+  const shown = shownStep(session, belief, steps);
+  const guess = bestGuess(shown.belief, shown.live ? session : null, steps);
   $('best-guess').textContent = guess.text;
   const pending = session.pendingAction;
   $('next-action').textContent = pending ? `next: ${describeAction(pending.action)}` :
       session.state === 'DONE' ? 'done: the target was removed' : '';
   renderColorbar();
-  renderMap(belief, guess);
+  renderTimeline(shown);
+  renderMap(shown.belief, guess, shown);
   renderStats(session, steps);
-  renderObjects(belief);
-  renderSteps(steps);
+  renderObjects(shown.belief);
+  renderSteps(steps, shown.live ? null : shown.step);
 }
 
 // ---- the refresh loop ----
@@ -511,6 +696,8 @@ async function refresh() {
       const [session, belief, steps] = await Promise.all([
         api(`/v1/sessions/${id}`), api(`/v1/sessions/${id}/belief`),
         api(`/v1/sessions/${id}/steps`)]);
+      const observed = steps.steps.filter((s) => s.outcome).length;
+      if (!state.beliefs.has(observed)) state.beliefs.set(observed, belief);
       renderDetail(session, belief, steps.steps);
       state.lastSeen = seen;
       document.body.dataset.step = String(session.step);
@@ -535,9 +722,25 @@ function start() {
     state.lastSeen = '';
     refresh();
   });
+  $('timeline').addEventListener('input', () => {
+    const k = Number($('timeline').value);
+    show(state.latest && k >= Number($('timeline').max) ? null : k);
+  });
+  $('step-back').addEventListener('click', () => {
+    const k = Number($('timeline').value);
+    if (k > 0) show(k - 1);
+  });
+  $('step-forward').addEventListener('click', () => {
+    const k = Number($('timeline').value) + 1;
+    show(k >= Number($('timeline').max) ? null : k);
+  });
+  $('live').addEventListener('click', () => show(null));
+  window.addEventListener('resize', () => { if (state.latest) show(state.shown); });
   window.addEventListener('hashchange', () => {
     state.selected = selectedFromHash();
     state.lastSeen = '';
+    state.shown = null;
+    state.beliefs = new Map();
     refresh();
   });
   refresh();

@@ -478,7 +478,7 @@ HttpResponse GetBelief(const RouteRequest& request, RouteContext& ctx) {
 HttpResponse GetSteps(const RouteRequest& request, RouteContext& ctx) {
   auto s = Find(request, ctx);
   if (!s.ok()) return ErrorResponse(s.status());
-  return Json(200, api::RenderSteps((*s)->Steps()));
+  return Json(200, api::RenderSteps((*s)->Steps(), (*s)->Belief().get()));
 }
 
 HttpResponse GetConsoleFile(const RouteRequest& request, RouteContext&) {

@@ -470,7 +470,8 @@ StatusOr<api::ObserveReply> Session::Observe(api::ObserveRequest req, SessionSto
                                       static_cast<int>(fresh.size()),
                                       raw,
                                       done,
-                                      api::UnixMillis(std::chrono::system_clock::now())};
+                                      api::UnixMillis(std::chrono::system_clock::now()),
+                                      next.robot_config};
   Advance(std::make_shared<const World>(std::move(next)), p.action, key, !fresh.empty(), step);
   if (Status s = SaveUnderOp(store); !s.ok()) return s;
   api::ObserveReply reply;

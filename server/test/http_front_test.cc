@@ -387,23 +387,55 @@ TEST_F(HttpFrontTest, BytesInFlightAndConnectionsAreBounded) {
   Send(a, std::string(10'000, 'a'));
   EXPECT_NE(Read(a, "100000:").find("100000:aaaa"), std::string::npos);
   ::close(a);
-  // Past the connection limit: 429 and closed at once. First the reactor must have seen a and b
-  // close (under load it may lag, and the limit would then count them).
+  // Past the connection limit a newcomer takes the place of the oldest idle connection. First
+  // the reactor must have seen a and b close (under load it may lag, and the limit would then
+  // count them).
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
   while (front_->open_connections() > 0 && std::chrono::steady_clock::now() < deadline) {
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
   }
   ASSERT_EQ(front_->open_connections(), 0);
   std::vector<int> many;
-  for (int i = 0; i < 8; ++i) many.push_back(Connect());
-  while (front_->open_connections() < 8 && std::chrono::steady_clock::now() < deadline) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  for (int i = 0; i < 8; ++i) {
+    many.push_back(Connect());
+    while (front_->open_connections() < i + 1 && std::chrono::steady_clock::now() < deadline) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
   }
   ASSERT_EQ(front_->open_connections(), 8);
   const int extra = Connect();
+  Send(extra, "GET /healthz HTTP/1.1\r\nConnection: close\r\n\r\n");
+  EXPECT_EQ(Read(extra).rfind("HTTP/1.1 200", 0), 0u);
+  ::close(extra);
+  EXPECT_EQ(Read(many[0]), "");  // the oldest, closed without a word
+  for (int fd : many) ::close(fd);
+}
+
+TEST_F(HttpFrontTest, ANewcomerIsRefusedOnlyWhenEveryConnectionCarriedTheToken) {
+  HttpFrontOptions o;
+  o.max_connections = 6;
+  o.body_authorization = "Bearer k";
+  Start(o);
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  // Six clients with the token, each served once and kept alive.
+  std::vector<int> trusted;
+  for (int i = 0; i < 6; ++i) {
+    trusted.push_back(Connect());
+    Send(trusted.back(), "GET /healthz HTTP/1.1\r\nAuthorization: Bearer k\r\n\r\n");
+    EXPECT_NE(Read(trusted.back(), "ok").find("ok"), std::string::npos);
+  }
+  while (front_->open_connections() < 6 && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  const int extra = Connect();
   EXPECT_EQ(Read(extra).rfind("HTTP/1.1 429", 0), 0u);
   ::close(extra);
-  for (int fd : many) ::close(fd);
+  // They are all still served.
+  for (int fd : trusted) {
+    Send(fd, "GET /healthz HTTP/1.1\r\nAuthorization: Bearer k\r\n\r\n");
+    EXPECT_NE(Read(fd, "ok").find("ok"), std::string::npos);
+    ::close(fd);
+  }
 }
 
 // The head of a request: its lines, each with its CRLF (no blank line).

@@ -247,6 +247,7 @@ StatusOr<std::string> RenderBeliefPng(const World& world, const SessionView* ses
     if (!session->target_description.empty()) {
       options.subtitle += " - target: " + session->target_description.substr(0, 80);
     }
+    options.done = session->state == SessionState::kDone;
     if (session->pending) {
       const ActionView& a = session->pending->second;
       if (a.type == ActionView::Type::kMove) {
@@ -260,10 +261,21 @@ StatusOr<std::string> RenderBeliefPng(const World& world, const SessionView* ses
   return EncodePng(render::RenderBelief(world, options));
 }
 
-std::string RenderSteps(const std::vector<StepRecord>& steps) {
+std::string RenderSteps(const std::vector<StepRecord>& steps, const World* world) {
   json out;
   out["steps"] = json::array();
-  for (const StepRecord& s : steps) out["steps"].push_back(internal::StepJson(s, false));
+  for (const StepRecord& s : steps) {
+    json step = internal::StepJson(s, false);
+    // The floor the camera covered from where the robot stood after the step.
+    if (world != nullptr && s.outcome && s.outcome->robot) {
+      json view = json::array();
+      for (const Vec2& p : render::FrustumFootprint(*world, *s.outcome->robot)) {
+        view.push_back({p.x(), p.y()});
+      }
+      step["outcome"]["view"] = std::move(view);
+    }
+    out["steps"].push_back(std::move(step));
+  }
   return internal::Dump(out);
 }
 

@@ -119,6 +119,7 @@ json StepJson(const StepRecord& s, bool record) {
     out["outcome"] = {
         {"succeeded", o.succeeded},    {"reward", o.reward}, {"detections", o.detections},
         {"newObjects", o.new_objects}, {"raw", o.raw},       {"done", o.done}};
+    if (o.robot) out["outcome"]["robotState"] = ConfigJson(*o.robot);
     if (record) {
       out["outcome"]["timeMs"] = o.time_ms;
     } else {
@@ -168,6 +169,9 @@ bool ReadStep(const json& j, StepRecord* s) {
     out.raw = Bool(o, "raw");
     out.done = Bool(o, "done");
     out.time_ms = Integer(o, "timeMs");
+    if (o.contains("robotState") && o.at("robotState").is_object()) {
+      out.robot = ReadConfig(o.at("robotState"));
+    }
     s->outcome = out;
   }
   return true;

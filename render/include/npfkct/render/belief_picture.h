@@ -29,6 +29,8 @@ struct BeliefPictureOptions {
   std::optional<object_search::RobotConfig> next_view;
   /// A planned declare/remove, described for the legend (e.g. "REMOVE t3"); empty: none.
   std::string next_action;
+  /// The episode is over (the target was removed): the summary says so instead of a guess.
+  bool done = false;
   /// Largest picture, in pixels (the map's scale shrinks to stay within it).
   int64_t max_pixels = 4'000'000;
   /// Longest side of the map panel in pixels (before the max_pixels cap).

@@ -86,8 +86,9 @@ std::string RenderBelief(const World& world, const SessionView* session = nullpt
 /// most `max_pixels` pixels.
 StatusOr<std::string> RenderBeliefPng(const World& world, const SessionView* session = nullptr,
                                       int64_t max_pixels = 4'000'000);
-/// GET /v1/sessions/{id}/steps: {"steps": [...]}, oldest first.
-std::string RenderSteps(const std::vector<StepRecord>& steps);
+/// GET /v1/sessions/{id}/steps: {"steps": [...]}, oldest first. With the session's `world`,
+/// each observed step's outcome also gives the floor its camera covered ("view").
+std::string RenderSteps(const std::vector<StepRecord>& steps, const World* world = nullptr);
 /// {"status": "SERVING", "version"}.
 std::string RenderHealth();
 /// {"status": "SERVING" | "NOT_SERVING" (the store is unavailable), "store": {"backend",

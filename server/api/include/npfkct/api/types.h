@@ -209,6 +209,8 @@ struct StepRecord {
     bool raw = false;     ///< Raw sensor data went through the session's perception.
     bool done = false;    ///< The target was removed.
     int64_t time_ms = 0;  ///< When it was observed (Unix ms).
+    /// The robot's state after the action, as observed (absent in steps of older snapshots).
+    std::optional<object_search::RobotConfig> robot;
   };
   int step = 0;  ///< 1 for the first action.
   std::string action_id;
