@@ -462,16 +462,19 @@ void Hatch(cv::Mat& map, const std::vector<cv::Point>& poly) {
 void DrawAxes(cv::Mat& map, const Frame& local) {
   const double span = std::max(local.hi.x() - local.lo.x(), local.hi.y() - local.lo.y());
   double step = 0.1;
-  for (double s : {0.1, 0.2, 0.25, 0.5, 1.0, 2.0, 2.5, 5.0, 10.0, 20.0, 50.0, 100.0, 250.0,
-                   500.0, 1000.0, 2500.0, 5000.0}) {
+  for (double s : {0.1, 0.2, 0.25, 0.5, 1.0, 2.0, 2.5, 5.0, 10.0, 20.0, 50.0, 100.0, 250.0, 500.0,
+                   1000.0, 2500.0, 5000.0}) {
     step = s;
     if (span / s <= 10.0) break;
   }
   const char* fmt = step < 1.0 ? "%.2f" : "%.0f";
+  const std::string frame = "map frame, m (x right, y up)";
+  int base = 0;
+  const int frame_x = map.cols - cv::getTextSize(frame, kFont, 0.38, 1, &base).width - 8;
   for (double x = std::ceil(local.lo.x() / step) * step; x <= local.hi.x(); x += step) {
     const int px = local.Px(x, local.hi.y()).x;
     cv::line(map, cv::Point(px, 0), cv::Point(px, 6), kInk, 1);
-    if (px > 44 && px < map.cols - 110) {
+    if (px > 44 && px + 48 < frame_x) {
       Label(map, Format(fmt, std::abs(x) < 1e-9 ? 0.0 : x), cv::Point(px + 2, 17), 0.35, kInk,
             true);
     }
@@ -480,14 +483,10 @@ void DrawAxes(cv::Mat& map, const Frame& local) {
     const int py = local.Px(local.lo.x(), y).y;
     cv::line(map, cv::Point(0, py), cv::Point(6, py), kInk, 1);
     if (py > 26 && py < map.rows - 40) {
-      Label(map, Format(fmt, std::abs(y) < 1e-9 ? 0.0 : y), cv::Point(8, py + 4), 0.35, kInk,
-            true);
+      Label(map, Format(fmt, std::abs(y) < 1e-9 ? 0.0 : y), cv::Point(8, py + 4), 0.35, kInk, true);
     }
   }
-  const std::string frame = "map frame, m (x right, y up)";
-  int base = 0;
-  const cv::Size size = cv::getTextSize(frame, kFont, 0.38, 1, &base);
-  Label(map, frame, cv::Point(map.cols - size.width - 8, 17), 0.38, kMuted, true);
+  Label(map, frame, cv::Point(frame_x, 17), 0.38, kMuted, true);
 }
 
 // Takes an object, gives the colour of its status.

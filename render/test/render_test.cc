@@ -208,5 +208,39 @@ TEST(Picture, ShowsTheColourBarAndTheNextView) {
   EXPECT_GT(CountColor(with, ProbabilityColor(1.0 / (1.0 + std::exp(-3.0)))), 20);
 }
 
+// A box's interior is hatched (not seen, not "likely"), the table around it keeps the heat map's
+// colour, and the map's top edge carries tick marks of the map frame's metres.
+TEST(Picture, HatchesBoxInteriorsAndMarksTheAxes) {
+  World world = TableWorld();
+  world.robot_config.yaw = M_PI;  // looking away: the table stays unseen (0.5)
+  object_search::ObjectKnowledge box;
+  box.key = "box";
+  box.box = Box{Vec3(1.6, 0.0, 0.85), 0.0, Vec3(0.4, 0.4, 0.2)};
+  world.objects.push_back(box);
+  BeliefPictureOptions options;
+  options.map_pixels = 600;
+  const cv::Mat img = RenderBelief(world, options);
+  const auto [lo, hi] = CropBounds(world, std::nullopt, options.margin);
+  const double ppm = 600.0 / std::max(hi.x() - lo.x(), hi.y() - lo.y());
+  const int title_height = 38;
+  auto px = [&](double x, double y) {
+    return cv::Point(cvRound((x - lo.x()) * ppm), title_height + cvRound((hi.y() - y) * ppm));
+  };
+  const cv::Vec3b unseen = ProbabilityColor(0.5);
+  // Inside the box (its middle 0.3 x 0.3 m): no pixel of the unseen colour; hatch lines there.
+  const cv::Rect inside(px(1.45, 0.15), px(1.75, -0.15));
+  EXPECT_EQ(CountColor(img(inside), unseen), 0);
+  EXPECT_GT(CountNear(img(inside), cv::Vec3b(110, 110, 110), 30), 10);
+  // Beside it on the table: the unseen colour.
+  const cv::Rect beside(px(1.05, 0.35), px(1.3, 0.2));
+  EXPECT_GT(CountColor(img(beside), unseen), beside.area() / 2);
+  // Ticks every 0.5 m (the view is about 3 m wide) along the map's top edge.
+  int ticks = 0;
+  for (double x = std::ceil(lo.x() / 0.5) * 0.5; x <= hi.x(); x += 0.5) {
+    ticks += img.at<cv::Vec3b>(title_height + 3, px(x, 0).x) == cv::Vec3b(40, 40, 40);
+  }
+  EXPECT_GE(ticks, 4);
+}
+
 }  // namespace
 }  // namespace npfkct::render
