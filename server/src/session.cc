@@ -501,13 +501,18 @@ void Session::Advance(std::shared_ptr<const World> updated, const HybridAction& 
     }
   }
   Reseed();
-  if (!step.done) {
-    auto belief = FreshBelief();
-    if (new_objects) {
-      planner_->SetBelief(std::move(belief));
-    } else {
-      planner_->AdvanceTo(action, key, std::move(belief));
-    }
+  if (step.done) {
+    // Nothing more is planned in a finished episode: its tree (megabytes) goes now, not when the
+    // session is deleted or expires.
+    planner_->DropTree();
+    ReleaseFreedMemory();
+    return;
+  }
+  auto belief = FreshBelief();
+  if (new_objects) {
+    planner_->SetBelief(std::move(belief));
+  } else {
+    planner_->AdvanceTo(action, key, std::move(belief));
   }
 }
 
