@@ -214,7 +214,8 @@ class Robot(threading.Thread):
             self.tally.episodes += 1
 
 
-def hold_idle(url, count, seconds, stop):
+def connections(url, count):
+    """Up to `count` connections to the server, opened and left without a byte."""
     port = int(url.rsplit(":", 1)[1])
     held = []
     for _ in range(count):
@@ -222,19 +223,18 @@ def hold_idle(url, count, seconds, stop):
             held.append(socket.create_connection(("127.0.0.1", port), timeout=5))
         except OSError:
             pass
+    return held
+
+
+def hold_idle(url, count, seconds, stop):
+    held = connections(url, count)
     stop.wait(seconds)
     for s in held:
         s.close()
 
 
 def slow_heads(url, count, seconds, stop):
-    port = int(url.rsplit(":", 1)[1])
-    held = []
-    for _ in range(count):
-        try:
-            held.append(socket.create_connection(("127.0.0.1", port), timeout=5))
-        except OSError:
-            pass
+    held = connections(url, count)
     head = b"GET /v1/sessions HTTP/1.1\r\nHost: x\r\n" + b"X: " + b"a" * 200
     end = time.monotonic() + seconds
     i = 0
