@@ -210,8 +210,9 @@ const Route* NearestRoute(std::string_view method, std::string_view path) {
   // The path as a template: lower case, no trailing slash, "/v1" in front of an API path without
   // it, and the segment after "/sessions/" as "{id}".
   std::string p;
-  for (char c : path.substr(0, 200))
+  for (char c : path.substr(0, 200)) {
     p += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  }
   while (p.size() > 1 && p.back() == '/') p.pop_back();
   if (p.starts_with("/sessions") || p.starts_with("/planners")) p = "/v1" + p;
   if (const size_t at = p.find("/sessions/"); at != std::string::npos) {

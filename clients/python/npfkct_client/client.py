@@ -291,7 +291,7 @@ class Stats:
     root_actions: int
     root_visits: int
     reused_visits: int  # visits of the previous step's tree that this search started from
-    budget_exhausted: Optional[str]
+    budget_exhausted: Optional[bool]  # whether the budget, not the tree, ended the search
     raw: Dict[str, Any]
 
     @classmethod
