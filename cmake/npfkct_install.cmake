@@ -27,8 +27,10 @@ install(PROGRAMS
   $<TARGET_FILE:npfkct-server> $<TARGET_FILE:npfkct-drive> $<TARGET_FILE:npfkct-sim-robot>
   $<TARGET_FILE:npfkct-scenegen>
   DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT server)
-install(PROGRAMS $<TARGET_FILE:npfkct-bench> $<TARGET_FILE:npfkct-train>
-  DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT dev)
+install(PROGRAMS $<TARGET_FILE:npfkct-bench> DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT dev)
+if(NPFKCT_WITH_TORCH)
+  install(PROGRAMS $<TARGET_FILE:npfkct-train> DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT dev)
+endif()
 
 # The libraries for embedding, with their public headers: the solver, the object-search model,
 # and the typed C++ client with the API layer it speaks through (whose types are those of the

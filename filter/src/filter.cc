@@ -8,9 +8,13 @@
 #include <numeric>
 #include <tuple>
 
-#include "network.h"
+#include "dense_net.h"
+#include "net_shape.h"
 #include "npfkct/object_search/proposals.h"
 #include "npfkct/solver/option_table.h"
+#ifdef NPFKCT_WITH_TORCH
+#include "network.h"
+#endif
 
 // OpenBLAS's own thread count (libtorch's set_num_threads does not reach it). Weak: absent when
 // the BLAS in use is another one.
@@ -20,12 +24,24 @@ namespace npfkct::filter {
 
 void SetComputeThreads(int threads) {
   threads = std::max(1, threads);
+#ifdef NPFKCT_WITH_TORCH
   torch::set_num_threads(threads);
+#endif
   if (openblas_set_num_threads != nullptr) openblas_set_num_threads(threads);
 }
 
+// A model's networks: libtorch's (a .pt file) or the dense ones (a .npw weight file).
 struct NeuralFilter::Impl {
+#ifdef NPFKCT_WITH_TORCH
   std::vector<NpNet> members;
+#endif
+  std::vector<DenseNet> dense;
+  size_t size() const {
+#ifdef NPFKCT_WITH_TORCH
+    if (!members.empty()) return members.size();
+#endif
+    return dense.size();
+  }
 };
 
 namespace {
@@ -56,8 +72,14 @@ void SingleThreaded() {
   std::call_once(once, [] { SetComputeThreads(1); });
 }
 
+#ifdef NPFKCT_WITH_TORCH
 torch::Tensor FromVector(const std::vector<float>& v, std::vector<int64_t> shape) {
   return torch::from_blob(const_cast<float*>(v.data()), shape, torch::kFloat32);
+}
+#endif
+
+bool IsWeightFile(const std::string& path) {
+  return path.size() >= 4 && path.compare(path.size() - 4, 4, ".npw") == 0;
 }
 
 class NetSam final : public CandidateSampler<State> {
@@ -257,18 +279,58 @@ double FilterOptions::Beta() const { return std::sqrt(2.0 * std::log(1.0 / (1.0 
 
 NeuralFilter::~NeuralFilter() = default;
 
+bool CanLoadModel(std::string_view name) {
+  if (name.ends_with(".npw")) return true;
+#ifdef NPFKCT_WITH_TORCH
+  return name.ends_with(".pt");
+#else
+  return false;
+#endif
+}
+
 StatusOr<std::shared_ptr<NeuralFilter>> NeuralFilter::Load(const std::string& path) {
   SingleThreaded();
-  auto members = LoadMembers(path);
-  if (!members.ok()) return members.status();
   std::shared_ptr<NeuralFilter> f(new NeuralFilter());
   f->impl_ = std::make_unique<Impl>();
-  f->impl_->members = *std::move(members);
   f->path_ = path;
+  if (IsWeightFile(path)) {
+    auto dense = ReadWeights(path);
+    if (!dense.ok()) return dense.status();
+    f->impl_->dense = *std::move(dense);
+    return f;
+  }
+#ifdef NPFKCT_WITH_TORCH
+  auto members = LoadMembers(path);
+  if (!members.ok()) return members.status();
+  f->impl_->members = *std::move(members);
   return f;
+#else
+  return InvalidArgumentError("'" + path +
+                              "': this build has no libtorch and reads weight files (.npw) only "
+                              "(npfkct-train export writes one from a .pt model)");
+#endif
+}
+
+Status NeuralFilter::ExportWeights(const std::string& model, const std::string& out) {
+#ifdef NPFKCT_WITH_TORCH
+  auto members = LoadMembers(model);
+  if (!members.ok()) return members.status();
+  std::vector<std::vector<NamedTensor>> tensors;
+  for (NpNet& net : *members) tensors.push_back(ExportTensors(net));
+  return WriteWeights(tensors, out);
+#else
+  (void)model;
+  (void)out;
+  return Status(StatusCode::kUnimplemented, "this build has no libtorch to read .pt models");
+#endif
 }
 
 Status NeuralFilter::Combine(const std::vector<std::string>& paths, const std::string& out) {
+#ifndef NPFKCT_WITH_TORCH
+  (void)paths;
+  (void)out;
+  return Status(StatusCode::kUnimplemented, "this build has no libtorch to write .pt models");
+#else
   std::vector<NpNet> all;
   for (const std::string& path : paths) {
     auto members = LoadMembers(path);
@@ -280,15 +342,21 @@ Status NeuralFilter::Combine(const std::vector<std::string>& paths, const std::s
     for (NpNet& net : *members) all.push_back(net);
   }
   return SaveMembers(all, out);
+#endif
 }
 
-int NeuralFilter::members() const { return static_cast<int>(impl_->members.size()); }
+int NeuralFilter::members() const { return static_cast<int>(impl_->size()); }
 
 Prediction NeuralFilter::Predict(const SceneFeatures& scene,
                                  const std::vector<float>& context_queries,
                                  const std::vector<float>& context_scores,
                                  const std::vector<float>& queries,
                                  const TerminationCondition* stop) const {
+  if (!impl_->dense.empty()) return PredictDense(scene, context_queries, context_scores, queries,
+                                                 stop);
+#ifndef NPFKCT_WITH_TORCH
+  return Prediction{};
+#else
   torch::InferenceMode guard;
   const FlushDenormals flush;
   const int64_t m = static_cast<int64_t>(context_scores.size());
@@ -354,6 +422,70 @@ Prediction NeuralFilter::Predict(const SceneFeatures& scene,
     sigma = sigma.contiguous();
     out.mu.insert(out.mu.end(), mu.data_ptr<float>(), mu.data_ptr<float>() + rows);
     out.sigma.insert(out.sigma.end(), sigma.data_ptr<float>(), sigma.data_ptr<float>() + rows);
+  }
+  return out;
+#endif
+}
+
+// Predict's dense path: the same steps as libtorch's (the scene and the context encoded once per
+// network, the queries in blocks, an ensemble's mixture moments).
+Prediction NeuralFilter::PredictDense(const SceneFeatures& scene,
+                                      const std::vector<float>& context_queries,
+                                      const std::vector<float>& context_scores,
+                                      const std::vector<float>& queries,
+                                      const TerminationCondition* stop) const {
+  const FlushDenormals flush;
+  const int m = static_cast<int>(context_scores.size());
+  const int64_t n = static_cast<int64_t>(queries.size() / kQueryDim);
+  Prediction out;
+  if (n == 0 || m == 0) {
+    out.mu.assign(n, 1.0f);
+    out.sigma.assign(n, static_cast<float>(kMinSigma));
+    return out;
+  }
+  struct Encoded {
+    DenseNet::Vector scene, z;
+    DenseNet::Matrix xc;
+  };
+  std::vector<Encoded> encoded;
+  for (const DenseNet& net : impl_->dense) {
+    Encoded e;
+    e.scene = net.EncodeScene(scene.points.data(), scene.image.data());
+    e.xc = net.EncodeQuery(context_queries.data(), m);
+    e.z = net.LatentMean(e.scene, e.xc, context_scores.data());
+    encoded.push_back(std::move(e));
+  }
+  const float members = static_cast<float>(impl_->dense.size());
+  constexpr int64_t kBlock = 4096;
+  out.mu.reserve(n);
+  out.sigma.reserve(n);
+  for (int64_t a = 0; a < n; a += kBlock) {
+    if (a > 0 && stop != nullptr && stop->ShouldStop(0)) break;
+    const int rows = static_cast<int>(std::min(kBlock, n - a));
+    DenseNet::Vector sum_mu = DenseNet::Vector::Zero(rows);
+    DenseNet::Vector sum_second = DenseNet::Vector::Zero(rows);
+    DenseNet::Vector mu, sigma;
+    for (size_t k = 0; k < impl_->dense.size(); ++k) {
+      if (a > 0 && k > 0 && stop != nullptr && stop->ShouldStop(0)) return out;
+      const DenseNet& net = impl_->dense[k];
+      const Encoded& e = encoded[k];
+      const DenseNet::Matrix xt = net.EncodeQuery(queries.data() + a * kQueryDim, rows);
+      auto [mu_k, sigma_k] = net.Decode(e.scene, e.xc, context_scores.data(), xt, e.z);
+      if (impl_->dense.size() == 1) {
+        mu = std::move(mu_k);
+        sigma = std::move(sigma_k);
+        break;
+      }
+      sum_mu += mu_k;
+      sum_second += (sigma_k.array().square() + mu_k.array().square()).matrix();
+    }
+    if (impl_->dense.size() > 1) {
+      mu = sum_mu / members;
+      const float floor = static_cast<float>(kMinSigma * kMinSigma);
+      sigma = (sum_second / members - mu.cwiseProduct(mu)).cwiseMax(floor).cwiseSqrt();
+    }
+    out.mu.insert(out.mu.end(), mu.data(), mu.data() + rows);
+    out.sigma.insert(out.sigma.end(), sigma.data(), sigma.data() + rows);
   }
   return out;
 }

@@ -291,4 +291,18 @@ StatusOr<std::vector<NpNet>> LoadMembers(const std::string& path) {
   return members;
 }
 
+std::vector<NamedTensor> ExportTensors(NpNet& net) {
+  std::vector<NamedTensor> out;
+  auto add = [&out](const std::string& name, const torch::Tensor& t) {
+    const torch::Tensor values = t.to(torch::kFloat32).contiguous();
+    NamedTensor n{name, {}, {}};
+    for (int64_t d : values.sizes()) n.shape.push_back(d);
+    n.values.assign(values.data_ptr<float>(), values.data_ptr<float>() + values.numel());
+    out.push_back(std::move(n));
+  };
+  for (const auto& p : net->named_parameters()) add(p.key(), p.value());
+  add("npfkct_filter_format", net->format);
+  return out;
+}
+
 }  // namespace npfkct::filter

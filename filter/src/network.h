@@ -9,17 +9,13 @@
 #include <utility>
 #include <vector>
 
+#include "dense_net.h"
+#include "net_shape.h"
 #include "npfkct/common/status.h"
 #include "npfkct/filter/dataset.h"
 
 namespace npfkct::filter {
 
-inline constexpr int kHidden = 64;
-inline constexpr int kLatent = 32;
-inline constexpr int kHeads = 4;
-inline constexpr int kFormatVersion = 1;
-/// The floor of the predicted standard deviation.
-inline constexpr double kMinSigma = 0.02;
 
 /// Multi-head scaled dot-product attention; with `residual`, the output is added to the query and
 /// layer-normalised.
@@ -92,5 +88,9 @@ Status SaveMembers(const std::vector<NpNet>& members, const std::string& path);
 /// Loads the networks of a model file: one saved by SaveNet, or those saved by SaveMembers.
 /// Missing, corrupt or foreign files are INVALID_ARGUMENT.
 StatusOr<std::vector<NpNet>> LoadMembers(const std::string& path);
+
+/// A network's parameters and format marker as named tensors (torch's names), for a weight file
+/// (dense_net.h).
+std::vector<NamedTensor> ExportTensors(NpNet& net);
 
 }  // namespace npfkct::filter

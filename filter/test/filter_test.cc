@@ -4,6 +4,7 @@
 #include <xmmintrin.h>
 
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <numbers>
@@ -327,6 +328,83 @@ TEST(FilterTest, MissingOrCorruptModelIsAClearError) {
   auto truncated = NeuralFilter::Load(path);
   ASSERT_FALSE(truncated.ok());
   EXPECT_EQ(truncated.status().code(), StatusCode::kInvalidArgument);
+  fs::remove(path);
+}
+
+std::string ReadBytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+TEST(FilterTest, TheShippedWeightFilePredictsAsTheModelDoesOnLibtorch) {
+  // filter/model/filter.npw is npfkct-train export of filter.pt, byte for byte.
+  const std::string path = TempPath("export.npw");
+  ASSERT_TRUE(NeuralFilter::ExportWeights(NPFKCT_FILTER_MODEL, path).ok());
+  EXPECT_EQ(ReadBytes(path), ReadBytes(NPFKCT_FILTER_WEIGHTS))
+      << "filter.npw is not the export of filter.pt: npfkct-train export --model "
+         "filter/model/filter.pt --out filter/model/filter.npw";
+  auto torch_filter = NeuralFilter::Load(NPFKCT_FILTER_MODEL);
+  auto dense_filter = NeuralFilter::Load(NPFKCT_FILTER_WEIGHTS);
+  ASSERT_TRUE(torch_filter.ok()) << torch_filter.status().ToString();
+  ASSERT_TRUE(dense_filter.ok()) << dense_filter.status().ToString();
+  EXPECT_EQ((*dense_filter)->members(), (*torch_filter)->members());
+  // Generated scenes' snapshots: 16 scored queries as the context, the others as targets.
+  auto data = GenerateDataset(SmallGeneration(6, 4242));
+  ASSERT_TRUE(data.ok()) << data.status().ToString();
+  double worst = 0.0;
+  int compared = 0;
+  for (const Sample& s : data->samples) {
+    const int m = 16;
+    const std::vector<float> cq(s.queries.begin(), s.queries.begin() + m * kQueryDim);
+    const std::vector<float> cs(s.scores.begin(), s.scores.begin() + m);
+    const std::vector<float> q(s.queries.begin() + m * kQueryDim, s.queries.end());
+    const Prediction a = (*torch_filter)->Predict(s.scene, cq, cs, q);
+    const Prediction b = (*dense_filter)->Predict(s.scene, cq, cs, q);
+    ASSERT_EQ(a.mu.size(), b.mu.size());
+    ASSERT_EQ(a.sigma.size(), b.sigma.size());
+    for (size_t i = 0; i < a.mu.size(); ++i) {
+      worst = std::max({worst, std::abs(double{a.mu[i]} - b.mu[i]),
+                        std::abs(double{a.sigma[i]} - b.sigma[i])});
+      ++compared;
+    }
+  }
+  EXPECT_GT(compared, 40);
+  EXPECT_LT(worst, 1e-4);
+  fs::remove(path);
+}
+
+TEST(FilterTest, MalformedWeightFilesAreRefusedSayingWhy) {
+  const std::string good = ReadBytes(NPFKCT_FILTER_WEIGHTS);
+  const std::string path = TempPath("bad.npw");
+  auto refused = [&](const std::string& bytes, const std::string& why) {
+    std::ofstream(path, std::ios::binary | std::ios::trunc) << bytes;
+    auto f = NeuralFilter::Load(path);
+    EXPECT_FALSE(f.ok()) << why;
+    if (!f.ok()) {
+      EXPECT_EQ(f.status().code(), StatusCode::kInvalidArgument) << why;
+      EXPECT_NE(f.status().message().find(why), std::string::npos) << f.status().message();
+    }
+  };
+  refused("NPFKCTW2" + good.substr(8), "not NPFKCTW1");
+  refused(good.substr(0, good.size() / 2), "truncated");
+  refused(good + "x", "past the last network");
+  // The first tensor (a weight matrix) transposed: as many values, another shape.
+  std::string shape = good;
+  const size_t dims = 18 + static_cast<unsigned char>(shape[16]) + 1;
+  ASSERT_EQ(shape[dims - 1], 2);  // its rank
+  std::string swapped = shape.substr(dims + 8, 8) + shape.substr(dims, 8);
+  shape.replace(dims, 16, swapped);
+  refused(shape, "another shape");
+  // A value of the first tensor that is not finite.
+  std::string nan = good;
+  const float bad = std::nanf("");
+  std::memcpy(nan.data() + dims + 16, &bad, sizeof bad);
+  refused(nan, "not finite");
+  // Nine networks.
+  std::string nine = good;
+  const uint32_t members = 9;
+  std::memcpy(nine.data() + 8, &members, sizeof members);
+  refused(nine, "too many networks");
   fs::remove(path);
 }
 

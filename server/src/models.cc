@@ -21,10 +21,7 @@ std::shared_ptr<ModelRegistry> ModelRegistry::Open(const std::string& dir, size_
   if (d == nullptr) return r;
   while (dirent* e = ::readdir(d)) {
     const std::string name = e->d_name;
-    if (!api::IsModelName(name) || name.size() < 4 ||
-        name.compare(name.size() - 3, 3, ".pt") != 0) {
-      continue;
-    }
+    if (!api::IsModelName(name) || !filter::CanLoadModel(name)) continue;
     struct stat st {};
     if (::fstatat(::dirfd(d), e->d_name, &st, 0) != 0 || !S_ISREG(st.st_mode) ||
         static_cast<uint64_t>(st.st_size) > max_file_bytes) {

@@ -260,6 +260,12 @@ int main(int argc, char** argv) {
       ->delimiter(',');
   ens->add_option("--out", ensemble_out, "model file to write")->required();
 
+  std::string export_model, export_out;
+  auto* exp = app.add_subcommand(
+      "export", "write a model's weights as a .npw weight file (the filter without libtorch)");
+  exp->add_option("--model", export_model, ".pt model file")->required();
+  exp->add_option("--out", export_out, ".npw weight file to write")->required();
+
   FilterOptions fo;
   std::string model_file, test_file, json_out;
   auto* ev = app.add_subcommand("evaluate", "test-set accuracy (paper appendix G)");
@@ -285,6 +291,11 @@ int main(int argc, char** argv) {
   if (*generate) return Generate(gen, gen_out);
   if (*tr) return Train(train_file, val_file, train, model_out, threads);
   if (*ens) return Ensemble(member_files, ensemble_out);
+  if (*exp) {
+    if (Status s = NeuralFilter::ExportWeights(export_model, export_out); !s.ok()) return Fail(s);
+    std::printf("wrote %s\n", export_out.c_str());
+    return 0;
+  }
   auto filter = NeuralFilter::Load(model_file);
   if (!filter.ok()) return Fail(filter.status());
   std::string line;

@@ -43,6 +43,14 @@ Status SetOption(FilterOptions* o, std::string_view key, double value);
 /// Every FilterOptions field as (key, value), keyed as SetOption's keys, in key order.
 std::vector<std::pair<std::string, double>> OptionValues(const FilterOptions& o);
 
+/// The file name of the shipped model this build loads by default: filter.pt, or filter.npw in a
+/// build without libtorch.
+inline constexpr char kDefaultModelName[] = NPFKCT_DEFAULT_MODEL_NAME;
+
+/// Whether this build loads a model file of this name: .npw weight files always, .pt models with
+/// libtorch.
+bool CanLoadModel(std::string_view file_name);
+
 /// Sets how many threads libtorch and OpenBLAS use for the filter's tensor work in this process.
 /// Planning uses 1 (the default the filter sets before its first use): inference then runs on
 /// the planning thread alone, so a CPU-time budget counts all of it, and no BLAS worker threads
@@ -56,15 +64,20 @@ struct Prediction {
 };
 
 /// A trained filter loaded from a file written by npfkct-train: one network, or an ensemble of
-/// networks trained alike from different seeds. Thread-safe.
+/// networks trained alike from different seeds; a .pt model runs on libtorch, a .npw weight file
+/// (npfkct-train export) on Eigen, with the same predictions. Thread-safe.
 class NeuralFilter {
  public:
   ~NeuralFilter();
-  /// Loads a model; a missing, truncated or foreign file is INVALID_ARGUMENT saying why.
+  /// Loads a model (.pt, or a .npw weight file); a missing, truncated or foreign file is
+  /// INVALID_ARGUMENT saying why.
   static StatusOr<std::shared_ptr<NeuralFilter>> Load(const std::string& path);
   /// Writes the networks of the model files `paths` (1 to 8 networks in all) as one ensemble
-  /// model file at `out`.
+  /// model file at `out` (needs libtorch).
   static Status Combine(const std::vector<std::string>& paths, const std::string& out);
+  /// Writes the weights of the .pt model `model` as a weight file `out` (.npw), which a build
+  /// without libtorch loads: the same networks, run by Eigen (needs libtorch).
+  static Status ExportWeights(const std::string& model, const std::string& out);
   /// Predicts the scores of `queries` (n x kQueryDim) in `scene`, conditioned on context queries
   /// (m >= 1 rows of kQueryDim) with their exact scores. The queries are scored in blocks of
   /// 4,096; when `stop` (if given) says the search must stop, the predictions of the first blocks
@@ -81,6 +94,10 @@ class NeuralFilter {
 
  private:
   NeuralFilter() = default;
+  Prediction PredictDense(const SceneFeatures& scene, const std::vector<float>& context_queries,
+                          const std::vector<float>& context_scores,
+                          const std::vector<float>& queries,
+                          const TerminationCondition* stop) const;
   std::unique_ptr<Impl> impl_;
   std::string path_;
 };

@@ -7,6 +7,7 @@
 
 #include "npfkct/api/limits.h"
 #include "npfkct/common/status.h"
+#include "npfkct/filter/filter.h"
 #include "npfkct/object_search/planner_registry.h"
 
 namespace npfkct::server {
@@ -56,7 +57,7 @@ struct ServerOptions {
   std::string model_dir;
   /// The model npfkct sessions plan with when they name none (planner.model absent); "" for
   /// none. When the folder lacks it, such sessions plan with uniform candidates (and say so).
-  std::string default_model = "filter.pt";
+  std::string default_model = filter::kDefaultModelName;
   /// Models kept loaded at once.
   int max_models = 4;
   /// Largest snapshot file read at start-up.
