@@ -69,7 +69,12 @@ install(FILES ${CMAKE_CURRENT_BINARY_DIR}/npfkctConfig.cmake
   DESTINATION ${NPFKCT_INSTALL_CMAKEDIR} COMPONENT dev)
 
 # Data: models, scenarios, schemas.
-install(FILES filter/model/filter.pt DESTINATION ${NPFKCT_INSTALL_DATADIR}/models
+# The shipped model: its .pt (with libtorch) and its weight file (.npw, which any build loads).
+if(NPFKCT_WITH_TORCH)
+  install(FILES filter/model/filter.pt DESTINATION ${NPFKCT_INSTALL_DATADIR}/models
+    COMPONENT server)
+endif()
+install(FILES filter/model/filter.npw DESTINATION ${NPFKCT_INSTALL_DATADIR}/models
   COMPONENT server)
 install(DIRECTORY scenarios/ DESTINATION ${NPFKCT_INSTALL_DATADIR}/scenarios COMPONENT server
   FILES_MATCHING PATTERN "*.json")
