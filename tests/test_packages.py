@@ -1,7 +1,8 @@
-"""The Debian packages (cmake/npfkct_package.cmake, `cpack -G DEB`): what each holds and needs,
-and the packages installed with apt on a fresh Debian 12 root (mmdebstrap from Debian's mirror,
-the minbase variant) where the README's quick start runs from them: the installed server,
-client, simulated robot and scenarios, no build tree. Needs mmdebstrap and dpkg-dev
+"""The Debian packages (cmake/npfkct_package.cmake, `cpack -G DEB`, and npfkct-ros by
+clients/ros/npfkct_ros/build_deb.sh): what each holds and needs, and the packages installed with
+apt on a fresh Debian 12 root (mmdebstrap from Debian's mirror, the minbase variant) where the
+README's quick start runs from them (the installed server, client, simulated robot and
+scenarios, no build tree) and the ROS node's modules import. Needs mmdebstrap and dpkg-dev
 (scripts/deps.sh) and Debian's mirror; runs as root (mmdebstrap's root mode)."""
 
 import glob
@@ -17,6 +18,7 @@ from conftest import BUILD, ROOT, free_port
 
 PACKAGES = os.path.join(BUILD, "packages")
 NAMES = ("npfkct-server", "libnpfkct-dev", "python3-npfkct-client")
+ROS_PACKAGE = os.path.join(ROOT, "clients", "ros", "npfkct_ros")
 
 
 @pytest.fixture(scope="module")
@@ -36,6 +38,37 @@ def debs():
         found[name] = path
     assert set(found) == set(NAMES), found
     return found
+
+
+@pytest.fixture(scope="module")
+def ros_deb(tmp_path_factory):
+    """npfkct-ros, packed by clients/ros/npfkct_ros/build_deb.sh from a fresh catkin workspace."""
+    if not shutil.which("catkin_make"):
+        pytest.fail("catkin is not installed (scripts/deps.sh installs it)")
+    ws = tmp_path_factory.mktemp("ros-ws")
+    (ws / "src").mkdir()
+    os.symlink(ROS_PACKAGE, ws / "src" / "npfkct_ros")
+    out = subprocess.run([os.path.join(ROS_PACKAGE, "build_deb.sh"), str(ws), PACKAGES],
+                         capture_output=True, text=True, timeout=1200)
+    assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
+    return out.stdout.strip().splitlines()[-1]
+
+
+def test_the_ros_package_is_a_debian_package_of_its_own(ros_deb):
+    assert field(ros_deb, "Package") == "npfkct-ros" and field(ros_deb, "Architecture") == "all"
+    depends = field(ros_deb, "Depends")
+    for need in ("python3-npfkct-client", "python3-rospy", "python3-actionlib",
+                 "python3-visualization-msgs"):
+        assert need in depends, depends
+    files = contents(ros_deb)
+    for path in ("/usr/lib/npfkct_ros/npfkct_node", "/usr/share/npfkct_ros/launch/npfkct.launch",
+                 "/usr/share/npfkct_ros/package.xml",
+                 "/usr/lib/python3/dist-packages/npfkct_ros/find_object.py",
+                 "/usr/lib/python3/dist-packages/npfkct_ros/msg/_FindObjectAction.py"):
+        assert path in files, path
+    # The client comes from python3-npfkct-client, not a second copy; no workspace files.
+    assert not any("npfkct_client" in p for p in files)
+    assert not any(p.endswith(("setup.bash", "_setup_util.py", ".catkin")) for p in files)
 
 
 def field(deb, name):
@@ -113,7 +146,8 @@ def readme_quick_start():
     return "\n".join(lines[2:]).replace('"$HOME/.local/share/', '"/usr/share/')
 
 
-def test_the_packages_install_on_a_fresh_debian_12_root_and_run_the_quick_start(debs, tmp_path):
+def test_the_packages_install_on_a_fresh_debian_12_root_and_run_the_quick_start(debs, ros_deb,
+                                                                                 tmp_path):
     """mmdebstrap builds a minimal Debian 12 root with curl and jq and installs the server and
     client packages with apt (their dependencies from the mirror); inside it, the README's quick
     start runs from the installed programs and data. The root's size is recorded in
@@ -129,15 +163,17 @@ def test_the_packages_install_on_a_fresh_debian_12_root_and_run_the_quick_start(
     # As a user would: the .deb files in a folder of the new root, installed with apt (which
     # fetches their dependencies from the mirror), then the quick start.
     server, client = (os.path.basename(debs[n]) for n in ("npfkct-server", "python3-npfkct-client"))
+    ros = os.path.basename(ros_deb)
     hooks = [
         f'mkdir "$1/srv/qs" && cp {debs["npfkct-server"]} {debs["python3-npfkct-client"]} '
-        f'{script} "$1/srv/qs/"',
-        f'chroot "$1" sh -c "cd /srv/qs && apt-get install -y ./{server} ./{client}"',
+        f'{ros_deb} {script} "$1/srv/qs/"',
+        f'chroot "$1" sh -c "cd /srv/qs && apt-get install -y ./{server} ./{client} ./{ros}"',
         'chroot "$1" timeout 600 /bin/bash -e -o pipefail -c '
         '"cd /srv/qs && bash -e -o pipefail quickstart.sh > quickstart.out 2>&1"',
     ]
     out = subprocess.run(
         ["mmdebstrap", "--variant=minbase", "--include=curl,jq,ca-certificates",
+         "--aptopt=Acquire::Retries \"3\"",
          "--dpkgopt=path-exclude=/usr/share/doc/*",
          "--dpkgopt=path-include=/usr/share/doc/*/copyright",
          "--dpkgopt=path-exclude=/usr/share/man/*", "--dpkgopt=path-exclude=/usr/share/locale/*",
@@ -153,9 +189,12 @@ def test_the_packages_install_on_a_fresh_debian_12_root_and_run_the_quick_start(
     assert planned["model"] == "filter.pt"  # the packaged model, found beside /usr/bin
     assert set(observed) == {"reward", "done"} and observed["done"] is False
     assert (root / "srv" / "qs" / "belief.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    # The installed client is Debian's python3's.
+    # The installed client is Debian's python3's, and the ROS node's modules and messages load
+    # with it.
     imported = subprocess.run(["chroot", str(root), "python3", "-c",
-                               "import npfkct_client; print(npfkct_client.__version__)"],
+                               "import npfkct_client; import npfkct_ros.find_object; "
+                               "from npfkct_ros.msg import FindObjectAction; "
+                               "print(npfkct_client.__version__)"],
                               capture_output=True, text=True, timeout=60)
     assert imported.returncode == 0 and imported.stdout.strip(), imported.stderr
     size = int(subprocess.run(["du", "-sxb", str(root)], capture_output=True, text=True,
