@@ -13,8 +13,9 @@ recovered from the session (its pending action, its step). Faults, each at its s
   slow      0.55-0.65: 100 clients sending a request head a byte a second
   flood     0.75-0.8: unauthenticated connections opened as fast as one thread can, 1,000 held
 Measured:
-  rss           the server's resident memory every 10 s; its spread (max - min) / min from 10
-                minutes after the restart on (the process that served the rest of the run)
+  rss           the server's resident memory every 10 s; from 10 minutes after the restart on (the
+                process that served the rest of the run): its spread (max - min) / min, that of
+                its 5-minute medians, and its trend in MB per hour
   5xx           responses with a status of 500 or more, by status (503 expected while the disk is
                 full and while the server restarts)
   steps         per session, at the end of its episode, the steps the robot saw acknowledged
@@ -47,6 +48,29 @@ from npfkct_client import ApiError, NpfkctClient, World  # noqa: E402
 
 KEY = "soak-key"
 SCENES = ("loose1", "loose2", "hidden1", "covered1", "complex1")
+
+
+def rss_summary(samples, warm):
+    """The resident memory from `warm` seconds on: its range, the spread (max - min) / min of the
+    raw 10 s samples and of their 5-minute medians (plans come and go: a sample is one moment of
+    eight search trees), and the least-squares trend in MB per hour."""
+    kept = [(t, m) for t, m in samples if m is not None and t >= warm]
+    if len(kept) < 2:
+        return {"warm_from_s": round(warm), "samples": len(kept)}
+    values = [m for _, m in kept]
+    windows = collections.defaultdict(list)
+    for t, m in kept:
+        windows[int((t - warm) // 300)].append(m)
+    medians = [sorted(v)[len(v) // 2] for _, v in sorted(windows.items())]
+    mean_t = sum(t for t, _ in kept) / len(kept)
+    mean_m = sum(values) / len(values)
+    slope = (sum((t - mean_t) * (m - mean_m) for t, m in kept) /
+             max(1e-9, sum((t - mean_t) ** 2 for t, _ in kept)))
+    return {"warm_from_s": round(warm), "samples": len(kept), "min": min(values),
+            "max": max(values), "spread": (max(values) - min(values)) / min(values),
+            "five_minute_medians": medians,
+            "median_spread": (max(medians) - min(medians)) / min(medians),
+            "trend_mb_per_hour": slope * 3600.0}
 
 
 def percentile(values, q):
@@ -276,7 +300,21 @@ def main():
     parser.add_argument("--build", default=os.path.join(ROOT, "build"))
     parser.add_argument("--out", default=os.path.join(ROOT, "bench", "results", "soak",
                                                       "soak.json"))
+    parser.add_argument("--summarize", metavar="JSON",
+                        help="recompute the RSS summary of a soak's JSON (in place) and exit")
     args = parser.parse_args()
+    if args.summarize:
+        with open(args.summarize, encoding="utf-8") as f:
+            summary = json.load(f)
+        restarted = next((t for t, what in summary["events"] if what == "restarted"), 0.0)
+        warm = restarted + min(600.0, summary["minutes"] * 10.0)
+        summary["rss_mb"] = dict(rss_summary(summary["rss_samples"], warm),
+                                 first=summary["rss_samples"][0][1],
+                                 last=summary["rss_samples"][-1][1])
+        with open(args.summarize, "w", encoding="utf-8") as f:
+            json.dump(summary, f, indent=1)
+        print(json.dumps(summary["rss_mb"], indent=1))
+        return
     if os.geteuid() != 0:
         sys.exit("soak.py: needs root (the state directory is a tmpfs that it fills)")
     total = args.minutes * 60.0
@@ -367,17 +405,14 @@ def main():
     # the rest of the run, the one started after the kill.
     restarted = next((t for t, what in events if what == "restarted"), 0.0)
     warm = restarted + min(600.0, total / 6)
-    after10 = [m for t, m in rss if m is not None and t >= warm]
     summary = {
         "minutes": args.minutes, "robots": args.robots, "cpu_ms": args.cpu_ms,
         "episodes": tally.episodes, "sessions_checked": checked, "lost_steps": lost,
         "doubled_steps": doubled,
         "errors_by_status": {str(k): v for k, v in sorted(tally.statuses.items(), key=str)},
         "error_messages": {str(k): v for k, v in tally.messages.items()},
-        "rss_mb": {"first": rss[0][1] if rss else None, "warm_from_s": round(warm),
-                   "min_warm": min(after10, default=None), "max_warm": max(after10, default=None),
-                   "spread_warm": (max(after10) - min(after10)) / min(after10) if after10 else None,
-                   "last": rss[-1][1] if rss else None},
+        "rss_mb": dict(rss_summary(rss, warm), first=rss[0][1] if rss else None,
+                       last=rss[-1][1] if rss else None),
         "plan_latency_s": {phase: {"n": len(v), "p50": percentile(v, 0.5),
                                    "p99": percentile(v, 0.99), "max": max(v)}
                            for phase, v in tally.latency.items()},
