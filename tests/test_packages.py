@@ -48,7 +48,8 @@ def ros_deb(tmp_path_factory):
     ws = tmp_path_factory.mktemp("ros-ws")
     (ws / "src").mkdir()
     os.symlink(ROS_PACKAGE, ws / "src" / "npfkct_ros")
-    out = subprocess.run([os.path.join(ROS_PACKAGE, "build_deb.sh"), str(ws), PACKAGES],
+    # Not into PACKAGES, which the cpack fixture empties of .deb files first.
+    out = subprocess.run([os.path.join(ROS_PACKAGE, "build_deb.sh"), str(ws), str(ws / "out")],
                          capture_output=True, text=True, timeout=1200)
     assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
     return out.stdout.strip().splitlines()[-1]
