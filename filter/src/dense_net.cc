@@ -63,8 +63,8 @@ std::map<std::string, std::vector<int64_t>> ExpectedShapes() {
 }
 
 std::vector<float> FormatValues() {
-  return {kFormatVersion, kPoints, kPointDim, kImageSize, kImageChannels, kQueryDim, kHidden,
-          kLatent};
+  return {kFormatVersion, kPoints,   kPointDim, kImageSize,
+          kImageChannels, kQueryDim, kHidden,   kLatent};
 }
 
 void Relu(Matrix* x) { *x = x->cwiseMax(0.0f); }
@@ -181,9 +181,9 @@ Matrix DenseNet::Attention::Apply(const Matrix& q, const Matrix& k, const Matrix
   for (Eigen::Index r = 0; r < out.rows(); ++r) {
     const float mean = out.row(r).mean();
     const float var = (out.row(r).array() - mean).square().mean();
-    out.row(r) = ((out.row(r).array() - mean) / std::sqrt(var + 1e-5f)).matrix()
-                     .cwiseProduct(norm_weight) +
-                 norm_bias;
+    out.row(r) =
+        ((out.row(r).array() - mean) / std::sqrt(var + 1e-5f)).matrix().cwiseProduct(norm_weight) +
+        norm_bias;
   }
   return out;
 }
@@ -233,8 +233,12 @@ StatusOr<DenseNet> DenseNet::FromTensors(const std::vector<NamedTensor>& tensors
     return out;
   };
   auto attention = [&](const std::string& name, bool residual) {
-    return Attention{linear(name + ".wq"), linear(name + ".wk"),         linear(name + ".wv"),
-                     linear(name + ".wo"), vector(name + ".norm.weight"), vector(name + ".norm.bias"),
+    return Attention{linear(name + ".wq"),
+                     linear(name + ".wk"),
+                     linear(name + ".wv"),
+                     linear(name + ".wo"),
+                     vector(name + ".norm.weight"),
+                     vector(name + ".norm.bias"),
                      residual};
   };
   DenseNet net;
@@ -304,9 +308,8 @@ Matrix DenseNet::Deterministic(const Vector& scene, const Matrix& xc, const floa
   return cross_.Apply(xt, xc, r);
 }
 
-std::pair<Vector, Vector> DenseNet::Decode(const Vector& scene, const Matrix& xc,
-                                           const float* yc, const Matrix& xt,
-                                           const Vector& z) const {
+std::pair<Vector, Vector> DenseNet::Decode(const Vector& scene, const Matrix& xc, const float* yc,
+                                           const Matrix& xt, const Vector& z) const {
   const int n = static_cast<int>(xt.rows());
   const Matrix r = Deterministic(scene, xc, yc, xt);
   const Matrix z0 = z, s0 = scene;

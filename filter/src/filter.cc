@@ -352,22 +352,23 @@ Prediction NeuralFilter::Predict(const SceneFeatures& scene,
                                  const std::vector<float>& context_scores,
                                  const std::vector<float>& queries,
                                  const TerminationCondition* stop) const {
-  if (!impl_->dense.empty()) return PredictDense(scene, context_queries, context_scores, queries,
-                                                 stop);
-#ifndef NPFKCT_WITH_TORCH
-  return Prediction{};
-#else
-  torch::InferenceMode guard;
   const FlushDenormals flush;
-  const int64_t m = static_cast<int64_t>(context_scores.size());
   const int64_t n = static_cast<int64_t>(queries.size() / kQueryDim);
-  Prediction out;
-  if (n == 0 || m == 0) {
+  if (n == 0 || context_scores.empty()) {
     // Without context the latent path is undefined: every query passes.
+    Prediction out;
     out.mu.assign(n, 1.0f);
     out.sigma.assign(n, static_cast<float>(kMinSigma));
     return out;
   }
+  if (!impl_->dense.empty())
+    return PredictDense(scene, context_queries, context_scores, queries, stop);
+#ifndef NPFKCT_WITH_TORCH
+  return Prediction{};
+#else
+  torch::InferenceMode guard;
+  const int64_t m = static_cast<int64_t>(context_scores.size());
+  Prediction out;
   // Per network: the scene and the context encoded once, then the queries in blocks (given the
   // context, each query's prediction is its own: blocks change no result).
   struct Encoded {
@@ -427,22 +428,16 @@ Prediction NeuralFilter::Predict(const SceneFeatures& scene,
 #endif
 }
 
-// Predict's dense path: the same steps as libtorch's (the scene and the context encoded once per
-// network, the queries in blocks, an ensemble's mixture moments).
+// Predict's dense path, given a context and queries: the same steps as libtorch's (the scene and
+// the context encoded once per network, the queries in blocks, an ensemble's mixture moments).
 Prediction NeuralFilter::PredictDense(const SceneFeatures& scene,
                                       const std::vector<float>& context_queries,
                                       const std::vector<float>& context_scores,
                                       const std::vector<float>& queries,
                                       const TerminationCondition* stop) const {
-  const FlushDenormals flush;
   const int m = static_cast<int>(context_scores.size());
   const int64_t n = static_cast<int64_t>(queries.size() / kQueryDim);
   Prediction out;
-  if (n == 0 || m == 0) {
-    out.mu.assign(n, 1.0f);
-    out.sigma.assign(n, static_cast<float>(kMinSigma));
-    return out;
-  }
   struct Encoded {
     DenseNet::Vector scene, z;
     DenseNet::Matrix xc;

@@ -363,8 +363,8 @@ TEST(FilterTest, TheShippedWeightFilePredictsAsTheModelDoesOnLibtorch) {
     ASSERT_EQ(a.mu.size(), b.mu.size());
     ASSERT_EQ(a.sigma.size(), b.sigma.size());
     for (size_t i = 0; i < a.mu.size(); ++i) {
-      worst = std::max({worst, std::abs(double{a.mu[i]} - b.mu[i]),
-                        std::abs(double{a.sigma[i]} - b.sigma[i])});
+      worst = std::max(
+          {worst, std::abs(double{a.mu[i]} - b.mu[i]), std::abs(double{a.sigma[i]} - b.sigma[i])});
       ++compared;
     }
   }
