@@ -78,9 +78,7 @@ torch::Tensor FromVector(const std::vector<float>& v, std::vector<int64_t> shape
 }
 #endif
 
-bool IsWeightFile(const std::string& path) {
-  return path.size() >= 4 && path.compare(path.size() - 4, 4, ".npw") == 0;
-}
+bool IsWeightFile(const std::string& path) { return path.ends_with(".npw"); }
 
 class NetSam final : public CandidateSampler<State> {
  public:

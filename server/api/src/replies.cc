@@ -268,11 +268,7 @@ std::string RenderSteps(const std::vector<StepRecord>& steps, const World* world
     json step = internal::StepJson(s, false);
     // The floor the camera covered from where the robot stood after the step.
     if (world != nullptr && s.outcome && s.outcome->robot) {
-      json view = json::array();
-      for (const Vec2& p : render::FrustumFootprint(*world, *s.outcome->robot)) {
-        view.push_back({p.x(), p.y()});
-      }
-      step["outcome"]["view"] = std::move(view);
+      step["outcome"]["view"] = internal::FrustumJson(*world, *s.outcome->robot);
     }
     out["steps"].push_back(std::move(step));
   }

@@ -750,24 +750,25 @@ StatusOr<World> WorldFromJson(const json& j, const Limits& limits) {
   return w;
 }
 
+json FrustumJson(const World& w, const RobotConfig& c) {
+  json out = json::array();
+  for (const Vec2& p : render::FrustumFootprint(w, c)) out.push_back(Vec(p));
+  return out;
+}
+
 json BeliefJson(const World& w, const SessionView* session) {
   json j;
   j["robot"] = ConfigJson(w.robot_config);
   j["step"] = w.steps;
   // What the web console draws: the same crop, frusta and colours as the PNG (npfkct/render).
-  auto polygon = [](const std::vector<Vec2>& points) {
-    json out = json::array();
-    for (const Vec2& p : points) out.push_back(Vec(p));
-    return out;
-  };
-  j["camera"] = {{"frustum", polygon(render::FrustumFootprint(w, w.robot_config))}};
+  j["camera"] = {{"frustum", FrustumJson(w, w.robot_config)}};
   j["robotRadius"] = w.robot.footprint_radius;
   std::optional<RobotConfig> next;
   if (session && session->pending && session->pending->second.type == ActionView::Type::kMove) {
     next = session->pending->second.configuration;
     j["nextView"] = {{"actionId", session->pending->first},
                      {"configuration", ConfigJson(*next)},
-                     {"frustum", polygon(render::FrustumFootprint(w, *next))}};
+                     {"frustum", FrustumJson(w, *next)}};
   }
   const auto [lo, hi] = render::CropBounds(w, next, render::BeliefPictureOptions{}.margin);
   j["view"] = {{"min", Vec(lo)}, {"max", Vec(hi)}};

@@ -32,6 +32,9 @@ StatusOr<World> WorldFromJson(const json& j, const Limits& limits);
 /// The belief the API shows; with `session`, its planned next view.
 json BeliefJson(const World& w, const SessionView* session);
 
+/// The floor the camera covers from configuration `c` (the PNG's frustum), as [[x, y], ...].
+json FrustumJson(const World& w, const object_search::RobotConfig& c);
+
 /// Cells of the grid world over `workspaces` at `resolution`, as GridWorld counts them, in 64
 /// bits (and saturating), so that a limit can be checked before the grid is built.
 int64_t GridCells(const std::vector<object_search::Workspace>& workspaces, double resolution);
