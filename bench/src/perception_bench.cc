@@ -6,18 +6,26 @@
 // With --room SIDE every scenario's room is grown to a square of that side around its own
 // centre (a house map), to measure what perception's prior map costs as the room grows: the
 // CPU time of building the pipeline, of its most expensive frame, and the process's peak memory.
+// With --pose-offset D each frame is reported off its true pose by D metres in x and in y and
+// D / 2 radians in yaw (each sign drawn at random, seeded): registration must take the offset
+// back, and the bench prints the corrected pose's error against the truth (median and 90th
+// percentile of the position error, median of the heading error; with no offset, the error
+// registration adds to an exact report).
 #include <pcl/console/print.h>
 #include <sys/resource.h>
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <numbers>
 #include <opencv2/core.hpp>
 #include <string>
 #include <vector>
 
+#include "npfkct/common/rng.h"
 #include "npfkct/common/version.h"
+#include "npfkct/object_search/geometry.h"
 #include "npfkct/perception/perception.h"
 #include "npfkct/sim/frame_io.h"
 #include "npfkct/sim/simulator.h"
@@ -28,6 +36,11 @@ namespace {
 double Median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
   return v.empty() ? 0.0 : v[v.size() / 2];
+}
+
+double Percentile(std::vector<double> v, double q) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0.0 : v[static_cast<size_t>(q * static_cast<double>(v.size() - 1))];
 }
 
 double Max(const std::vector<double>& v) {
@@ -47,6 +60,7 @@ int main(int argc, char** argv) {
   std::vector<std::string> scenarios = {"loose1", "hidden1", "complex1"};
   int repeats = 1;
   double room = 0.0;
+  double pose_offset = 0.0;
   CLI::App app{"npfkct-perception-bench: per-stage time of the perception pipeline"};
   app.set_version_flag("--version", std::string("npfkct-perception-bench ") + npfkct::kVersion);
   app.add_option("--scenario", scenarios, "scenario names in scenarios")->delimiter(',');
@@ -54,10 +68,16 @@ int main(int argc, char** argv) {
   app.add_option("--room", room,
                  "grow each scenario's room to a square of this side (m) around its centre")
       ->check(CLI::Range(0.0, 100.0));
+  app.add_option("--pose-offset", pose_offset,
+                 "report each frame this far (m in x and y; half as many rad in yaw) off its pose")
+      ->check(CLI::Range(0.0, 0.5));
   CLI11_PARSE(app, argc, argv);
   cv::setNumThreads(1);
   pcl::console::setVerbosityLevel(pcl::console::L_ERROR);
-  std::vector<double> reg, seg, assoc, det, total, setup_cpu, frame_cpu;
+  std::vector<double> reg, seg, assoc, det, total, setup_cpu, frame_cpu, position_error,
+      heading_error, registered_error;
+  npfkct::Rng offsets(11);
+  int registered = 0;  // frames whose view constrained the pose (ICP ran)
   int frames = 0;
   int target_views = 0, target_hits = 0, other_views = 0, other_hits = 0;
   for (const std::string& name : scenarios) {
@@ -95,8 +115,12 @@ int main(int argc, char** argv) {
         frame.cloud = npfkct::sim::FrameCloud(f, false);
         frame.image = npfkct::sim::FrameBgr(f);
         frame.intrinsics = {f.width, f.height, f.fx, f.fy, f.cx, f.cy};
-        // The camera pose of the rendered frame, as the robot reports it.
+        // The pose of the rendered frame, as the robot reports it (off by the offset).
         frame.reported = poses[v];
+        auto sign = [&offsets] { return offsets.Uniform() < 0.5 ? -1.0 : 1.0; };
+        frame.reported.x += sign() * pose_offset;
+        frame.reported.y += sign() * pose_offset;
+        frame.reported.yaw += sign() * 0.5 * pose_offset;
         const double frame_start = npfkct::ThreadCpuMillis();
         auto result = p.Process(frame);
         frame_cpu.push_back(npfkct::ThreadCpuMillis() - frame_start);
@@ -117,6 +141,12 @@ int main(int argc, char** argv) {
             other_hits += !said_target;
           }
         }
+        registered += std::isfinite(result->fitness);
+        const auto& achieved = result->observation.achieved;
+        position_error.push_back(std::hypot(achieved.x - poses[v].x, achieved.y - poses[v].y));
+        if (std::isfinite(result->fitness)) registered_error.push_back(position_error.back());
+        heading_error.push_back(
+            std::abs(npfkct::object_search::WrapAngle(achieved.yaw - poses[v].yaw)));
         reg.push_back(result->timings.registration);
         seg.push_back(result->timings.segmentation);
         assoc.push_back(result->timings.association);
@@ -133,10 +163,14 @@ int main(int argc, char** argv) {
       "\"target_detections\": %d, \"target_recall\": %.3f, \"other_detections\": %d, "
       "\"other_rejected\": %.3f, \"room_side_m\": %g, \"median_setup_cpu_ms\": %.1f, "
       "\"max_setup_cpu_ms\": %.1f, \"median_frame_cpu_ms\": %.1f, \"max_frame_cpu_ms\": %.1f, "
-      "\"peak_rss_mb\": %.1f}\n",
+      "\"peak_rss_mb\": %.1f, \"pose_offset\": %g, \"position_error_median_m\": %.4f, "
+      "\"position_error_p90_m\": %.4f, \"heading_error_median_rad\": %.4f, \"registered\": %d, "
+      "\"registered_position_error_median_m\": %.4f, \"registered_position_error_p90_m\": %.4f}\n",
       frames, Median(reg), Median(seg), Median(assoc), Median(det), Median(total), target_views,
       target_views ? static_cast<double>(target_hits) / target_views : 0.0, other_views,
       other_views ? static_cast<double>(other_hits) / other_views : 0.0, room, Median(setup_cpu),
-      Max(setup_cpu), Median(frame_cpu), Max(frame_cpu), PeakRssMb());
+      Max(setup_cpu), Median(frame_cpu), Max(frame_cpu), PeakRssMb(), pose_offset,
+      Median(position_error), Percentile(position_error, 0.9), Median(heading_error), registered,
+      Median(registered_error), Percentile(registered_error, 0.9));
   return 0;
 }

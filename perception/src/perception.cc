@@ -70,15 +70,19 @@ class FiniteStepPointToPlane final
 // more of them (a few points 10 km away) unchanged: a dense blob then reached the k-d tree
 // searches whole, and a frame of 20,000 points took 45 s instead of 0.4 s. Such a cloud is
 // filtered in blocks of kBlock^3 voxels aligned with the grid, so that no voxel straddles two.
-CloudXYZ::Ptr Downsample(const CloudXYZ::ConstPtr& in, double leaf) {
+// Every field is averaged (a PointNormal's normal too, which is then no longer of unit length).
+template <typename Point>
+typename pcl::PointCloud<Point>::Ptr Downsample(const typename pcl::PointCloud<Point>::ConstPtr& in,
+                                                double leaf) {
+  using Cloud = pcl::PointCloud<Point>;
   const float f = static_cast<float>(leaf);
-  auto filter = [f](const CloudXYZ::ConstPtr& cloud, CloudXYZ* out) {
-    pcl::VoxelGrid<PointXYZ> grid;
+  auto filter = [f](const typename Cloud::ConstPtr& cloud, Cloud* out) {
+    pcl::VoxelGrid<Point> grid;
     grid.setInputCloud(cloud);
     grid.setLeafSize(f, f, f);
     grid.filter(*out);
   };
-  auto out = pcl::make_shared<CloudXYZ>();
+  auto out = pcl::make_shared<Cloud>();
   if (in->empty()) return out;
   // PCL's own count of the voxels the cloud spans, and its limit.
   Eigen::Vector4f lo, hi;
@@ -91,24 +95,28 @@ CloudXYZ::Ptr Downsample(const CloudXYZ::ConstPtr& in, double leaf) {
     return out;
   }
   constexpr int64_t kBlock = 1000;  // 1001^3 voxels at most per block: under PCL's limit
-  std::map<std::array<int64_t, 3>, CloudXYZ::Ptr> blocks;
-  for (const PointXYZ& p : *in) {
+  std::map<std::array<int64_t, 3>, typename Cloud::Ptr> blocks;
+  for (const Point& p : *in) {
     std::array<int64_t, 3> key;
     for (int a = 0; a < 3; ++a) {
       // The voxel index as VoxelGrid computes it, then its block.
       const auto voxel = static_cast<int64_t>(std::floor(p.data[a] * inverse));
       key[a] = voxel >= 0 ? voxel / kBlock : -((-voxel + kBlock - 1) / kBlock);
     }
-    CloudXYZ::Ptr& block = blocks[key];
-    if (!block) block = pcl::make_shared<CloudXYZ>();
+    typename Cloud::Ptr& block = blocks[key];
+    if (!block) block = pcl::make_shared<Cloud>();
     block->push_back(p);
   }
-  CloudXYZ part;
+  Cloud part;
   for (const auto& [key, block] : blocks) {
     filter(block, &part);
     *out += part;
   }
   return out;
+}
+
+CloudXYZ::Ptr Downsample(const CloudXYZ::ConstPtr& in, double leaf) {
+  return Downsample<PointXYZ>(in, leaf);
 }
 
 // Every k-th point of `in`, k the smallest that leaves at most `max_points` (all when they fit).
@@ -174,11 +182,14 @@ typename pcl::PointCloud<Point>::Ptr CropXY(const typename pcl::PointCloud<Point
   return out;
 }
 
-// Points with surface normals estimated from neighbours within `radius`.
-NormalCloud::Ptr WithNormals(const CloudXYZ::Ptr& in, double radius) {
+// Points of `in` with surface normals estimated from their neighbours within `radius` in
+// `surface` (in itself when null); those without a normal (too few neighbours) are left out.
+NormalCloud::Ptr WithNormals(const CloudXYZ::Ptr& in, double radius,
+                             const CloudXYZ::Ptr& surface = nullptr) {
   auto normals = pcl::make_shared<pcl::PointCloud<pcl::Normal>>();
   pcl::NormalEstimation<PointXYZ, pcl::Normal> ne;
   ne.setInputCloud(in);
+  if (surface) ne.setSearchSurface(surface);
   ne.setRadiusSearch(radius);
   ne.compute(*normals);
   auto out = pcl::make_shared<NormalCloud>();
@@ -217,14 +228,24 @@ void GridRange(double lo, double hi, double step, double from, double to, int64_
 // Samples the surface of an upright box (top and four sides) on a grid of `step` (the grid of
 // the whole box, from its corners), keeping the points inside `region` (x-y) and visiting only
 // the part of each face that can reach it, so that a wall many tiles long costs each tile its
-// own share.
-void SampleBoxWithin(const Box& b, double step, const Eigen::AlignedBox2d& region, CloudXYZ* out) {
+// own share. Each point carries the outward normal of the face it lies on (the map's geometry is
+// known, so its normals are not estimated).
+void SampleBoxWithin(const Box& b, double step, const Eigen::AlignedBox2d& region,
+                     NormalCloud* out) {
   const double c = std::cos(b.yaw), s = std::sin(b.yaw);
-  auto emit = [&](double lx, double ly, double lz) {
+  // A point at (lx, ly, lz) in the box's frame, on the face of outward normal (nx, ny, nz).
+  auto emit = [&](double lx, double ly, double lz, double nx, double ny, double nz) {
     const double x = b.center.x() + c * lx - s * ly, y = b.center.y() + s * lx + c * ly;
     if (region.contains(Eigen::Vector2d(x, y))) {
-      out->push_back(PointXYZ(static_cast<float>(x), static_cast<float>(y),
-                              static_cast<float>(b.center.z() + lz)));
+      PointNormal p;
+      p.x = static_cast<float>(x);
+      p.y = static_cast<float>(y);
+      p.z = static_cast<float>(b.center.z() + lz);
+      p.normal_x = static_cast<float>(c * nx - s * ny);
+      p.normal_y = static_cast<float>(s * nx + c * ny);
+      p.normal_z = static_cast<float>(nz);
+      p.curvature = 0.0f;
+      out->push_back(p);
     }
   };
   // The region in the box's frame: the box of its corners turned by -yaw (covers it).
@@ -247,12 +268,13 @@ void SampleBoxWithin(const Box& b, double step, const Eigen::AlignedBox2d& regio
   const bool near_x = reaches(local.min().x(), local.max().x(), h.x());
   for (int64_t i = u0; i <= u1; ++i) {
     const double u = -h.x() + static_cast<double>(i) * step;
-    for (int64_t j = v0; j <= v1; ++j) emit(u, -h.y() + static_cast<double>(j) * step, h.z());
+    for (int64_t j = v0; j <= v1; ++j)
+      emit(u, -h.y() + static_cast<double>(j) * step, h.z(), 0, 0, 1);
     if (!near_y) continue;
     for (int64_t k = w0; k <= w1; ++k) {
       const double w = -h.z() + static_cast<double>(k) * step;
-      emit(u, -h.y(), w);
-      emit(u, h.y(), w);
+      emit(u, -h.y(), w, 0, -1, 0);
+      emit(u, h.y(), w, 0, 1, 0);
     }
   }
   if (!near_x) return;
@@ -260,8 +282,8 @@ void SampleBoxWithin(const Box& b, double step, const Eigen::AlignedBox2d& regio
     const double v = -h.y() + static_cast<double>(j) * step;
     for (int64_t k = w0; k <= w1; ++k) {
       const double w = -h.z() + static_cast<double>(k) * step;
-      emit(-h.x(), v, w);
-      emit(h.x(), v, w);
+      emit(-h.x(), v, w, -1, 0, 0);
+      emit(h.x(), v, w, 1, 0, 0);
     }
   }
 }
@@ -360,8 +382,8 @@ double DistanceToBox(const Box& b, const PointXYZ& p) {
 }
 
 // The prior map is built in square tiles of this side (m), each when a frame first needs it,
-// from the furniture and the floor around it (sampled this far past its edges, so that the
-// normals of its edge points see all their neighbours).
+// from the furniture and the floor around it (sampled this far past its edges, so that a voxel
+// on its edge averages the same points, and normals, as if the whole map were sampled at once).
 constexpr double kTileSide = 2.0;
 constexpr double kTilePad = 0.1;
 
@@ -788,34 +810,43 @@ const MapTile& Perception::Impl::Tile(int64_t ix, int64_t iy) {
               kTilePad);
   // The furniture's surfaces and the floor on the same grids as if the whole map were sampled
   // at once, so that a voxel (aligned with the origin, as the tiles are) gets the same points.
-  auto raw = pcl::make_shared<CloudXYZ>();
+  auto raw = pcl::make_shared<NormalCloud>();
   for (const Box& b : world.furniture) SampleBoxWithin(b, 0.5 * options.voxel, padded, raw.get());
   const auto& occ = world.occupancy;
   const double step = 2.0 * options.voxel;
   int64_t x0, x1, y0, y1;
   GridRange(occ.min().x(), occ.max().x(), step, padded.min().x(), padded.max().x(), &x0, &x1);
   GridRange(occ.min().y(), occ.max().y(), step, padded.min().y(), padded.max().y(), &y0, &y1);
+  PointNormal floor;
+  floor.z = 0.0f;
+  floor.normal_x = floor.normal_y = floor.curvature = 0.0f;
+  floor.normal_z = 1.0f;
   for (int64_t i = x0; i <= x1; ++i) {
     for (int64_t j = y0; j <= y1; ++j) {
-      raw->push_back(PointXYZ(static_cast<float>(occ.min().x() + static_cast<double>(i) * step),
-                              static_cast<float>(occ.min().y() + static_cast<double>(j) * step),
-                              0.0f));
+      floor.x = static_cast<float>(occ.min().x() + static_cast<double>(i) * step);
+      floor.y = static_cast<float>(occ.min().y() + static_cast<double>(j) * step);
+      raw->push_back(floor);
     }
   }
-  const CloudXYZ::Ptr around = Downsample(raw, options.voxel);
-  const NormalCloud::Ptr normals =
-      WithNormals(Downsample(around, 2.0 * options.voxel), 3.0 * options.voxel);
+  // The voxels average the faces' normals: where faces meet (an edge, a table's top over its
+  // side) the normal leans between them, as one estimated from the neighbours would; where
+  // opposite faces share a voxel (a sheet thinner than it) they cancel and the point is left out.
+  const NormalCloud::Ptr around = Downsample<PointNormal>(raw, options.voxel);
+  const NormalCloud::Ptr coarse = Downsample<PointNormal>(around, 2.0 * options.voxel);
   auto own = [&](const auto& p) { return TileIndex(p.x) == ix && TileIndex(p.y) == iy; };
   t.points = pcl::make_shared<CloudXYZ>();
   t.upper = pcl::make_shared<CloudXYZ>();
   t.normals = pcl::make_shared<NormalCloud>();
   for (const auto& p : *around) {
     if (!own(p)) continue;
-    t.points->push_back(p);
-    if (p.z > upper_min_z) t.upper->push_back(p);
+    t.points->push_back(PointXYZ(p.x, p.y, p.z));
+    if (p.z > upper_min_z) t.upper->push_back(PointXYZ(p.x, p.y, p.z));
   }
-  for (const auto& p : *normals) {
-    if (own(p)) t.normals->push_back(p);
+  for (PointNormal p : *coarse) {
+    const float length = p.getNormalVector3fMap().norm();
+    if (!own(p) || !(length > 0.5f)) continue;
+    p.getNormalVector3fMap() /= length;
+    t.normals->push_back(p);
   }
   if (!t.upper->empty()) {
     t.upper_tree = std::make_unique<pcl::KdTreeFLANN<PointXYZ>>();
@@ -1213,12 +1244,13 @@ Eigen::Matrix4d Perception::Impl::Align(const CloudXYZ::Ptr& structure, const Lo
                                         const Eigen::AlignedBox2d& reach, double* fitness_out,
                                         bool* used_ransac) const {
   const PerceptionOptions& o = options;
-  const NormalCloud::Ptr& target = map.normals;  // the map's within reach
   // Point-to-plane ICP: the scene is mostly planes (floor, table tops, sides), along which
   // point-to-point ICP slides.
-  // Thinned to max_icp_points: each ICP iteration searches the map for every source point.
-  auto source = Thin<PointNormal>(WithNormals(Downsample(structure, 2.0 * o.voxel), 3.0 * o.voxel),
-                                  o.max_icp_points);
+  // Thinned to max_icp_points: each ICP iteration searches the map for every source point (and
+  // the normals are estimated for the points kept only, from all their neighbours).
+  const CloudXYZ::Ptr down = Downsample(structure, 2.0 * o.voxel);
+  auto source = WithNormals(Thin<PointXYZ>(down, o.max_icp_points), 3.0 * o.voxel, down);
+  const NormalCloud::Ptr& target = map.normals;  // the map's within reach
   const bool constrained = ConstrainsPose(*source, o.min_structure);
   const bool observable = source->size() >= 200 && target->size() >= 3 && constrained;
   pcl::IterativeClosestPointWithNormals<PointNormal, PointNormal> icp;
