@@ -8,7 +8,7 @@ set -euo pipefail
 NPFKCT_BUILD_PACKAGES=(
   build-essential cmake pkg-config
   libeigen3-dev libcli11-dev
-  nlohmann-json3-dev libcpp-httplib-dev libcurl4-openssl-dev libspdlog-dev libvalijson-dev
+  nlohmann-json3-dev rapidjson-dev libcpp-httplib-dev libcurl4-openssl-dev libspdlog-dev libvalijson-dev
   zlib1g-dev libbrotli-dev
   libopencv-dev libpcl-dev libtorch-dev libopenblas0-pthread
   liburdfdom-dev liborocos-kdl-dev

@@ -11,6 +11,7 @@
 #include <random>
 #include <sstream>
 
+#include "json_util.h"
 #include "npfkct/api/wire.h"
 #include "npfkct/object_search/planner_registry.h"
 #include "schema.h"
@@ -425,6 +426,90 @@ TEST(ParseBody, RefusesHostileJsonWhileParsing) {
   EXPECT_EQ(FieldOf(ParsePlan("[1, 2]", kLimits)), "body");
   EXPECT_EQ(FieldOf(ParsePlan("\xff\xfe", kLimits)), "body");
   EXPECT_TRUE(ParsePlan("", kLimits).ok());  // no body: the default budget
+}
+
+// ParseBody reads with RapidJSON; what it makes of a text must be what nlohmann's own parser
+// makes of it (the same value of the same types, or both refuse it), for edge cases of the
+// grammar and for bodies with random bytes changed.
+TEST(ParseBody, ReadsWhatNlohmannReads) {
+  auto same = [](const std::string& text) {
+    auto ours = internal::ParseBody(text, 1'000, 1'000'000, false);
+    const json theirs = json::parse(text, nullptr, /*allow_exceptions=*/false);
+    const bool they_read = !theirs.is_discarded() && theirs.is_object();
+    if (ours.ok() != they_read) {
+      ADD_FAILURE() << "accepted by " << (ours.ok() ? "ours" : "nlohmann") << ": " << text;
+      return;
+    }
+    if (ours.ok() && (*ours != theirs || ours->dump() != theirs.dump())) {
+      ADD_FAILURE() << text << " read as " << ours->dump() << " and " << theirs.dump();
+    }
+  };
+  using namespace std::string_literals;
+  const std::vector<std::string> cases = {
+      R"({"a": 0, "b": -0, "c": 1.0, "d": -1.5e-3, "e": 1E5, "f": 18446744073709551615})",
+      R"({"g": 18446744073709551616, "h": -9223372036854775808, "i": -9223372036854775809})",
+      R"({"j": 1e-400, "k": 0.1, "l": 123456789012345678901234567890, "m": 5e-324})",
+      R"({"n": 1e400})",
+      R"({"n": -1e309})",
+      R"({"o": 01})",
+      R"({"o": 1.})",
+      R"({"o": .5})",
+      R"({"o": +1})",
+      R"({"o": NaN})",
+      R"({"o": Infinity})",
+      R"({"o": 0x10})",
+      R"({"s": "\u00e9\u4e2d\ud83d\ude00 \" \\ \/ \b \f \n \r \t"})",
+      R"({"s": "\ud800"})",
+      R"({"s": "\udc00\ud800"})",
+      R"({"s": "\u0000"})",
+      "{\"s\": \"\x01\"}",
+      "{\"s\": \"\xc3\xa9\xe4\xb8\xad\xf0\x9f\x98\x80\"}",
+      "{\"s\": \"\xc0\xaf\"}",
+      "{\"s\": \"\xe0\x80\xaf\"}",
+      "{\"s\": \"\xed\xa0\x80\"}",
+      "{\"s\": \"\xf4\x90\x80\x80\"}",
+      "{\"s\": \"\xf8\x88\x80\x80\x80\"}",
+      "{\"s\": \"\xc3\"}",
+      "{\"s\": \"\xff\"}",
+      "{\"\xc3\xa9\": 1}",
+      "{\"\xc3\": 1}",
+      "\0{}"s,
+      "{\"a\":1\0}"s,
+      R"({"a": [1, 2, {"b": null, "c": [true, false, []]}], "a": "again"})",
+      " \t\r\n{}\n ",
+      R"({"a": 1,})",
+      R"({"a": [1,]})",
+      R"({'a': 1})",
+      R"({"a": 1} {})",
+      R"({"a": 1}])",
+      R"({"a" 1})",
+      R"({"a": tru})",
+      R"({"a": "unterminated)",
+      "// comment\n{}",
+      "\xef\xbb\xbf{}",
+      R"({"a": "\x"})",
+      R"({"a": "\u12"})",
+      R"({"a": "\u12G4"})"};
+  for (const std::string& text : cases) same(text);
+  // Where it is stricter: nlohmann's lexer takes a NUL byte for the end of the text, so that it
+  // read a body with anything after a NUL that follows the object.
+  EXPECT_EQ(FieldOf(internal::ParseBody("{} \0"s, 10, 100, false)), "body");
+  EXPECT_EQ(FieldOf(internal::ParseBody("{}\0{\"a\": 1}"s, 10, 100, false)), "body");
+  // Bodies with bytes changed: each byte of a request by turns, to characters that matter to
+  // the grammar and to bytes that are not UTF-8.
+  const std::string body =
+      R"({"robotState": {"x": -1.25, "y": 3e-2, "yaw": 0}, "ids": ["a\u00e9", "b"], )"
+      R"("n": [1, 22, 333], "ok": true, "none": null})";
+  const std::string replacements = "{}[]\",:.-+eE0 \\u\0\x80\xc3\xed\xff"s;
+  std::mt19937 rng(5);
+  for (int trial = 0; trial < 3'000; ++trial) {
+    std::string text = body;
+    const int changes = 1 + static_cast<int>(rng() % 3);
+    for (int c = 0; c < changes; ++c) {
+      text[rng() % text.size()] = replacements[rng() % replacements.size()];
+    }
+    if (text.find('\0') == std::string::npos) same(text);
+  }
 }
 
 TEST(ParsePlan, BudgetsWithinTheServersMaximum) {
