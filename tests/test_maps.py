@@ -153,3 +153,76 @@ def test_line_wrapped_base64_of_the_grid_is_read(server, tmp_path):
     world["occupancyGrid"]["data"] = base64.encodebytes(cells).decode()
     r = requests.post(server.url + "/v1/sessions", json={"world": world}, timeout=30)
     assert r.status_code == 200, r.text[:300]
+
+
+def write_table_pcd(path, data="binary", top=0.75):
+    """A point-cloud map of Loose1's table as PCL writes one (FIELDS x y z rgb): the floor
+    around it, its top at `top` on a 1 cm grid, four legs, a box standing on it (0.75-0.9 m) and
+    a NaN point; DATA binary or ascii."""
+    import struct
+    points = [(x / 100.0, y / 100.0, 0.0) for x in range(60, 260, 2) for y in range(-80, 80, 2)]
+    points += [(x / 100.0, y / 100.0, top) for x in range(100, 221) for y in range(-40, 41)]
+    points += [(cx, cy, z / 100.0) for cx in (1.05, 2.15) for cy in (-0.35, 0.35)
+               for z in range(0, round(top * 100))]
+    points += [(x / 100.0, y / 100.0, top + z / 100.0) for x in range(150, 161)
+               for y in range(-5, 6) for z in range(0, 16)]
+    points.append((float("nan"), 0.0, 0.0))
+    header = ("# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS x y z rgb\n"
+              "SIZE 4 4 4 4\nTYPE F F F U\nCOUNT 1 1 1 1\n"
+              f"WIDTH {len(points)}\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS {len(points)}\n"
+              f"DATA {data}\n")
+    with open(path, "wb") as f:
+        f.write(header.encode())
+        if data == "binary":
+            f.write(b"".join(struct.pack("<fffI", x, y, z, 0x00808080) for x, y, z in points))
+        else:
+            f.write("".join(f"{x} {y} {z} 8421504\n" for x, y, z in points).encode())
+    return len(points)
+
+
+def test_the_workspaces_heights_come_from_a_point_cloud_map(server, tmp_path):
+    """Workspaces traced without a height get the table top's from a PCD (binary or ascii), the
+    box on the table and the legs notwithstanding; the command-line client sends them."""
+    from npfkct_client import read_pcd, workspace_heights
+    for data in ("binary", "ascii"):
+        pcd = str(tmp_path / f"table_{data}.pcd")
+        total = write_table_pcd(pcd, data)
+        points = read_pcd(pcd)
+        assert len(points) == total - 1  # the NaN point left out
+        measured = workspace_heights([{"name": "table", "polygon": TABLE}], points)
+        assert measured[0]["height"] == pytest.approx(0.75, abs=0.011)
+    write_table_pcd(str(tmp_path / "low.pcd"), top=0.42)
+    assert workspace_heights([{"name": "table", "polygon": TABLE}],
+                             read_pcd(str(tmp_path / "low.pcd")))[0]["height"] == pytest.approx(
+                                 0.42, abs=0.011)
+    # Given heights are kept; a workspace the cloud does not reach is an error naming it.
+    given = [{"name": "table", "polygon": TABLE, "height": 0.7}]
+    assert workspace_heights(given, points) == given
+    with pytest.raises(ValueError, match="workspace shelf"):
+        workspace_heights([{"name": "shelf", "polygon": [[-2, -2], [-1, -2], [-1, -1]]}], points)
+    # The command-line client: the map files, the workspaces without heights, the PCD.
+    yaml_path = write_loose1_map(str(tmp_path))
+    workspaces = tmp_path / "workspaces.json"
+    workspaces.write_text(json.dumps([{"name": "table", "polygon": TABLE}]))
+    env = dict(os.environ, PYTHONPATH=os.path.join(ROOT, "clients", "python"))
+    command = [sys.executable, "-m", "npfkct_client", "--server", server.url, "create",
+               "--scenario", os.path.join(ROOT, "scenarios", "loose1.json"), "--map", yaml_path,
+               "--workspaces", str(workspaces)]
+    out = subprocess.run(command + ["--pcd", str(tmp_path / "table_binary.pcd")],
+                         capture_output=True, text=True, timeout=60, env=env)
+    assert out.returncode == 0, out.stderr
+    session = json.loads(out.stdout)
+    assert session["state"] == "READY"
+    belief = requests.get(f"{server.url}/v1/sessions/{session['id']}/belief", timeout=10)
+    assert belief.status_code == 200, belief.text[:300]
+    assert [w["height"] for w in belief.json()["grid"]["workspaces"]] == [
+        pytest.approx(0.75, abs=0.011)]
+    # Without the PCD, or with one PCL compressed, the client says why and sends nothing.
+    out = subprocess.run(command, capture_output=True, text=True, timeout=60, env=env)
+    assert out.returncode == 2 and "point-cloud map" in out.stderr
+    compressed = tmp_path / "compressed.pcd"
+    compressed.write_bytes(b"VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\n"
+                           b"WIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA binary_compressed\n\0\0\0\0")
+    out = subprocess.run(command + ["--pcd", str(compressed)], capture_output=True, text=True,
+                         timeout=60, env=env)
+    assert out.returncode == 2 and "binary_compressed" in out.stderr

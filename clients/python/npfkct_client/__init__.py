@@ -19,8 +19,8 @@ from npfkct_client.client import (
     Session,
     Stats,
 )
-from npfkct_client.maps import (occupancy_grid_from_map_files, slam_world, traced_workspaces,
-                                write_map_files)
+from npfkct_client.maps import (occupancy_grid_from_map_files, read_pcd, slam_world,
+                                traced_workspaces, workspace_heights, write_map_files)
 from npfkct_client.world import World
 
 __all__ = [
@@ -41,7 +41,9 @@ __all__ = [
     "Stats",
     "World",
     "occupancy_grid_from_map_files",
+    "read_pcd",
     "slam_world",
     "traced_workspaces",
+    "workspace_heights",
     "write_map_files",
 ]

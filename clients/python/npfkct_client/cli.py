@@ -2,6 +2,7 @@
 
   npfkct-client --server URL create --scenario FILE [--planner NAME] [--model NAME] [--seed N]
                 [--map MAP.yaml]   (a ROS map_server occupancy grid for the room)
+                [--workspaces WS.json [--pcd MAP.pcd]]   (traced workspaces; heights from a PCD)
   npfkct-client --server URL plan ID [--time-ms MS] [--cpu-ms MS] [--simulations N]
   npfkct-client --server URL observe ID --action-id A --body FILE   (an :observe body as JSON)
   npfkct-client --server URL get ID | belief ID [--png OUT] | list | delete ID | health
@@ -35,6 +36,10 @@ def main(argv=None) -> int:
     create.add_argument("--seed", type=int)
     create.add_argument("--map", help="a ROS map_server YAML (with its PGM): the occupancy grid "
                         "in place of the scenario's room")
+    create.add_argument("--workspaces", help="a JSON file with a list of workspaces "
+                        "({name, polygon, height}) in place of the scenario's")
+    create.add_argument("--pcd", help="a point-cloud map (PCD) that gives the heights the "
+                        "workspaces file leaves out")
     plan = sub.add_parser("plan", help="plan the next action")
     plan.add_argument("id")
     plan.add_argument("--time-ms", type=float)
@@ -60,6 +65,9 @@ def main(argv=None) -> int:
             world = World.from_scenario(args.scenario)
             if args.map:
                 world = world.with_map_files(args.map)
+            if args.workspaces:
+                with open(args.workspaces, encoding="utf-8") as f:
+                    world = world.with_workspaces(json.load(f), args.pcd)
             out = client.create_session(world, planner=args.planner, seed=args.seed,
                                         model=args.model).raw
         elif args.command == "plan":
@@ -88,6 +96,9 @@ def main(argv=None) -> int:
             out = {"sessions": [s.raw for s in client.list_sessions()]}
         else:
             out = client.health()
+    except (ValueError, OSError) as e:  # a file the client reads: map, workspaces, PCD
+        print(json.dumps({"error": {"message": str(e)}}), file=sys.stderr)
+        return 2
     except ApiError as e:
         print(json.dumps({"error": {"status": e.status, "message": e.message,
                                     "field": e.field,

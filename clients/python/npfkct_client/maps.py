@@ -1,5 +1,6 @@
 """SLAM maps for a session's world: ROS map_server's YAML + PGM pair as the occupancyGrid the
-server takes (the fields of nav_msgs/OccupancyGrid)."""
+server takes (the fields of nav_msgs/OccupancyGrid), and the workspaces' heights from the
+point-cloud map (a PCD file)."""
 
 import base64
 import os
@@ -133,4 +134,104 @@ def slam_world(world: Dict[str, Any], yaml_path: str) -> Dict[str, Any]:
     out = {key: world[key] for key in ("robot", "start", "params") if key in world}
     out["occupancyGrid"] = occupancy_grid_from_map_files(yaml_path)
     out["workspaces"] = traced_workspaces(world)
+    return out
+
+
+# The PCD field types read_pcd decodes (struct codes by TYPE and SIZE).
+_PCD_TYPES = {("F", 4): "f", ("F", 8): "d", ("I", 1): "b", ("I", 2): "h", ("I", 4): "i",
+              ("I", 8): "q", ("U", 1): "B", ("U", 2): "H", ("U", 4): "I", ("U", 8): "Q"}
+
+
+def read_pcd(path: str, max_points: int = 20_000_000) -> List[Tuple[float, float, float]]:
+    """The x, y, z of every finite point of a PCD file (PCL's point cloud format, version 0.7:
+    DATA ascii or binary; binary_compressed is refused, as a cloud of more than `max_points`).
+    RTAB-Map and PCL write the point-cloud map of a SLAM session in this form."""
+    import math
+    import struct
+
+    with open(path, "rb") as f:
+        data = f.read()
+    header: Dict[str, List[str]] = {}
+    offset = 0
+    while "DATA" not in header:
+        end = data.find(b"\n", offset)
+        if end < 0:
+            raise ValueError(f"{path}: PCD header ends before DATA")
+        line = data[offset:end].decode("ascii", "replace").strip()
+        offset = end + 1
+        if line and not line.startswith("#"):
+            key, *values = line.split()
+            header[key.upper()] = values
+    fields = header.get("FIELDS", [])
+    sizes = [int(v) for v in header.get("SIZE", [])]
+    types = [v.upper() for v in header.get("TYPE", [])]
+    counts = [int(v) for v in header.get("COUNT", ["1"] * len(fields))]
+    if not (len(fields) == len(sizes) == len(types) == len(counts)) or not all(
+            (t, s) in _PCD_TYPES for t, s in zip(types, sizes)):
+        raise ValueError(f"{path}: PCD FIELDS, SIZE, TYPE and COUNT disagree")
+    for axis in "xyz":
+        if axis not in fields:
+            raise ValueError(f"{path}: PCD has no field {axis}")
+    points = int(header.get("POINTS", ["0"])[0])
+    if not 0 <= points <= max_points:
+        raise ValueError(f"{path}: {points} points, at most {max_points} read")
+    mode = header["DATA"][0].lower()
+    # Where x, y and z start among a point's values.
+    starts = [sum(counts[:i]) for i in range(len(fields))]
+    ix, iy, iz = (starts[fields.index(a)] for a in "xyz")
+    if mode == "ascii":
+        rows = (line.split() for line in data[offset:].decode("ascii").splitlines()[:points])
+        values = ((float(r[ix]), float(r[iy]), float(r[iz])) for r in rows if r)
+    elif mode == "binary":
+        codes = "".join(_PCD_TYPES[(t, s)] * c for t, s, c in zip(types, sizes, counts))
+        record = struct.Struct("<" + codes)
+        if len(data) - offset < points * record.size:
+            raise ValueError(f"{path}: PCD data shorter than its {points} points")
+        values = ((r[ix], r[iy], r[iz]) for r in record.iter_unpack(
+            data[offset:offset + points * record.size]))
+    else:
+        raise ValueError(f"{path}: PCD DATA {mode} is not read (save it as binary or ascii)")
+    return [(x, y, z) for x, y, z in values if math.isfinite(x + y + z)]
+
+
+def _inside(polygon: List[List[float]], x: float, y: float) -> bool:
+    """Whether (x, y) lies inside the polygon (even-odd rule)."""
+    inside = False
+    for (x0, y0), (x1, y1) in zip(polygon, polygon[1:] + polygon[:1]):
+        if (y0 > y) != (y1 > y) and x < x0 + (y - y0) * (x1 - x0) / (y1 - y0):
+            inside = not inside
+    return inside
+
+
+def workspace_heights(workspaces: List[Dict[str, Any]],
+                      points: List[Tuple[float, float, float]], low: float = 0.2,
+                      high: float = 2.0, bin_size: float = 0.01) -> List[Dict[str, Any]]:
+    """The workspaces with each missing "height" measured in a point-cloud map (map frame, z
+    up): the most populated height, in bins of `bin_size` between `low` and `high`, of the
+    points inside the workspace's polygon (a table top is the one horizontal surface there that
+    the map sees whole; its legs and what stands on it spread over many heights), refined to the
+    mean height of the points in that bin and its two neighbours. A workspace with no point in
+    that band is an error naming it."""
+    out = []
+    for w in workspaces:
+        w = dict(w)
+        if "height" not in w:
+            xs = [p[0] for p in w["polygon"]]
+            ys = [p[1] for p in w["polygon"]]
+            count: Dict[int, int] = {}
+            total: Dict[int, float] = {}
+            for x, y, z in points:
+                if (low < z < high and min(xs) <= x <= max(xs) and min(ys) <= y <= max(ys)
+                        and _inside(w["polygon"], x, y)):
+                    k = int(z / bin_size)
+                    count[k] = count.get(k, 0) + 1
+                    total[k] = total.get(k, 0.0) + z
+            if not count:
+                raise ValueError(f"workspace {w.get('name', '?')}: no point of the cloud on it "
+                                 f"between {low} and {high} m")
+            best = max(count, key=lambda k: (count[k], k))
+            near = [best - 1, best, best + 1]
+            w["height"] = round(sum(total.get(k, 0.0) for k in near) /
+                                sum(count.get(k, 0) for k in near), 4)
+        out.append(w)
     return out
