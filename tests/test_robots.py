@@ -4,6 +4,7 @@ lift plans with the lift at 0. Bad robots get a 400 naming the field. A robot of
 SLAM map with its detector's boxes finds the target."""
 
 import json
+import math
 import os
 import subprocess
 import tempfile
@@ -95,6 +96,11 @@ def test_bad_robots_name_the_field():
              "world.robot.joints[0].role"),
             ({"joints": [{"type": "prismatic", "axis": [0, 0, 0]}]}, "world.robot.joints[0].axis"),
             ("roomba", "world.robot"),
+            ({"joints": [], "footprint": [[0, 0], [0.4, 0.2], [0.4, 0], [0, 0.4]]},
+             "world.robot.footprint[2]"),
+            ({"joints": [], "footprint": [[0, 0], [0.5, 0], [1.0, 0]]}, "world.robot.footprint"),
+            (dict(FETCH, urdf=urdf("fetch_head.urdf"), footprint=[[0, 0], [9, 0], [0, 1]]),
+             "world.robot.footprint[1]"),
         ]
         for robot, field in cases:
             r = create(server.url, robot)
@@ -222,3 +228,91 @@ def test_a_robots_camera_is_its_own(server):
         r = create(server.url, dict(DIFFDRIVE_JSON, camera=camera))
         assert r.status_code == 400, r.text
         assert r.json()["error"]["details"][0]["fieldViolations"][0]["field"] == field, r.text
+
+
+def _corners(center, size, yaw):
+    """A box's (or a rectangle's) corners in the plane."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    return [(center[0] + c * u - s * v, center[1] + s * u + c * v)
+            for u, v in ((-size[0] / 2, -size[1] / 2), (size[0] / 2, -size[1] / 2),
+                         (size[0] / 2, size[1] / 2), (-size[0] / 2, size[1] / 2))]
+
+
+def _overlap(p, q):
+    """Whether two convex polygons overlap (separating axis theorem)."""
+    for poly in (p, q):
+        for (x0, y0), (x1, y1) in zip(poly, poly[1:] + poly[:1]):
+            nx, ny = y0 - y1, x1 - x0
+            a = [nx * x + ny * y for x, y in p]
+            b = [nx * x + ny * y for x, y in q]
+            if max(a) <= min(b) or max(b) <= min(a):
+                return False
+    return True
+
+
+# A long, narrow base (a 0.8 m x 0.36 m cart) with Fetch's head chain.
+CART = [[0.4, 0.18], [-0.4, 0.18], [-0.4, -0.18], [0.4, -0.18]]
+
+
+def test_a_rectangular_base_plans_where_its_outline_fits_and_finds_the_target(tmp_path):
+    """A robot whose footprint is a polygon: the simulated robot moves it (its outline against
+    the map), every base the server plans keeps the outline clear of the furniture at the planned
+    heading, the target is found, and the outline is the belief's (and survives a restart)."""
+    robot = {"name": "cart", "footprint": CART, "reach": 0.9,
+             "joints": [{"type": "fixed", "xyz": [0.2, 0.0, 1.0]},
+                        {"name": "pan", "type": "revolute", "role": "pan", "axis": [0, 0, 1],
+                         "lower": -1.5, "upper": 1.5},
+                        {"name": "tilt", "type": "revolute", "role": "tilt", "axis": [0, 1, 0],
+                         "lower": 0.0, "upper": 1.0}]}
+    with open(os.path.join(ROOT, "scenarios", "loose1.json"), encoding="utf-8") as f:
+        scenario = json.load(f)
+    scenario["robot"] = robot
+    scenario_path = str(tmp_path / "loose1-cart.json")
+    with open(scenario_path, "w", encoding="utf-8") as f:
+        json.dump(scenario, f)
+    world = world_of("loose1")
+    world["robot"] = robot
+    state = str(tmp_path / "state")
+    server = ServerProcess("--state-dir", state)
+    sim = subprocess.Popen([ROBOT_BIN, "--scenario", scenario_path, "--seed", "2"],
+                           stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        r = requests.post(server.url + "/v1/sessions", json={"world": world, "seed": 2},
+                          timeout=60)
+        assert r.status_code == 200, r.text
+        sid, done, bases = r.json()["id"], False, 0
+        belief = requests.get(f"{server.url}/v1/sessions/{sid}/belief", timeout=10).json()
+        assert belief["robotFootprint"] == CART
+        assert belief["robotRadius"] == pytest.approx(math.hypot(0.4, 0.18))
+        for _ in range(30):
+            plan = requests.post(f"{server.url}/v1/sessions/{sid}:plan",
+                                 json={"budget": {"simulations": 300}}, timeout=60).json()
+            action = plan["action"]
+            if action["type"] == "MOVE":
+                c = action["configuration"]
+                outline = [(c["x"] + math.cos(c["yaw"]) * x - math.sin(c["yaw"]) * y,
+                            c["y"] + math.sin(c["yaw"]) * x + math.cos(c["yaw"]) * y)
+                           for x, y in CART]
+                for f in world["furniture"]:
+                    assert not _overlap(outline, _corners(f["center"], f["size"],
+                                                          f.get("yaw", 0.0))), (c, f["name"])
+                bases += 1
+            sim.stdin.write(json.dumps(action) + "\n")
+            sim.stdin.flush()
+            reply = json.loads(sim.stdout.readline())
+            assert reply["outcome"].get("detail") != "base pose collides with the map", reply
+            body = dict(reply["observation"], actionId=plan["actionId"])
+            o = requests.post(f"{server.url}/v1/sessions/{sid}:observe", json=body, timeout=60)
+            assert o.status_code == 200, o.text[:300]
+            done = o.json()["done"]
+            if done:
+                break
+        assert done and bases > 0
+        assert server.stop() == 0
+        server = ServerProcess("--state-dir", state)
+        belief = requests.get(f"{server.url}/v1/sessions/{sid}/belief", timeout=10).json()
+        assert belief["robotFootprint"] == CART
+    finally:
+        sim.stdin.close()
+        sim.wait(timeout=10)
+        assert server.stop() == 0

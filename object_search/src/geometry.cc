@@ -181,6 +181,38 @@ Status RobotDescription::Validate() {
   if (chain.size() > static_cast<size_t>(kMaxJoints)) {
     return InvalidFieldError("joints", "at most " + std::to_string(kMaxJoints) + " joints");
   }
+  if (!footprint.empty()) {
+    const size_t n = footprint.size();
+    if (n < 3 || n > static_cast<size_t>(kMaxFootprintVertices)) {
+      return InvalidFieldError(
+          "footprint", "must have 3 to " + std::to_string(kMaxFootprintVertices) + " vertices");
+    }
+    double area = 0.0, radius = 0.0;
+    for (size_t i = 0; i < n; ++i) {
+      if (!footprint[i].allFinite() || footprint[i].norm() > 5.0) {
+        return InvalidFieldError("footprint[" + std::to_string(i) + "]",
+                                 "must be finite and within 5 m of the base");
+      }
+      const Eigen::Vector2d& a = footprint[i];
+      const Eigen::Vector2d& b = footprint[(i + 1) % n];
+      area += 0.5 * (a.x() * b.y() - b.x() * a.y());
+      radius = std::max(radius, a.norm());
+    }
+    if (!(std::abs(area) >= 1e-4)) {
+      return InvalidFieldError("footprint", "must enclose an area (at least 1 cm^2)");
+    }
+    for (size_t i = 0; i < n; ++i) {
+      for (size_t k = i + 2; k < n; ++k) {
+        if (i == 0 && k == n - 1) continue;  // neighbours through the closing edge
+        if (SegmentDistance(footprint[i], footprint[i + 1], footprint[k], footprint[(k + 1) % n]) ==
+            0.0) {
+          return InvalidFieldError("footprint[" + std::to_string(k) + "]",
+                                   "the polygon's edges cross (it must be simple)");
+        }
+      }
+    }
+    footprint_radius = radius;
+  }
   if (!(footprint_radius > 0.0 && footprint_radius <= 5.0)) {
     return InvalidFieldError("footprintRadius", "must be in (0, 5] m");
   }
@@ -190,8 +222,9 @@ Status RobotDescription::Validate() {
   }
   if (!(camera.aspect >= 0.05 && camera.aspect <= 20.0) ||
       !(std::atan(camera.aspect * std::tan(0.5 * camera.horizontal_fov)) < 1.5)) {
-    return InvalidFieldError("camera.aspect", "must be in [0.05, 20], the vertical field of view "
-                                              "under 3 rad");
+    return InvalidFieldError("camera.aspect",
+                             "must be in [0.05, 20], the vertical field of view "
+                             "under 3 rad");
   }
   if (!(camera.near > 0.0 && camera.near < camera.far)) {
     return InvalidFieldError("camera.near", "must be in (0, far)");
@@ -295,6 +328,63 @@ bool InFrustum(const CameraModel& camera, const CameraPose& pose, const Vec3& p,
   if (depth < camera.near || depth > camera.far) return false;
   return std::abs(q.y()) <= depth * tan_half_horizontal &&
          std::abs(q.z()) <= depth * (camera.aspect * tan_half_horizontal);
+}
+
+namespace {
+
+// The distance from p to segment ab.
+double PointSegmentDistance(const Eigen::Vector2d& p, const Eigen::Vector2d& a,
+                            const Eigen::Vector2d& b) {
+  const Eigen::Vector2d ab = b - a;
+  const double length2 = ab.squaredNorm();
+  const double t = length2 > 0.0 ? std::clamp((p - a).dot(ab) / length2, 0.0, 1.0) : 0.0;
+  return (a + t * ab - p).norm();
+}
+
+// The sign of the turn a -> b -> c: > 0 left, < 0 right, 0 collinear.
+double Turn(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& c) {
+  const Eigen::Vector2d u = b - a, v = c - a;
+  return u.x() * v.y() - u.y() * v.x();
+}
+
+}  // namespace
+
+double SegmentDistance(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& c,
+                       const Eigen::Vector2d& d) {
+  const double d1 = Turn(c, d, a), d2 = Turn(c, d, b), d3 = Turn(a, b, c), d4 = Turn(a, b, d);
+  if (((d1 > 0 && d2 < 0) || (d1 < 0 && d2 > 0)) && ((d3 > 0 && d4 < 0) || (d3 < 0 && d4 > 0))) {
+    return 0.0;  // they cross
+  }
+  return std::min({PointSegmentDistance(a, c, d), PointSegmentDistance(b, c, d),
+                   PointSegmentDistance(c, a, b), PointSegmentDistance(d, a, b)});
+}
+
+bool InsidePolygon(const std::vector<Eigen::Vector2d>& polygon, const Eigen::Vector2d& p) {
+  bool inside = false;
+  for (size_t i = 0, j = polygon.size() - 1; i < polygon.size(); j = i++) {
+    const Eigen::Vector2d& a = polygon[i];
+    const Eigen::Vector2d& b = polygon[j];
+    if ((a.y() > p.y()) != (b.y() > p.y()) &&
+        p.x() < a.x() + (p.y() - a.y()) * (b.x() - a.x()) / (b.y() - a.y())) {
+      inside = !inside;
+    }
+  }
+  return inside;
+}
+
+double PolygonDistance(const std::vector<Eigen::Vector2d>& p,
+                       const std::vector<Eigen::Vector2d>& q) {
+  if (p.empty() || q.empty()) return std::numeric_limits<double>::infinity();
+  if (InsidePolygon(p, q[0]) || InsidePolygon(q, p[0])) return 0.0;
+  double best = std::numeric_limits<double>::infinity();
+  for (size_t i = 0; i < p.size(); ++i) {
+    for (size_t k = 0; k < q.size(); ++k) {
+      best =
+          std::min(best, SegmentDistance(p[i], p[(i + 1) % p.size()], q[k], q[(k + 1) % q.size()]));
+      if (best == 0.0) return 0.0;
+    }
+  }
+  return best;
 }
 
 double WrapAngle(double a) {

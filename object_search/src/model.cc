@@ -193,7 +193,7 @@ StepResult<State, Observation> ObjectSearchModel::Step(const State& s, const Act
   ActionOutcome outcome = ActionOutcome::kIllegal;
   if (a.kind == kMoveKind) {
     const RobotConfig c = a.x.size() == 6 ? ConfigOf(a.x) : s.robot;
-    if (a.x.size() == 6 && world_->BaseFeasible(c.x, c.y)) {
+    if (a.x.size() == 6 && world_->BaseFeasible(c.x, c.y, c.yaw)) {
       n.robot = c;
       outcome = ActionOutcome::kMoved;
     }
@@ -258,7 +258,7 @@ bool ObjectSearchModel::IsFeasible(const State& s, const Action& a) const {
         c.tilt < r.tilt_min || c.tilt > r.tilt_max) {
       return false;
     }
-    return world_->BaseFeasible(c.x, c.y);
+    return world_->BaseFeasible(c.x, c.y, c.yaw);
   }
   if (a.kind < 1 || a.x.size() != 0) return false;
   const int i = KindObject(a.kind);
@@ -371,7 +371,8 @@ HybridAction ObjectSearchModel::RolloutAction(const State& s, Rng& rng) const {
   // A random configuration whose base is feasible (a few tries, else stay).
   for (int tries = 0; tries < 8; ++tries) {
     a.x = move_space_.SampleUniform(rng);
-    if (world_->BaseFeasible(a.x[0], a.x[1])) return a;
+    const RobotConfig c = ConfigOf(a.x);
+    if (world_->BaseFeasible(c.x, c.y, c.yaw)) return a;
   }
   a.x = VecOf(s.robot);
   return a;

@@ -152,7 +152,7 @@ void ProposeMoves(const ObjectSearchModel& model, const ProposalOptions& options
       bool feasible = false;
       for (int tries = 0; tries < 64 && !feasible; ++tries) {
         c = ObjectSearchModel::ConfigOf(box.SampleUniform(rng));
-        feasible = w.BaseFeasible(c.x, c.y);
+        feasible = w.BaseFeasible(c.x, c.y, c.yaw);
       }
       // A world where hardly any base is free: no proposal rather than one the robot cannot
       // take (the filter kept those, and the search answered a base inside the furniture).

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <numbers>
 #include <random>
 
 namespace npfkct::object_search {
@@ -174,6 +175,37 @@ bool OccupancyMap::DiscFree(double x, double y, double radius) const {
   return true;
 }
 
+bool OccupancyMap::FootprintFree(const RobotDescription& robot, double x, double y, double yaw,
+                                 double clearance) const {
+  if (robot.footprint.empty()) return DiscFree(x, y, robot.footprint_radius + clearance);
+  const double reach = robot.footprint_radius + clearance;
+  // Inside the map, by the circle around the footprint (as DiscFree).
+  if (x - reach < min_.x() || y - reach < min_.y() || x + reach > max_.x() ||
+      y + reach > max_.y()) {
+    return false;
+  }
+  if (occupied_.empty()) return true;
+  const Eigen::Rotation2Dd turn(yaw);
+  std::vector<Vec2> outline;
+  for (const Vec2& v : robot.footprint) outline.push_back(Vec2(x, y) + turn * v);
+  const int x0 = std::max(0, static_cast<int>((x - reach - min_.x()) / resolution_));
+  const int x1 = std::min(nx_ - 1, static_cast<int>((x + reach - min_.x()) / resolution_));
+  const int y0 = std::max(0, static_cast<int>((y - reach - min_.y()) / resolution_));
+  const int y1 = std::min(ny_ - 1, static_cast<int>((y + reach - min_.y()) / resolution_));
+  std::vector<Vec2> cell(4);
+  for (int iy = y0; iy <= y1; ++iy) {
+    for (int ix = x0; ix <= x1; ++ix) {
+      if (!occupied_[iy * nx_ + ix]) continue;
+      const Vec2 lo = min_ + resolution_ * Vec2(ix, iy);
+      cell = {lo, lo + Vec2(resolution_, 0), lo + Vec2(resolution_, resolution_),
+              lo + Vec2(0, resolution_)};
+      const double d = PolygonDistance(outline, cell);
+      if (clearance > 0.0 ? d < clearance : d == 0.0) return false;
+    }
+  }
+  return true;
+}
+
 Status OccupancyMap::SetCells(const std::vector<uint8_t>& cells) {
   if (cells.size() != occupied_.size()) {
     return InvalidArgumentError("occupancy: expected " + std::to_string(occupied_.size()) +
@@ -260,10 +292,19 @@ bool World::BasePointAt(double pick, double u, double v, double* x, double* y) c
   return true;
 }
 
-bool World::BaseFeasible(double x, double y) const {
+bool World::BaseFeasible(double x, double y, double yaw) const {
   bool in_region = false;
   for (const BaseRegion& r : base_regions) in_region |= r.Contains(x, y);
-  return in_region && occupancy.DiscFree(x, y, robot.footprint_radius + params.base_clearance);
+  return in_region && occupancy.FootprintFree(robot, x, y, yaw, params.base_clearance);
+}
+
+bool World::BaseFeasible(double x, double y) const {
+  if (robot.footprint.empty()) return BaseFeasible(x, y, 0.0);
+  constexpr int kHeadings = 16;
+  for (int k = 0; k < kHeadings; ++k) {
+    if (BaseFeasible(x, y, 2.0 * std::numbers::pi * k / kHeadings)) return true;
+  }
+  return false;
 }
 
 int World::FindObject(const std::string& key) const {
@@ -451,7 +492,8 @@ StatusOr<World> BuildWorld(const PriorMap& prior) {
                                  " m with its clearance) free of the furniture and the walls");
   }
   // The start need not be in a base region, but the footprint must be free.
-  if (!world.occupancy.DiscFree(prior.start.x, prior.start.y, world.robot.footprint_radius)) {
+  if (!world.occupancy.FootprintFree(world.robot, prior.start.x, prior.start.y, prior.start.yaw,
+                                     0.0)) {
     return InvalidFieldError("start", "the robot's footprint collides with the map");
   }
   return world;

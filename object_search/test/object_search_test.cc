@@ -708,6 +708,50 @@ TEST(WorldTest, AddBoxMarksExactlyTheCellsWhoseCentersTheBoxCovers) {
   }
 }
 
+// A rectangular base (0.9 m x 0.3 m) between two boxes 0.5 m apart: it fits lengthwise along the
+// gap, not across it, where the disc around it fits neither way; its polygon's checks name the
+// vertex; a robot without a polygon is the disc at any heading.
+TEST(WorldTest, AFootprintPolygonFitsWhereItsHeadingLetsIt) {
+  OccupancyMap map(Vec2(-2, -2), Vec2(2, 2), 0.05);
+  Box left, right;
+  left.center = Vec3(0, 0.75, 0.4);
+  right.center = Vec3(0, -0.75, 0.4);
+  left.size = right.size = Vec3(2.0, 1.0, 0.8);  // the gap: |y| < 0.25
+  map.AddBox(left);
+  map.AddBox(right);
+  RobotDescription robot = RobotDescription::Fetch();
+  robot.footprint = {Vec2(0.45, 0.15), Vec2(-0.45, 0.15), Vec2(-0.45, -0.15), Vec2(0.45, -0.15)};
+  ASSERT_TRUE(robot.Validate().ok());
+  EXPECT_NEAR(robot.footprint_radius, std::hypot(0.45, 0.15), 1e-12);
+  EXPECT_TRUE(map.FootprintFree(robot, 0.0, 0.0, 0.0, 0.0));
+  EXPECT_TRUE(map.FootprintFree(robot, 0.0, 0.0, std::numbers::pi, 0.05));
+  EXPECT_FALSE(map.FootprintFree(robot, 0.0, 0.0, 0.0, 0.15));  // the clearance touches
+  EXPECT_FALSE(map.FootprintFree(robot, 0.0, 0.0, 0.5 * std::numbers::pi, 0.0));
+  EXPECT_FALSE(map.FootprintFree(robot, 0.0, 0.12, 0.0, 0.0));  // its side in the box
+  EXPECT_FALSE(map.FootprintFree(robot, 1.8, 0.0, 0.0, 0.0));   // past the map's edge
+  RobotDescription disc = RobotDescription::Fetch();
+  disc.footprint_radius = robot.footprint_radius;
+  for (double yaw : {0.0, 0.5 * std::numbers::pi}) {
+    EXPECT_FALSE(map.FootprintFree(disc, 0.0, 0.0, yaw, 0.0));
+  }
+  disc.footprint_radius = 0.2;
+  EXPECT_EQ(map.FootprintFree(disc, 0.0, 0.0, 1.0, 0.0), map.DiscFree(0.0, 0.0, 0.2));
+  // The polygon's checks.
+  auto field = [](std::vector<Vec2> footprint) {
+    RobotDescription r = RobotDescription::Fetch();
+    r.footprint = std::move(footprint);
+    const Status s = r.Validate();
+    return s.ok() ? std::string("ok") : s.field_violations()[0].field;
+  };
+  EXPECT_EQ(field({Vec2(0, 0), Vec2(0.4, 0.2), Vec2(0.4, 0), Vec2(0, 0.4)}),
+            "footprint[2]");  // a bow tie: its edges cross
+  EXPECT_EQ(field({Vec2(0, 0), Vec2(1, 0)}), "footprint");
+  EXPECT_EQ(field({Vec2(0, 0), Vec2(1, 0), Vec2(2, 0)}), "footprint");  // no area
+  EXPECT_EQ(field({Vec2(0, 0), Vec2(6, 0), Vec2(0, 1)}), "footprint[1]");
+  EXPECT_EQ(field({Vec2(0, 0), Vec2(std::nan(""), 0), Vec2(0, 1)}), "footprint[1]");
+  EXPECT_EQ(field({Vec2(0.3, 0), Vec2(-0.2, 0.2), Vec2(-0.2, -0.2)}), "ok");
+}
+
 TEST(WorldTest, BuildWorldNamesThePartOfThePriorMap) {
   PriorMap prior;
   prior.furniture.push_back({"table", {Vec3(1.5, 0, 0.375), 0.0, Vec3(1, 1, 0.75)}, true});

@@ -174,7 +174,19 @@ void DrawRobot(cv::Mat& img, const Frame& f, const World& world, const RobotConf
   }
   const int radius = std::max(2, cvRound(world.robot.footprint_radius * f.ppm));
   const cv::Point center = f.Px(c.x, c.y);
-  if (dashed) {
+  if (!world.robot.footprint.empty()) {  // the base's outline at its heading
+    const Eigen::Rotation2Dd turn(c.yaw);
+    std::vector<cv::Point> outline;
+    for (const auto& v : world.robot.footprint) {
+      const Eigen::Vector2d p = Eigen::Vector2d(c.x, c.y) + turn * v;
+      outline.push_back(f.Px(p.x(), p.y()));
+    }
+    if (dashed) {
+      DashedPolygon(img, outline, color, 2);
+    } else {
+      cv::polylines(img, outline, true, color, 2, cv::LINE_AA);
+    }
+  } else if (dashed) {
     const int n = 24;
     for (int i = 0; i < n; i += 2) {
       cv::ellipse(img, center, cv::Size(radius, radius), 0, 360.0 * i / n, 360.0 * (i + 1) / n,

@@ -185,14 +185,21 @@ function heatImage(ws) {
   return canvas.toDataURL('image/png');
 }
 
-function robotShape(group, config, radius, frustum, color, dashed, unit) {
+function robotShape(group, config, radius, footprint, frustum, color, dashed, unit) {
   const g = svg('g', {class: dashed ? 'next-view' : 'robot'});
   const dash = dashed ? {'stroke-dasharray': `${4 * unit} ${3 * unit}`} : {};
   g.append(svg('polygon', {points: points(frustum), fill: color,
                            'fill-opacity': dashed ? 0.1 : 0.16, stroke: color,
                            'stroke-width': unit, ...dash}));
-  g.append(svg('circle', {cx: config.x, cy: config.y, r: radius, fill: 'none', stroke: color,
-                          'stroke-width': 2 * unit, ...dash}));
+  if (footprint) {  // the base's outline at its heading
+    const c = Math.cos(config.yaw), s = Math.sin(config.yaw);
+    g.append(svg('polygon', {points: points(footprint.map(([x, y]) =>
+                               [config.x + c * x - s * y, config.y + s * x + c * y])),
+                             fill: 'none', stroke: color, 'stroke-width': 2 * unit, ...dash}));
+  } else {
+    g.append(svg('circle', {cx: config.x, cy: config.y, r: radius, fill: 'none', stroke: color,
+                            'stroke-width': 2 * unit, ...dash}));
+  }
   const l = Math.max(0.25, 0.8 * radius);
   g.append(svg('line', {x1: config.x, y1: config.y, x2: config.x + l * Math.cos(config.yaw),
                         y2: config.y + l * Math.sin(config.yaw), stroke: color,
@@ -323,11 +330,11 @@ function renderMap(belief, guess, shown) {
                                   class: 'path-point'}));
     }
   }
-  robotShape(world, shown.robot, belief.robotRadius || 0.3, shown.frustum, COLORS.robot, false,
-             unit);
+  robotShape(world, shown.robot, belief.robotRadius || 0.3, belief.robotFootprint, shown.frustum,
+             COLORS.robot, false, unit);
   if (shown.live && belief.nextView) {
     robotShape(world, belief.nextView.configuration, belief.robotRadius || 0.3,
-               belief.nextView.frustum, COLORS.next, true, unit);
+               belief.robotFootprint, belief.nextView.frustum, COLORS.next, true, unit);
   }
   const dot = Math.max(0.012, 3 * unit);
   for (const o of belief.objects) {

@@ -185,13 +185,13 @@ ExecutionOutcome Simulator::ExecuteMove(const RobotConfig& config,
       c.tilt < preset_.tilt_min - 1e-9 || c.tilt > preset_.tilt_max + 1e-9) {
     return illegal("joint limits exceeded");
   }
-  if (!occupancy_.DiscFree(c.x, c.y, preset_.footprint_radius)) {
+  if (!occupancy_.FootprintFree(preset_, c.x, c.y, c.yaw, 0.0)) {
     return illegal("base pose collides with the map");
   }
   c.x += scenario_.noise.pose_xy * rng.Normal();
   c.y += scenario_.noise.pose_xy * rng.Normal();
   c.yaw = object_search::WrapAngle(c.yaw + scenario_.noise.pose_yaw * rng.Normal());
-  if (occupancy_.DiscFree(c.x, c.y, preset_.footprint_radius)) robot_ = c;
+  if (occupancy_.FootprintFree(preset_, c.x, c.y, c.yaw, 0.0)) robot_ = c;
   out.reward = RewardOf(p, ActionOutcome::kMoved);
   out.success = true;
   out.detail = "moved";

@@ -144,12 +144,27 @@ void ReadCamera(const json& j, object_search::CameraModel* camera) {
   camera->far = Number(c, "far", camera->far);
 }
 
+// The footprint polygon of a schema-checked robot object (or a snapshot's): its [x, y] vertices,
+// none when it has no "footprint".
+std::vector<object_search::Vec2> ReadFootprint(const json& j) {
+  std::vector<object_search::Vec2> out;
+  const auto f = j.find("footprint");
+  if (f == j.end() || !f->is_array()) return out;
+  for (const json& v : *f) {
+    object_search::Vec2 p = object_search::Vec2::Constant(std::nan(""));
+    ReadVec(v, &p);  // left NaN when it is not two finite numbers: Validate names it
+    out.push_back(p);
+  }
+  return out;
+}
+
 // A description's joints, name, footprint, reach and camera from a schema-checked object (or a
 // snapshot's), validated; errors name the field under `path`.
 StatusOr<RobotDescription> ReadDescription(const json& j, const std::string& path) {
   RobotDescription r;
   r.name = Utf8Prefix(String(j, "name", "custom"), 64);
   r.footprint_radius = Number(j, "footprintRadius", r.footprint_radius);
+  r.footprint = ReadFootprint(j);
   r.reach = Number(j, "reach", r.reach);
   ReadCamera(j, &r.camera);
   const auto joints = j.find("joints");
@@ -210,6 +225,7 @@ StatusOr<RobotDescription> ReadRobotSpec(const json& j, const std::string& path)
   auto r = robot::DescriptionFromUrdf(String(j, "urdf"), s);
   if (!r.ok()) return UnderPath(path, r.status());
   ReadCamera(j, &r->camera);
+  r->footprint = ReadFootprint(j);  // checked here, so that its errors name it
   if (Status v = r->Validate(); !v.ok()) return UnderPath(path, v);
   return r;
 }
@@ -274,15 +290,20 @@ json RobotDescriptionJson(const RobotDescription& r) {
     }
     joints.push_back(std::move(j));
   }
-  return {{"name", r.name},
-          {"footprintRadius", r.footprint_radius},
-          {"reach", r.reach},
-          {"camera",
-           {{"horizontalFov", r.camera.horizontal_fov},
-            {"aspect", r.camera.aspect},
-            {"near", r.camera.near},
-            {"far", r.camera.far}}},
-          {"joints", std::move(joints)}};
+  json out = {{"name", r.name},
+              {"footprintRadius", r.footprint_radius},
+              {"reach", r.reach},
+              {"camera",
+               {{"horizontalFov", r.camera.horizontal_fov},
+                {"aspect", r.camera.aspect},
+                {"near", r.camera.near},
+                {"far", r.camera.far}}},
+              {"joints", std::move(joints)}};
+  if (!r.footprint.empty()) {
+    out["footprint"] = json::array();
+    for (const auto& v : r.footprint) out["footprint"].push_back(Vec(v));
+  }
+  return out;
 }
 
 json RobotJson(const RobotDescription& r) {
@@ -763,6 +784,10 @@ json BeliefJson(const World& w, const SessionView* session) {
   // What the web console draws: the same crop, frusta and colours as the PNG (npfkct/render).
   j["camera"] = {{"frustum", FrustumJson(w, w.robot_config)}};
   j["robotRadius"] = w.robot.footprint_radius;
+  if (!w.robot.footprint.empty()) {
+    j["robotFootprint"] = json::array();
+    for (const auto& v : w.robot.footprint) j["robotFootprint"].push_back(Vec(v));
+  }
   std::optional<RobotConfig> next;
   if (session && session->pending && session->pending->second.type == ActionView::Type::kMove) {
     next = session->pending->second.configuration;

@@ -125,8 +125,13 @@ struct RobotDescription {
   double lift_min = 0.0, lift_max = 0.0;
   double pan_min = 0.0, pan_max = 0.0;
   double tilt_min = 0.0, tilt_max = 0.0;
-  /// Footprint radius used for collision checks against the occupancy map.
+  static constexpr int kMaxFootprintVertices = 32;
+  /// Footprint radius used for collision checks against the occupancy map; with a polygon
+  /// footprint, the radius of the circle around it (set by Validate()).
   double footprint_radius = 0.3;
+  /// The base's outline in its own frame (x forward, y left; m), a simple polygon of 3 to
+  /// kMaxFootprintVertices vertices; empty: the disc of footprint_radius.
+  std::vector<Eigen::Vector2d> footprint;
   /// Reach of the manipulator from the base center (moveability).
   double reach = 1.0;
   /// Its camera's field of view and depth range (what it sees from a configuration).
@@ -139,17 +144,17 @@ struct RobotDescription {
   static RobotDescription Stretch();
   /// A shipped description by name: "fetch" or "stretch".
   static StatusOr<RobotDescription> ByName(const std::string& name);
-  /// Checks every field (the message names the offending one: "joints[2].axis", ...): at most
-  /// kMaxJoints joints, finite values, unit-or-nonzero axes (normalised), lower <= upper, at most
-  /// one joint per role and roles only on moving joints, a positive footprint and reach, a
-  /// camera with a field of view in (0.01, 3] rad, aspect in [0.05, 20] and 0 < near < far <= 50
-  /// m; then sets the action limits from the role joints.
+  /// Checks every field (the message names the offending one: "joints[2].axis", ...): a
+  /// footprint polygon that is simple, of positive area and within 5 m of the base (its radius
+  /// then set from it), at most kMaxJoints joints, finite values, unit-or-nonzero axes
+  /// (normalised), lower <= upper, at most one joint per role and roles only on moving joints, a
+  /// positive footprint and reach, a camera with a field of view in (0.01, 3] rad, aspect in [0.05,
+  /// 20] and 0 < near < far <= 50 m; then sets the action limits from the role joints.
   Status Validate();
   bool has_lift() const { return lift_max > lift_min; }
 
   friend bool operator==(const RobotDescription&, const RobotDescription&) = default;
 };
-
 
 /// A camera pose: optical center and orthonormal axes (forward, left, up) in the world.
 struct CameraPose {
@@ -174,5 +179,14 @@ bool InFrustum(const CameraModel& camera, const CameraPose& pose, const Vec3& p,
 
 /// Wraps an angle into [-pi, pi).
 double WrapAngle(double a);
+
+/// The distance between segments ab and cd (0 when they touch or cross).
+double SegmentDistance(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& c,
+                       const Eigen::Vector2d& d);
+/// Whether p lies inside the polygon (even-odd rule; a point on an edge may go either way).
+bool InsidePolygon(const std::vector<Eigen::Vector2d>& polygon, const Eigen::Vector2d& p);
+/// The distance between two polygons (0 when they overlap or one holds the other).
+double PolygonDistance(const std::vector<Eigen::Vector2d>& p,
+                       const std::vector<Eigen::Vector2d>& q);
 
 }  // namespace npfkct::object_search

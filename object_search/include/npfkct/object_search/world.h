@@ -107,6 +107,11 @@ class OccupancyMap {
   void AddBox(const Box& box, double margin = 0.0);
   /// Whether a disc of `radius` at (x, y) is free and inside the map.
   bool DiscFree(double x, double y, double radius) const;
+  /// Whether the robot's footprint, widened by `clearance`, is free and inside the map with
+  /// its base at (x, y) heading `yaw` (DiscFree of footprint_radius + clearance for a robot
+  /// without a footprint polygon, whatever the heading).
+  bool FootprintFree(const RobotDescription& robot, double x, double y, double yaw,
+                     double clearance) const;
   bool Occupied(int ix, int iy) const { return occupied_[iy * nx_ + ix] != 0; }
   int nx() const { return nx_; }
   int ny() const { return ny_; }
@@ -199,8 +204,11 @@ struct World {
   Status Validate() const;
   /// Occluding boxes: furniture and every object not removed (object 0 excluded).
   std::vector<Box> Occluders() const;
-  /// Whether the base may stand at (x, y): inside a base region, and its footprint plus
-  /// params.base_clearance free in the occupancy map.
+  /// Whether the base may stand at (x, y) heading `yaw`: inside a base region, and its
+  /// footprint plus params.base_clearance free in the occupancy map.
+  bool BaseFeasible(double x, double y, double yaw) const;
+  /// Whether it may stand at (x, y) with some heading (of 16 for a footprint polygon; any for
+  /// a disc).
   bool BaseFeasible(double x, double y) const;
   /// The base position that three numbers in [0, 1) pick: `pick` a base region by area, `u` and
   /// `v` the point inside it (uniform draws give a point uniform over the regions). False when
