@@ -1246,10 +1246,18 @@ Eigen::Matrix4d Perception::Impl::Align(const CloudXYZ::Ptr& structure, const Lo
   const PerceptionOptions& o = options;
   // Point-to-plane ICP: the scene is mostly planes (floor, table tops, sides), along which
   // point-to-point ICP slides.
-  // Thinned to max_icp_points: each ICP iteration searches the map for every source point (and
-  // the normals are estimated for the points kept only, from all their neighbours).
+  // At most max_icp_points: each ICP iteration searches the map for every source point. They
+  // are thinned by coarser voxels, which keep every surface's share of them (every k-th point
+  // of the voxel grid's order dropped thin vertical surfaces, and the check below then took
+  // views for unconstrained that are not); the normals are estimated for the points kept only,
+  // from all their neighbours.
   const CloudXYZ::Ptr down = Downsample(structure, 2.0 * o.voxel);
-  auto source = WithNormals(Thin<PointXYZ>(down, o.max_icp_points), 3.0 * o.voxel, down);
+  CloudXYZ::Ptr kept = down;
+  for (double leaf = 3.0 * o.voxel; static_cast<int64_t>(kept->size()) > o.max_icp_points;
+       leaf *= 1.25) {
+    kept = Downsample(down, leaf);
+  }
+  auto source = WithNormals(kept, 3.0 * o.voxel, down);
   const NormalCloud::Ptr& target = map.normals;  // the map's within reach
   const bool constrained = ConstrainsPose(*source, o.min_structure);
   const bool observable = source->size() >= 200 && target->size() >= 3 && constrained;
