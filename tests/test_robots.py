@@ -55,6 +55,22 @@ def moves(url, sid, n):
     return out
 
 
+def sim_step(url, sid, sim, budget):
+    """One step of an episode: the server plans within `budget`, the simulated robot executes
+    the action, the server takes its observation. Gives the action, the robot's reply, the
+    :observe body sent and the server's answer."""
+    plan = requests.post(f"{url}/v1/sessions/{sid}:plan", json={"budget": budget},
+                         timeout=60).json()
+    action = plan["action"]
+    sim.stdin.write(json.dumps(action) + "\n")
+    sim.stdin.flush()
+    reply = json.loads(sim.stdout.readline())
+    body = dict(reply["observation"], actionId=plan["actionId"])
+    o = requests.post(f"{url}/v1/sessions/{sid}:observe", json=body, timeout=60)
+    assert o.status_code == 200, o.text[:300]
+    return action, reply, body, o.json()
+
+
 def test_robots_from_their_urdfs_plan_within_their_joints():
     server = ServerProcess("--state-dir", tempfile.mkdtemp())
     try:
@@ -184,20 +200,12 @@ def test_a_robot_of_its_own_on_a_slam_map_with_a_detectors_boxes_finds_the_targe
         assert r.status_code == 200, r.text
         sid, done, boxed = r.json()["id"], False, 0
         for _ in range(40):
-            plan = requests.post(f"{server.url}/v1/sessions/{sid}:plan",
-                                 json={"budget": {"cpuMs": 250}}, timeout=60).json()
-            action = plan["action"]
+            action, reply, body, observed = sim_step(server.url, sid, sim, {"cpuMs": 250})
             if action["type"] == "MOVE":  # the base pose alone: nothing else moves the camera
                 c = action["configuration"]
                 assert (c["lift"], c["pan"], c["tilt"]) == (0.0, 0.0, 0.0), c
-            sim.stdin.write(json.dumps(action) + "\n")
-            sim.stdin.flush()
-            reply = json.loads(sim.stdout.readline())
-            body = dict(reply["observation"], actionId=plan["actionId"])
             boxed += bool(body.get("imageBoxes"))
-            o = requests.post(f"{server.url}/v1/sessions/{sid}:observe", json=body, timeout=60)
-            assert o.status_code == 200, o.text[:300]
-            done = o.json()["done"]
+            done = observed["done"]
             assert done == reply["outcome"]["terminal"]
             if done:
                 break
@@ -285,9 +293,7 @@ def test_a_rectangular_base_plans_where_its_outline_fits_and_finds_the_target(tm
         assert belief["robotFootprint"] == CART
         assert belief["robotRadius"] == pytest.approx(math.hypot(0.4, 0.18))
         for _ in range(30):
-            plan = requests.post(f"{server.url}/v1/sessions/{sid}:plan",
-                                 json={"budget": {"simulations": 300}}, timeout=60).json()
-            action = plan["action"]
+            action, reply, _, observed = sim_step(server.url, sid, sim, {"simulations": 300})
             if action["type"] == "MOVE":
                 c = action["configuration"]
                 outline = [(c["x"] + math.cos(c["yaw"]) * x - math.sin(c["yaw"]) * y,
@@ -297,14 +303,8 @@ def test_a_rectangular_base_plans_where_its_outline_fits_and_finds_the_target(tm
                     assert not _overlap(outline, _corners(f["center"], f["size"],
                                                           f.get("yaw", 0.0))), (c, f["name"])
                 bases += 1
-            sim.stdin.write(json.dumps(action) + "\n")
-            sim.stdin.flush()
-            reply = json.loads(sim.stdout.readline())
             assert reply["outcome"].get("detail") != "base pose collides with the map", reply
-            body = dict(reply["observation"], actionId=plan["actionId"])
-            o = requests.post(f"{server.url}/v1/sessions/{sid}:observe", json=body, timeout=60)
-            assert o.status_code == 200, o.text[:300]
-            done = o.json()["done"]
+            done = observed["done"]
             if done:
                 break
         assert done and bases > 0

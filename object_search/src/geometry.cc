@@ -409,17 +409,14 @@ StatusOr<Box> BoxAroundPolygon(const std::vector<Vec2>& polygon, double height) 
   std::sort(points.begin(), points.end(), [](const Vec2& a, const Vec2& b) {
     return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y());
   });
-  auto cross = [](const Vec2& o, const Vec2& a, const Vec2& b) {
-    return (a - o).x() * (b - o).y() - (a - o).y() * (b - o).x();
-  };
   std::vector<Vec2> hull(2 * points.size());
   size_t k = 0;
   for (size_t i = 0; i < points.size(); ++i) {  // lower hull
-    while (k >= 2 && cross(hull[k - 2], hull[k - 1], points[i]) <= 0) --k;
+    while (k >= 2 && Turn(hull[k - 2], hull[k - 1], points[i]) <= 0) --k;
     hull[k++] = points[i];
   }
   for (size_t i = points.size() - 1, lower = k + 1; i-- > 0;) {  // upper hull
-    while (k >= lower && cross(hull[k - 2], hull[k - 1], points[i]) <= 0) --k;
+    while (k >= lower && Turn(hull[k - 2], hull[k - 1], points[i]) <= 0) --k;
     hull[k++] = points[i];
   }
   hull.resize(k > 1 ? k - 1 : k);

@@ -151,59 +151,49 @@ void OccupancyMap::AddBox(const Box& box, double margin) {
   }
 }
 
-bool OccupancyMap::DiscFree(double x, double y, double radius) const {
+template <typename CellHits>
+bool OccupancyMap::NoCellHits(double x, double y, double reach, CellHits hits) const {
   if (occupied_.empty()) return true;
-  if (x - radius < min_.x() || y - radius < min_.y() || x + radius > max_.x() ||
-      y + radius > max_.y()) {
+  if (x - reach < min_.x() || y - reach < min_.y() || x + reach > max_.x() ||
+      y + reach > max_.y()) {
     return false;
   }
-  const int x0 = static_cast<int>((x - radius - min_.x()) / resolution_);
-  const int x1 = static_cast<int>((x + radius - min_.x()) / resolution_);
-  const int y0 = static_cast<int>((y - radius - min_.y()) / resolution_);
-  const int y1 = static_cast<int>((y + radius - min_.y()) / resolution_);
+  const int x0 = static_cast<int>((x - reach - min_.x()) / resolution_);
+  const int x1 = static_cast<int>((x + reach - min_.x()) / resolution_);
+  const int y0 = static_cast<int>((y - reach - min_.y()) / resolution_);
+  const int y1 = static_cast<int>((y + reach - min_.y()) / resolution_);
   for (int iy = std::max(0, y0); iy <= std::min(ny_ - 1, y1); ++iy) {
     for (int ix = std::max(0, x0); ix <= std::min(nx_ - 1, x1); ++ix) {
-      if (!occupied_[iy * nx_ + ix]) continue;
-      // Distance from the disc center to the cell square.
-      const double cx =
-          std::clamp(x, min_.x() + ix * resolution_, min_.x() + (ix + 1) * resolution_);
-      const double cy =
-          std::clamp(y, min_.y() + iy * resolution_, min_.y() + (iy + 1) * resolution_);
-      if ((cx - x) * (cx - x) + (cy - y) * (cy - y) < radius * radius) return false;
+      if (occupied_[iy * nx_ + ix] && hits(ix, iy)) return false;
     }
   }
   return true;
 }
 
+bool OccupancyMap::DiscFree(double x, double y, double radius) const {
+  return NoCellHits(x, y, radius, [&](int ix, int iy) {
+    // Distance from the disc center to the cell square.
+    const double cx = std::clamp(x, min_.x() + ix * resolution_, min_.x() + (ix + 1) * resolution_);
+    const double cy = std::clamp(y, min_.y() + iy * resolution_, min_.y() + (iy + 1) * resolution_);
+    return (cx - x) * (cx - x) + (cy - y) * (cy - y) < radius * radius;
+  });
+}
+
 bool OccupancyMap::FootprintFree(const RobotDescription& robot, double x, double y, double yaw,
                                  double clearance) const {
   if (robot.footprint.empty()) return DiscFree(x, y, robot.footprint_radius + clearance);
-  const double reach = robot.footprint_radius + clearance;
-  // Inside the map, by the circle around the footprint (as DiscFree).
-  if (x - reach < min_.x() || y - reach < min_.y() || x + reach > max_.x() ||
-      y + reach > max_.y()) {
-    return false;
-  }
-  if (occupied_.empty()) return true;
   const Eigen::Rotation2Dd turn(yaw);
   std::vector<Vec2> outline;
   for (const Vec2& v : robot.footprint) outline.push_back(Vec2(x, y) + turn * v);
-  const int x0 = std::max(0, static_cast<int>((x - reach - min_.x()) / resolution_));
-  const int x1 = std::min(nx_ - 1, static_cast<int>((x + reach - min_.x()) / resolution_));
-  const int y0 = std::max(0, static_cast<int>((y - reach - min_.y()) / resolution_));
-  const int y1 = std::min(ny_ - 1, static_cast<int>((y + reach - min_.y()) / resolution_));
   std::vector<Vec2> cell(4);
-  for (int iy = y0; iy <= y1; ++iy) {
-    for (int ix = x0; ix <= x1; ++ix) {
-      if (!occupied_[iy * nx_ + ix]) continue;
-      const Vec2 lo = min_ + resolution_ * Vec2(ix, iy);
-      cell = {lo, lo + Vec2(resolution_, 0), lo + Vec2(resolution_, resolution_),
-              lo + Vec2(0, resolution_)};
-      const double d = PolygonDistance(outline, cell);
-      if (clearance > 0.0 ? d < clearance : d == 0.0) return false;
-    }
-  }
-  return true;
+  // The cells within the circle around the footprint (its radius) and the clearance.
+  return NoCellHits(x, y, robot.footprint_radius + clearance, [&](int ix, int iy) {
+    const Vec2 lo = min_ + resolution_ * Vec2(ix, iy);
+    cell = {lo, lo + Vec2(resolution_, 0), lo + Vec2(resolution_, resolution_),
+            lo + Vec2(0, resolution_)};
+    const double d = PolygonDistance(outline, cell);
+    return clearance > 0.0 ? d < clearance : d == 0.0;
+  });
 }
 
 Status OccupancyMap::SetCells(const std::vector<uint8_t>& cells) {

@@ -123,6 +123,11 @@ class OccupancyMap {
   Status SetCells(const std::vector<uint8_t>& cells);
 
  private:
+  // Whether no occupied cell within `reach` of (x, y) (the square of cells around that disc)
+  // `hits`, (x, y) at least `reach` inside the map; a map without cells is free everywhere.
+  template <typename CellHits>
+  bool NoCellHits(double x, double y, double reach, CellHits hits) const;
+
   Vec2 min_ = Vec2::Zero(), max_ = Vec2::Zero();
   double resolution_ = 0.05;
   int nx_ = 0, ny_ = 0;
