@@ -35,7 +35,7 @@ for row in $ROWS; do
     target-only) ARGS=(--planner npfkct --opt search.max_depth=30 --rollout clear --plan-r-co 0) ;;
     obstacle-covers) ARGS=(--planner npfkct --rollout clear --obstacle-reward covers) ;;
     grid-odds) ARGS=(--planner npfkct --grid-sampling odds) ;;
-    reuse) ARGS=(--planner npfkct --opt search.reuse_tree=true) ;;
+    reuse) ARGS=(--planner npfkct --opt search.reuse_tree=1) ;;
     grid-free-3)
       # The same scenes with the robot's grid update for a seen free cell at -3 instead of -1.
       mkdir -p "$BUILD_DIR/tuning-scenes-v2-grid3"
