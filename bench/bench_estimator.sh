@@ -17,7 +17,7 @@ npfkct_bench_args 250 3 12 "$@"
 npfkct_prepare npfkct-bench npfkct-scenegen
 SEEDS="${SEEDS:-$(seq 850001 850030)}"
 DEFAULT_ROWS="oracle oracle-cover-unknown nbv kct defaults depth30 rollout-clear r-co-0"
-DEFAULT_ROWS="$DEFAULT_ROWS target-only obstacle-covers grid-free-3 grid-odds reuse"
+DEFAULT_ROWS="$DEFAULT_ROWS target-only obstacle-covers grid-free-3 grid-odds reuse rollout-first"
 ROWS="${ROWS:-$DEFAULT_ROWS}"
 OUT="$NPFKCT_ROOT/bench/results/estimator-v2/$RUN"
 export SCENE_VERSION=2
@@ -36,6 +36,7 @@ for row in $ROWS; do
     obstacle-covers) ARGS=(--planner npfkct --rollout clear --obstacle-reward covers) ;;
     grid-odds) ARGS=(--planner npfkct --grid-sampling odds) ;;
     reuse) ARGS=(--planner npfkct --opt search.reuse_tree=1) ;;
+    rollout-first) ARGS=(--planner npfkct --opt search.rollout_first=1) ;;
     grid-free-3)
       # The same scenes with the robot's grid update for a seen free cell at -3 instead of -1.
       mkdir -p "$BUILD_DIR/tuning-scenes-v2-grid3"
