@@ -3,9 +3,10 @@
 # Results are appended as JSON lines to bench/results/classic.jsonl (one object per run, see
 # npfkct-bench --help).
 # Usage: bench/bench_classic.sh [section ...]
-#   sections: tiger rocksample throughput lightdark vdptag kct (kct: kCT beside POMCPOW and VOMCPOW
-#   on VDP Tag and SimpleLightDark at the published 1 s budgets, as CPU time of the planning thread;
-#   kct-vdptag and kct-lightdark: either half of it)
+#   sections: tiger rocksample throughput lightdark vdptag kct lqg (kct: kCT beside POMCPOW and
+#   VOMCPOW on VDP Tag and SimpleLightDark at the published 1 s budgets, as CPU time of the planning
+#   thread; kct-vdptag and kct-lightdark: either half of it; lqg: the VPW paper's first-action
+#   benchmark on its 2-D LQG, a few minutes)
 # Takes about three hours on a 2-core machine with every section.
 # env: THREADS (episodes at once; default: the number of cores), SEED (the kct sections' seed,
 # default 1; a second seed gives new episodes to pool with the first).
@@ -20,7 +21,7 @@ THREADS="${THREADS:-$(nproc)}"
 SEED="${SEED:-1}"
 run() { "$BENCH" "$@" | tee -a "$OUT"; }
 sections=("$@")
-[ ${#sections[@]} -eq 0 ] && sections=(tiger rocksample throughput lightdark vdptag kct)
+[ ${#sections[@]} -eq 0 ] && sections=(tiger rocksample throughput lightdark vdptag kct lqg)
 
 for section in "${sections[@]}"; do
   case "$section" in
@@ -65,6 +66,17 @@ for section in "${sections[@]}"; do
         run --problem lightdark --planner "$planner" --episodes 200 --cpu-ms 1000 --threads "$THREADS" \
           --seed "$SEED"
       done
+      ;;
+    lqg)
+      # The VPW paper's LQG (VOOTreeSearch.jl scripts/LQG/action_compare.jl): 1,000 plans of 1,000
+      # simulations from the initial belief, the first action's distance to the LQR optimum
+      # (6, -6). Published with RolloutFirst and the exact LQR rollout: VOMCPOW 0.246, POMCPOW
+      # 0.277. kCT with its defaults, then with RolloutFirst as the others have it.
+      for planner in vomcpow pomcpow kct; do
+        run --problem lqg --planner "$planner" --episodes 1000 --sims 1000 --threads "$THREADS"
+      done
+      run --problem lqg --planner kct --episodes 1000 --sims 1000 --threads "$THREADS" \
+        --opt search.rollout_first=1
       ;;
     *) echo "unknown section $section" >&2; exit 2 ;;
   esac

@@ -1,8 +1,10 @@
 // npfkct-bench: runs episodes of a benchmark problem with a planner and a per-step budget and
 // prints one JSON object per run.
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <iostream>
 #include <memory>
 #include <string>
@@ -14,6 +16,7 @@
 #include "npfkct/solver/discrete_as_hybrid.h"
 #include "npfkct/solver/kct.h"
 #include "npfkct/solver/models/light_dark.h"
+#include "npfkct/solver/models/linear_quadratic.h"
 #include "npfkct/solver/models/rock_sample.h"
 #include "npfkct/solver/models/tiger.h"
 #include "npfkct/solver/models/vdp_tag.h"
@@ -291,6 +294,108 @@ int RunVdpTag(const Config& c) {
   return Unsupported(c);
 }
 
+// The VPW paper's first-action benchmark on its 2-D LQG (Lim, Tomlin & Sunberg 2021,
+// VOOTreeSearch.jl scripts/LQG/action_compare.jl): each "episode" is one plan from the initial
+// belief, scored by the Euclidean distance of its action to the LQR optimum (6, -6). POMCPOW and
+// VOMCPOW take the script's tuned constants and RolloutFirst; kCT takes its defaults.
+int RunLqg(const Config& c) {
+  models::LinearQuadratic::Params params = models::LinearQuadratic::Params::VpwLqg();
+  if (c.rollout == "uniform") {
+    params.rollout = models::LinearQuadratic::Rollout::kUniform;
+  } else if (!c.rollout.empty() && c.rollout != "lqr") {
+    std::cerr << "npfkct-bench: lqg rollouts are 'lqr' (default) or 'uniform'\n";
+    return 2;
+  }
+  const models::LinearQuadratic model(params);
+  using Model = models::LinearQuadratic;
+  const Budget budget{c.time_ms, c.sims, c.cpu_ms};
+  if (Status s = budget.Validate(); !s.ok()) {
+    std::cerr << "npfkct-bench: " << s.message() << "\n";
+    return 2;
+  }
+  std::vector<double> distance(c.episodes, 0.0);
+  std::vector<ActionVec> chosen(c.episodes);
+  auto score = [&](auto& planner, int i) {
+    EpisodeResult r;
+    Rng rng(c.seed * 1000003ULL + i);
+    planner.Reset(rng);
+    auto d = planner.Plan(budget, rng);
+    if (!d.status.ok()) {
+      r.error = d.status.ToString();
+      return r;
+    }
+    r.sims_per_step.push_back(d.stats.simulations);
+    r.ms_per_step.push_back(d.stats.elapsed_ms);
+    r.cpu_ms_per_step.push_back(d.stats.cpu_ms);
+    r.steps = 1;
+    chosen[i] = d.action.x;
+    distance[i] = (d.action.x - model.OptimalFirstAction()).norm();
+    return r;
+  };
+  std::function<EpisodeResult(int)> run;
+  if (c.planner == "pomcpow" || c.planner == "vomcpow") {
+    PomcpowOptions o;  // action_compare.jl's POMCPOW constants
+    o.exploration_c = 65.0;
+    o.k_action = 30.0;
+    o.alpha_action = 1.0 / 2.5;
+    o.observations.k = 30.0;
+    o.observations.alpha = 1.0 / 4.0;
+    o.search.max_depth = 3;
+    o.search.num_particles = 1000;
+    o.search.rollout_first = true;
+    if (c.planner == "vomcpow") {  // and its VOMCPOW constants
+      o.use_voo = true;
+      o.exploration_c = 60.0;
+      o.k_action = 25.0;
+      o.alpha_action = 1.0 / 5.5;
+      o.observations.k = 25.0;
+      o.observations.alpha = 1.0 / 2.5;
+      o.voo.uniform_probability = 0.8;
+      o.voo.proposal_stddev = std::sqrt(0.5);
+      o.voo.accept_radius = 0.05;
+      o.voo.max_tries = 20;
+    }
+    if (!ApplyOptions(&o, c.options)) return 2;
+    run = [&, o](int i) {
+      Pomcpow<Model> planner(model, o);
+      return score(planner, i);
+    };
+  } else if (c.planner == "kct") {
+    KctOptions o;
+    o.search.max_depth = 3;
+    o.search.num_particles = 1000;
+    if (!ApplyOptions(&o, c.options)) return 2;
+    run = [&, o](int i) {
+      KCenterTree<Model> planner(model, o);
+      return score(planner, i);
+    };
+  } else {
+    return Unsupported(c);
+  }
+  const RunSummary s =
+      Summarize(RunJobs(c.episodes, c.threads, run, c.problem + "/" + c.planner), false, 0.0);
+  const MeanInterval d = MeanWithInterval(distance);
+  ActionVec mean_action = MakeActionVec({0.0, 0.0});
+  for (const ActionVec& a : chosen) mean_action += a / static_cast<double>(c.episodes);
+  std::printf(
+      "{\"problem\": \"lqg\", \"planner\": \"%s\", \"plans\": %d, \"time_ms\": %g, \"cpu_ms\": %g, "
+      "\"sims\": %lld, \"seed\": %llu, \"rollout\": \"%s\", \"options\": [",
+      JsonEscape(c.planner).c_str(), c.episodes, c.time_ms, c.cpu_ms,
+      static_cast<long long>(c.sims), static_cast<unsigned long long>(c.seed),
+      params.rollout == Model::Rollout::kLqr ? "lqr" : "uniform");
+  for (size_t i = 0; i < c.options.size(); ++i) {
+    std::printf("%s\"%s\"", i ? ", " : "", JsonEscape(c.options[i]).c_str());
+  }
+  std::printf(
+      "], \"optimum\": [%.4f, %.4f], \"mean_action\": [%.4f, %.4f], \"mean_distance\": %.4f, "
+      "\"stderr\": %.4f, \"median_distance\": %.4f, \"median_sims_per_step\": %.1f, "
+      "\"failed_plans\": %d}\n",
+      model.OptimalFirstAction()[0], model.OptimalFirstAction()[1], mean_action[0], mean_action[1],
+      d.mean, d.stddev / std::sqrt(static_cast<double>(std::max(d.n, 1))), Median(distance),
+      s.median_sims_per_step, s.failed_episodes);
+  return s.failed_episodes == 0 ? 0 : 1;
+}
+
 }  // namespace
 }  // namespace npfkct::bench
 
@@ -301,7 +406,10 @@ int main(int argc, char** argv) {
       "npfkct-bench: closed-loop benchmark runs of the npfkct planners, on the classic POMDP "
       "benchmarks (--problem) or on object-search scenarios (--scenario)"};
   app.set_version_flag("--version", std::string("npfkct-bench ") + npfkct::kVersion);
-  app.add_option("--problem", c.problem, "tiger | rocksample | lightdark | vdptag");
+  app.add_option("--problem", c.problem,
+                 "tiger | rocksample | lightdark | vdptag | lqg (the VPW paper's LQG: each episode "
+                 "is one plan, "
+                 "scored by its first action's distance to the optimum)");
   app.add_option("--scenario", search.scenarios,
                  "object-search scenario file(s) (repeatable or comma-separated)")
       ->delimiter(',');
@@ -328,10 +436,10 @@ int main(int argc, char** argv) {
   app.add_option("--seed", c.seed, "base seed; episode i uses seed * 1000003 + i");
   app.add_option("--threads", c.threads, "episodes run in parallel")->check(CLI::PositiveNumber);
   app.add_option("--max-steps", c.max_steps, "episode length limit (default per problem)");
-  app.add_option(
-      "--rollout", c.rollout,
-      "tiger: listen (default) | random; vdptag: random (default) | tonextml; scenarios: "
-      "aimed (default) | clear | greedy | random");
+  app.add_option("--rollout", c.rollout,
+                 "tiger: listen (default) | random; vdptag: random (default) | tonextml; lqg: lqr "
+                 "(default) | uniform; scenarios: "
+                 "aimed (default) | clear | greedy | random");
   double plan_r_co = std::nan("");
   app.add_option("--plan-r-co", plan_r_co,
                  "scenarios: R_co of the planners' model (the simulator pays the scenario's)");
@@ -385,6 +493,7 @@ int main(int argc, char** argv) {
   if (c.problem == "rocksample") return npfkct::bench::RunRockSample(c);
   if (c.problem == "lightdark") return npfkct::bench::RunLightDark(c);
   if (c.problem == "vdptag") return npfkct::bench::RunVdpTag(c);
+  if (c.problem == "lqg") return npfkct::bench::RunLqg(c);
   std::cerr << "npfkct-bench: set --problem or --scenario (unknown problem '" << c.problem
             << "')\n";
   return 2;

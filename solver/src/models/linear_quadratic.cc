@@ -8,8 +8,26 @@ namespace npfkct::models {
 
 LinearQuadratic::LinearQuadratic() : LinearQuadratic(Params()) {}
 
+LinearQuadratic::Params LinearQuadratic::Params::VpwLqg() {
+  Params p;
+  p.horizon = 2;
+  p.rho = 1.0;
+  p.gamma = 1.0;
+  p.process_std = 0.1;
+  p.observation_std = 0.1;
+  p.initial_std = 0.1;
+  p.mean0 = {-10.0, 10.0};
+  p.action_limit = 10.0;
+  p.rollout = Rollout::kLqr;
+  p.min_reward = -1000.0;
+  p.charge_initial_state = true;
+  return p;
+}
+
 LinearQuadratic::LinearQuadratic(Params p)
-    : params_(p), box_(MakeActionVec({-1.0, -1.0}), MakeActionVec({1.0, 1.0})) {}
+    : params_(p),
+      box_(MakeActionVec({-p.action_limit, -p.action_limit}),
+           MakeActionVec({p.action_limit, p.action_limit})) {}
 
 LinearQuadratic::State LinearQuadratic::SampleInitialState(Rng& rng) const {
   State s;
@@ -23,11 +41,13 @@ StepResult<LinearQuadratic::State, LinearQuadratic::Observation> LinearQuadratic
   r.state = s;
   double cost = 0.0;
   for (int i = 0; i < 2; ++i) {
-    const double u = a.x.size() == 2 ? std::clamp(a.x[i], -1.0, 1.0) : 0.0;
+    const double u =
+        a.x.size() == 2 ? std::clamp(a.x[i], -params_.action_limit, params_.action_limit) : 0.0;
     r.state.x[i] = s.x[i] + u + params_.process_std * rng.Normal();
     cost += r.state.x[i] * r.state.x[i] + params_.rho * u * u;
     r.observation[i] = r.state.x[i] + params_.observation_std * rng.Normal();
   }
+  if (params_.charge_initial_state && s.t == 0) cost += s.x[0] * s.x[0] + s.x[1] * s.x[1];
   r.state.t = s.t + 1;
   r.reward = -cost;
   r.terminal = r.state.t >= params_.horizon;
@@ -45,19 +65,41 @@ double LinearQuadratic::ObservationLikelihood(const Action&, const State& sp,
   return p;
 }
 
-LinearQuadratic::Action LinearQuadratic::RolloutAction(const State&, Rng& rng) const {
-  return HybridAction{0, box_.SampleUniform(rng)};
+LinearQuadratic::Action LinearQuadratic::RolloutAction(const State& s, Rng& rng) const {
+  if (params_.rollout == Rollout::kUniform) return HybridAction{0, box_.SampleUniform(rng)};
+  const double k = Gain(params_.horizon - s.t);
+  const double limit = params_.action_limit;
+  return HybridAction{0, MakeActionVec({std::clamp(-k * s.x[0], -limit, limit),
+                                        std::clamp(-k * s.x[1], -limit, limit)})};
 }
 
-ActionVec LinearQuadratic::OptimalFirstAction() const {
+LinearQuadratic::Action LinearQuadratic::BeliefRolloutAction(const ParticleBelief<State>& belief,
+                                                             Rng& rng) const {
+  if (belief.empty() || !(belief.total_weight() > 0.0)) return RolloutAction(State{}, rng);
+  State mean = belief.particle(0);
+  mean.x = {0.0, 0.0};
+  for (int i = 0; i < belief.size(); ++i) {
+    const double w = belief.weight(i) / belief.total_weight();
+    mean.x[0] += w * belief.particle(i).x[0];
+    mean.x[1] += w * belief.particle(i).x[1];
+  }
+  return RolloutAction(mean, rng);
+}
+
+double LinearQuadratic::Gain(int steps_left) const {
   // Backward Riccati recursion of the value's quadratic coefficient.
   double p = 0.0;  // beyond the horizon
   double gain = 0.0;
-  for (int t = params_.horizon - 1; t >= 0; --t) {
+  for (int t = 0; t < steps_left; ++t) {
     const double q = 1.0 + params_.gamma * p;
     gain = q / (q + params_.rho);
     p = q * params_.rho / (q + params_.rho);
   }
+  return gain;
+}
+
+ActionVec LinearQuadratic::OptimalFirstAction() const {
+  const double gain = Gain(params_.horizon);
   return MakeActionVec({-gain * params_.mean0[0], -gain * params_.mean0[1]});
 }
 

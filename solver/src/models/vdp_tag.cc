@@ -149,4 +149,20 @@ VdpTag::Action VdpTag::RolloutAction(const State& s, Rng& rng) const {
   return a;
 }
 
+VdpTag::Action VdpTag::BeliefRolloutAction(const ParticleBelief<State>& belief, Rng& rng) const {
+  if (rollout_ != Rollout::kToNextMl || belief.empty() || !(belief.total_weight() > 0.0)) {
+    return RolloutAction(belief.empty() ? State{} : belief.Sample(rng), rng);
+  }
+  State mean;
+  for (int i = 0; i < belief.size(); ++i) {
+    const double w = belief.weight(i) / belief.total_weight();
+    const State& p = belief.particle(i);
+    mean.ax += w * p.ax;
+    mean.ay += w * p.ay;
+    mean.tx += w * p.tx;
+    mean.ty += w * p.ty;
+  }
+  return RolloutAction(mean, rng);
+}
+
 }  // namespace npfkct::models

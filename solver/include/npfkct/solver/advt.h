@@ -196,7 +196,9 @@ class Advt : public PlannerBase<Advt<M>, M, AdvtOptions> {
     HybridAction first;
     first.kind = -1;
     if constexpr (requires { model_.RolloutAction(s, rng); }) {
-      if (options_.search.rollout_first && node == tree_.root) first = model_.RolloutAction(s, rng);
+      if (options_.search.rollout_first && node == tree_.root) {
+        first = RolloutFirstAction(model_, belief_, s, rng);
+      }
     }
     for (int kind : std::vector<int>(scratch_)) {
       HybridAction a;

@@ -335,4 +335,17 @@ class ParticleBelief {
   bool uniform_ = true;
 };
 
+/// RolloutFirst's action (search.rollout_first): the model's BeliefRolloutAction(belief, rng) when
+/// it has one (a policy of the whole belief, such as the LQR action at its mean, as VOOTreeSearch's
+/// RolloutFirst takes), else its RolloutAction at `s`, a state drawn from the belief.
+template <class M, class State>
+auto RolloutFirstAction(const M& model, const ParticleBelief<State>& belief, const State& s,
+                        Rng& rng) {
+  if constexpr (requires { model.BeliefRolloutAction(belief, rng); }) {
+    return model.BeliefRolloutAction(belief, rng);
+  } else {
+    return model.RolloutAction(s, rng);
+  }
+}
+
 }  // namespace npfkct

@@ -266,7 +266,8 @@ struct SearchOptions {
   /// plan on one thread and reject more.
   int threads = 1;
   /// Try the model's rollout action first at the root (VOOTreeSearch's RolloutFirst): continuous
-  /// planners add it to the root's actions before any sampled one. Needs RolloutAction.
+  /// planners add it to the root's actions before any sampled one. Needs RolloutAction; a model's
+  /// BeliefRolloutAction, when it has one, gives it for the whole belief (RolloutFirstAction).
   bool rollout_first = false;
 
   /// Checks the shared fields.

@@ -131,7 +131,7 @@ requires HasObservationLikelihood<M> &&(DiscreteActionModel<M> || HybridActionMo
       // RolloutFirst (VOOTreeSearch): the root's first action is the rollout policy's.
       if constexpr (requires { model_.RolloutAction(s, rng); }) {
         if (options_.search.rollout_first && node == tree_.root && actions.empty()) {
-          tree_.NewActNode(node, model_.RolloutAction(s, rng));
+          tree_.NewActNode(node, RolloutFirstAction(model_, belief_, s, rng));
           return;
         }
       }

@@ -403,7 +403,7 @@ void KCenterTree<M>::AddRolloutFirst(Worker& w, Rng& rng) {
   if constexpr (requires(const State& s) {
                   { model_.RolloutAction(s, rng) } -> std::same_as<HybridAction>;
                 }) {
-    const HybridAction a = model_.RolloutAction(belief_.Sample(rng), rng);
+    const HybridAction a = RolloutFirstAction(model_, belief_, belief_.Sample(rng), rng);
     if (model_.KindSpace(a.kind).dim() == 0) return;
     AddSphere(w, w.tree.root, {a.kind, a.x, options_.d_lim, nullptr}, Origin(a.kind, 999999));
     // Move it to the front so that it is the first untried entry U picks.

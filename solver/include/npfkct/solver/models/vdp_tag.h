@@ -4,6 +4,7 @@
 #include <array>
 #include <vector>
 
+#include "npfkct/solver/belief.h"
 #include "npfkct/solver/model.h"
 #include "npfkct/solver/spaces.h"
 
@@ -46,6 +47,10 @@ class VdpTag {
   const BoxSpace& KindSpace(int /*kind*/) const { return heading_; }
   double ObservationLikelihood(const Action& a, const State& sp, const Observation& o) const;
   Action RolloutAction(const State& s, Rng& rng) const;
+  /// RolloutFirst's action with the ToNextML rollout: move from the belief's mean agent position
+  /// towards the noise-free next position of its mean target (VOOTreeSearch.jl's
+  /// RootToNextMLFirst); RolloutAction at a drawn state otherwise.
+  Action BeliefRolloutAction(const ParticleBelief<State>& belief, Rng& rng) const;
   double MinReward() const { return -6.0; }
   double MaxReward() const { return 100.0; }
 
