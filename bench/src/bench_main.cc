@@ -20,6 +20,7 @@
 #include "npfkct/solver/models/rock_sample.h"
 #include "npfkct/solver/models/tiger.h"
 #include "npfkct/solver/models/vdp_tag.h"
+#include "npfkct/solver/models/vpw_lqg.h"
 #include "npfkct/solver/option_setters.h"
 #include "npfkct/solver/pomcp.h"
 #include "npfkct/solver/pomcpow.h"
@@ -334,27 +335,7 @@ int RunLqg(const Config& c) {
   };
   std::function<EpisodeResult(int)> run;
   if (c.planner == "pomcpow" || c.planner == "vomcpow") {
-    PomcpowOptions o;  // action_compare.jl's POMCPOW constants
-    o.exploration_c = 65.0;
-    o.k_action = 30.0;
-    o.alpha_action = 1.0 / 2.5;
-    o.observations.k = 30.0;
-    o.observations.alpha = 1.0 / 4.0;
-    o.search.max_depth = 3;
-    o.search.num_particles = 1000;
-    o.search.rollout_first = true;
-    if (c.planner == "vomcpow") {  // and its VOMCPOW constants
-      o.use_voo = true;
-      o.exploration_c = 60.0;
-      o.k_action = 25.0;
-      o.alpha_action = 1.0 / 5.5;
-      o.observations.k = 25.0;
-      o.observations.alpha = 1.0 / 2.5;
-      o.voo.uniform_probability = 0.8;
-      o.voo.proposal_stddev = std::sqrt(0.5);
-      o.voo.accept_radius = 0.05;
-      o.voo.max_tries = 20;
-    }
+    PomcpowOptions o = models::VpwLqgPomcpowOptions(c.planner == "vomcpow");
     if (!ApplyOptions(&o, c.options)) return 2;
     run = [&, o](int i) {
       Pomcpow<Model> planner(model, o);

@@ -9,6 +9,7 @@
 #include "npfkct/common/stats.h"
 #include "npfkct/solver/belief.h"
 #include "npfkct/solver/kct.h"
+#include "npfkct/solver/models/vpw_lqg.h"
 #include "npfkct/solver/pomcpow.h"
 
 namespace npfkct {
@@ -129,16 +130,7 @@ TEST(LinearQuadraticTest, RolloutFirstPlannersLandNearThePublishedLqgOptimum) {
   std::vector<double> pomcpow_error, kct_error, kct_default_error;
   for (uint64_t seed = 1; seed <= 40; ++seed) {
     {
-      PomcpowOptions o;
-      o.exploration_c = 65.0;
-      o.k_action = 30.0;
-      o.alpha_action = 1.0 / 2.5;
-      o.observations.k = 30.0;
-      o.observations.alpha = 1.0 / 4.0;
-      o.search.max_depth = 3;
-      o.search.num_particles = 1000;
-      o.search.rollout_first = true;
-      Pomcpow<LinearQuadratic> planner(model, o);
+      Pomcpow<LinearQuadratic> planner(model, models::VpwLqgPomcpowOptions(/*voo=*/false));
       Rng rng(seed);
       planner.Reset(rng);
       auto d = planner.Plan(Budget::Simulations(1000), rng);
