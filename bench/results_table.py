@@ -714,6 +714,17 @@ CLASSIC_ROWS = [
      [{"problem": "vdptag", "planner": "vomcpow", "cpu_ms": 1000, "threads": 1, "seed": 1},
       {"problem": "vdptag", "planner": "vomcpow", "cpu_ms": 1000, "threads": 1, "seed": 2}],
      "33.2 ± 0.9 (Lim, Tomlin & Sunberg 2021)"),
+    ("VDP Tag, the VPW paper's configuration", "VOMCPOW", "1 s of CPU",
+     [{"problem": "vdptag", "planner": "vomcpow", "cpu_ms": 1000,
+       "options": ["search.rollout_first=1", "search.num_particles=100000"]}],
+     "33.2 ± 0.9 (Lim, Tomlin & Sunberg 2021)"),
+    ("VDP Tag, the VPW paper's configuration", "POMCPOW", "1 s of CPU",
+     [{"problem": "vdptag", "planner": "pomcpow", "cpu_ms": 1000,
+       "options": ["search.rollout_first=1", "search.num_particles=100000"]}],
+     "28.3 ± 1.0 (ibid.)"),
+    ("VDP Tag, the VPW paper's configuration", "kCT", "1 s of CPU",
+     [{"problem": "vdptag", "planner": "kct", "cpu_ms": 1000,
+       "options": ["search.rollout_first=1", "search.num_particles=100000"]}], "–"),
     ("VDP Tag (ToNextML rollout), seed 1", "kCT", "1 s of CPU",
      [{"problem": "vdptag", "planner": "kct", "cpu_ms": 1000, "threads": 1, "seed": 1}], "–"),
     ("VDP Tag (ToNextML rollout), seed 1", "VOMCPOW", "1 s of CPU",
@@ -754,6 +765,26 @@ def classic(path):
                    f"{100 * sum(r['episodes'] * r['success_rate'] for r in runs) / n:.1f}%")
         print(f"| {problem} | {planner} | {budget} | {n} | {mean:.2f} ± {se:.2f} | {steps:.1f} | "
               f"{success} | {published} |")
+    lqg = [r for r in lines if r["problem"] == "lqg"]
+    if lqg:
+        print("\nThe VPW paper's 2-D LQG (Lim, Tomlin & Sunberg 2021): plans from the initial belief, "
+              "the mean distance of the first action to the LQR optimum (6, -6) ± standard error "
+              "(lower is better):\n")
+        print("| Planner | Options | Plans | Simulations per plan | Mean distance ± s.e. | Median | "
+              "Published |")
+        print("|---|---|---|---|---|---|---|")
+        published = {"vomcpow": "0.246 (RolloutFirst)", "pomcpow": "0.277 (RolloutFirst)"}
+        latest = {}
+        for r in lqg:  # the last run of each planner and options
+            latest[(r["planner"], tuple(r["options"]))] = r
+        for (planner, options), r in latest.items():
+            name = {"kct": "kCT", "pomcpow": "POMCPOW", "vomcpow": "VOMCPOW"}[planner]
+            opts = ", ".join(f"`{o}`" for o in options) or "–"
+            if planner != "kct":
+                opts = "RolloutFirst, the script's constants"
+            print(f"| {name} | {opts} | {r['plans']} | {r['sims']:,} | "
+                  f"{r['mean_distance']:.3f} ± {r['stderr']:.3f} | {r['median_distance']:.3f} | "
+                  f"{published.get(planner, '–')} |")
     print("\nSimulations per second of POMCP on RockSample(7,8) at 1 s per step (median over "
           "steps):\n")
     print("| Episodes | Episodes at once | Return ± s.e. | Median sims/s | First step sims/s |")
@@ -1159,12 +1190,21 @@ v2 tuning scenes (`npfkct-scenegen --version 2`, seeds 850001-850030, kept in
 `r-co-0` and `obstacle-covers` were stopped after 5 scenes (both far below the defaults there);
 `min-cover-0.06` ran a patch that was not kept (a box with an extent under 6 cm neither covers nor
 shades the guessed target), the `clear-macro` rows the clear macro of 267939c, reverted; `oracle`, `nbv`, `kct`, `defaults` and `depth30` ran at edca0cc, the
-others at the commit each cell records. What the rows mean: docs/experiments.md.
+others at the commit each cell records. What the rows mean: docs/experiments.md. The second
+table is a later run (`reuse1`; its cells record 8851d9b, 3faa533 and 491accf, which change no
+planner) with its own `defaults` row beside the rows it compares; its `oracle` and `nbv` cells
+are run1's.
 
     bench/bench_estimator.sh
     python3 bench/results_table.py estimator bench/results/estimator-v2/run1 \\
       bench/results/estimator-v2/scenes
+    ROWS="defaults reuse rollout-first" bench/bench_estimator.sh --run reuse1
+    python3 bench/results_table.py estimator bench/results/estimator-v2/reuse1 \\
+      bench/results/estimator-v2/scenes
 """, [lambda r: estimator(os.path.join(r, "estimator-v2", "run1"),
+                          os.path.join(r, "estimator-v2", "scenes")),
+      lambda r: print(),
+      lambda r: estimator(os.path.join(r, "estimator-v2", "reuse1"),
                           os.path.join(r, "estimator-v2", "scenes"))]),
     ("Planning on several cores", """\
 `npfkct` with 1 and 2 root-parallel search threads, 1 s of wall time per step, trials one after
@@ -1187,10 +1227,15 @@ rounds, 1,000 simulations per step, 2 trials per cell, the same seeds.
 The planners of `solver/` on the problems their authors published (`solver/include/npfkct/solver/
 models/`). The rows at 1 s of CPU give kCT (the project's defaults) and the planner beside it the
 same rollout, run on one machine; the rows above them used wall-clock or simulation budgets.
-Pooled rows pool two runs with new episodes (seeds 1 and 2) as independent samples.
+Pooled rows pool two runs with new episodes (seeds 1 and 2) as independent samples. "The VPW
+paper's configuration" is VOOTreeSearch.jl's `scripts/VDPTag2/compare.jl`: ToNextML rollouts,
+the root's first action towards the belief's mean target's next position (RootToNextMLFirst),
+100,000 particles; kCT is given the same. Standard errors are the sample standard deviation over
+the square root of the episodes (or plans).
 
     bench/bench_classic.sh                     # every section; or name some: tiger rocksample ...
     SEED=2 THREADS=1 bench/bench_classic.sh kct-vdptag
+    bench/bench_classic.sh lqg vdptag-published
     python3 bench/results_table.py classic bench/results/classic.jsonl
 """, [lambda r: classic(os.path.join(r, "classic.jsonl"))]),
     ("The neural process filter", """\
