@@ -388,9 +388,8 @@ int main(int argc, char** argv) {
       "benchmarks (--problem) or on object-search scenarios (--scenario)"};
   app.set_version_flag("--version", std::string("npfkct-bench ") + npfkct::kVersion);
   app.add_option("--problem", c.problem,
-                 "tiger | rocksample | lightdark | vdptag | lqg (the VPW paper's LQG: each episode "
-                 "is one plan, "
-                 "scored by its first action's distance to the optimum)");
+                 "tiger | rocksample | lightdark | vdptag | lqg (the VPW paper's LQG: each "
+                 "episode is one plan, scored by its first action's distance to the optimum)");
   app.add_option("--scenario", search.scenarios,
                  "object-search scenario file(s) (repeatable or comma-separated)")
       ->delimiter(',');
@@ -418,9 +417,8 @@ int main(int argc, char** argv) {
   app.add_option("--threads", c.threads, "episodes run in parallel")->check(CLI::PositiveNumber);
   app.add_option("--max-steps", c.max_steps, "episode length limit (default per problem)");
   app.add_option("--rollout", c.rollout,
-                 "tiger: listen (default) | random; vdptag: random (default) | tonextml; lqg: lqr "
-                 "(default) | uniform; scenarios: "
-                 "aimed (default) | clear | greedy | random");
+                 "tiger: listen (default) | random; vdptag: random (default) | tonextml; lqg: "
+                 "lqr (default) | uniform; scenarios: aimed (default) | clear | greedy | random");
   double plan_r_co = std::nan("");
   app.add_option("--plan-r-co", plan_r_co,
                  "scenarios: R_co of the planners' model (the simulator pays the scenario's)");
