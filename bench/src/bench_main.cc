@@ -372,8 +372,7 @@ int RunLqg(const Config& c) {
       "\"stderr\": %.4f, \"median_distance\": %.4f, \"median_sims_per_step\": %.1f, "
       "\"failed_plans\": %d}\n",
       model.OptimalFirstAction()[0], model.OptimalFirstAction()[1], mean_action[0], mean_action[1],
-      d.mean, d.stddev / std::sqrt(static_cast<double>(std::max(d.n, 1))), Median(distance),
-      s.median_sims_per_step, s.failed_episodes);
+      d.mean, d.StandardError(), Median(distance), s.median_sims_per_step, s.failed_episodes);
   return s.failed_episodes == 0 ? 0 : 1;
 }
 

@@ -118,7 +118,7 @@ inline RunSummary Summarize(const std::vector<EpisodeResult>& results, bool succ
   const MeanInterval ret = MeanWithInterval(returns);
   const MeanInterval st = MeanWithInterval(steps);
   s.mean_return = ret.mean;
-  s.stderr_return = ret.n > 0 ? ret.stddev / std::sqrt(static_cast<double>(ret.n)) : 0.0;
+  s.stderr_return = ret.StandardError();
   s.ci95_return = ret.half_width;
   s.mean_steps = st.mean;
   s.ci95_steps = st.half_width;

@@ -95,7 +95,7 @@ MeanInterval MeanWithInterval(const std::vector<double>& v, double level) {
   double ss = 0.0;
   for (double x : v) ss += (x - m.mean) * (x - m.mean);
   m.stddev = std::sqrt(ss / (m.n - 1));
-  m.half_width = StudentTQuantile(0.5 * (1.0 + level), m.n - 1) * m.stddev / std::sqrt(m.n);
+  m.half_width = StudentTQuantile(0.5 * (1.0 + level), m.n - 1) * m.StandardError();
   return m;
 }
 

@@ -38,6 +38,8 @@ TEST(StatsTest, MeanIntervalUsesStudentsT) {
   EXPECT_DOUBLE_EQ(m.mean, 3.0);
   EXPECT_NEAR(m.stddev, std::sqrt(2.5), 1e-12);
   EXPECT_NEAR(m.half_width, 2.7764 * std::sqrt(2.5) / std::sqrt(5.0), 1e-4);
+  EXPECT_NEAR(m.StandardError(), std::sqrt(2.5) / std::sqrt(5.0), 1e-12);
+  EXPECT_EQ(MeanWithInterval({7}).StandardError(), 0.0);
   EXPECT_EQ(MeanWithInterval({7}).half_width, 0.0);
   EXPECT_EQ(Median({3, 1, 2, 10}), 2.5);
 }

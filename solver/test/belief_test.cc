@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Core>
+
 #include "npfkct/solver/models/light_dark.h"
 #include "npfkct/solver/models/rock_sample.h"
 #include "npfkct/solver/models/tiger.h"
@@ -14,9 +16,15 @@ using models::SimpleLightDark;
 using models::Tiger;
 
 double FractionLeft(const ParticleBelief<int>& b) {
-  double left = 0.0;
-  for (int i = 0; i < b.size(); ++i) left += (b.particle(i) == 0) * b.weight(i);
-  return left / b.total_weight();
+  return b.Mean([](int s) { return s == 0 ? 1.0 : 0.0; });
+}
+
+TEST(ParticleBeliefTest, MeanWeighsTheParticles) {
+  const ParticleBelief<int> b({1, 2, 10}, {1.0, 1.0, 2.0});
+  EXPECT_DOUBLE_EQ(b.Mean([](int s) { return static_cast<double>(s); }), (1 + 2 + 20) / 4.0);
+  const Eigen::Vector2d m = b.Mean([](int s) { return Eigen::Vector2d(s, -s); });
+  EXPECT_DOUBLE_EQ(m[0], 23.0 / 4.0);
+  EXPECT_DOUBLE_EQ(m[1], -23.0 / 4.0);
 }
 
 TEST(ParticleBeliefTest, LikelihoodUpdateMatchesBayes) {

@@ -1,5 +1,6 @@
 #include "npfkct/solver/models/linear_quadratic.h"
 
+#include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
 #include <numbers>
@@ -76,13 +77,10 @@ LinearQuadratic::Action LinearQuadratic::RolloutAction(const State& s, Rng& rng)
 LinearQuadratic::Action LinearQuadratic::BeliefRolloutAction(const ParticleBelief<State>& belief,
                                                              Rng& rng) const {
   if (belief.empty() || !(belief.total_weight() > 0.0)) return RolloutAction(State{}, rng);
-  State mean = belief.particle(0);
-  mean.x = {0.0, 0.0};
-  for (int i = 0; i < belief.size(); ++i) {
-    const double w = belief.weight(i) / belief.total_weight();
-    mean.x[0] += w * belief.particle(i).x[0];
-    mean.x[1] += w * belief.particle(i).x[1];
-  }
+  const Eigen::Vector2d x =
+      belief.Mean([](const State& s) { return Eigen::Vector2d(s.x[0], s.x[1]); });
+  State mean = belief.particle(0);  // its time step
+  mean.x = {x[0], x[1]};
   return RolloutAction(mean, rng);
 }
 

@@ -1,5 +1,6 @@
 #include "npfkct/solver/models/vdp_tag.h"
 
+#include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -153,15 +154,13 @@ VdpTag::Action VdpTag::BeliefRolloutAction(const ParticleBelief<State>& belief, 
   if (rollout_ != Rollout::kToNextMl || belief.empty() || !(belief.total_weight() > 0.0)) {
     return RolloutAction(belief.empty() ? State{} : belief.Sample(rng), rng);
   }
+  const Eigen::Vector4d m =
+      belief.Mean([](const State& s) { return Eigen::Vector4d(s.ax, s.ay, s.tx, s.ty); });
   State mean;
-  for (int i = 0; i < belief.size(); ++i) {
-    const double w = belief.weight(i) / belief.total_weight();
-    const State& p = belief.particle(i);
-    mean.ax += w * p.ax;
-    mean.ay += w * p.ay;
-    mean.tx += w * p.tx;
-    mean.ty += w * p.ty;
-  }
+  mean.ax = m[0];
+  mean.ay = m[1];
+  mean.tx = m[2];
+  mean.ty = m[3];
   return RolloutAction(mean, rng);
 }
 

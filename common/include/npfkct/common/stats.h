@@ -5,6 +5,7 @@
 //   std::printf("%.1f ± %.1f (n = %d)", m.mean, m.half_width, m.n);
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -29,6 +30,8 @@ struct MeanInterval {
   double mean = 0.0;
   double stddev = 0.0;      ///< Sample standard deviation (n - 1 in the denominator).
   double half_width = 0.0;  ///< t_{(1 + level) / 2, n - 1} stddev / sqrt(n); 0 when n < 2.
+  /// The standard error of the mean, stddev / sqrt(n); 0 when n < 2.
+  double StandardError() const { return n > 0 ? stddev / std::sqrt(static_cast<double>(n)) : 0.0; }
 };
 
 /// The mean of `v` and its `level` (default 95%) Student's t confidence interval.

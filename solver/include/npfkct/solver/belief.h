@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdint>
 #include <string>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -112,6 +113,15 @@ class ParticleBelief {
   const std::vector<State>& particles() const { return particles_; }
   const std::vector<double>& weights() const { return weights_; }
   double total_weight() const { return total_; }
+
+  /// The weighted mean of f(particle) (a number or a fixed-size Eigen vector). The belief must not
+  /// be empty and its total weight must be positive.
+  template <class F>
+  std::invoke_result_t<F, const State&> Mean(F f) const {
+    std::invoke_result_t<F, const State&> sum = f(particles_[0]) * (weights_[0] / total_);
+    for (int i = 1; i < size(); ++i) sum += f(particles_[i]) * (weights_[i] / total_);
+    return sum;
+  }
 
   /// A particle drawn in proportion to its weight. The belief must not be empty.
   const State& Sample(Rng& rng) const {
