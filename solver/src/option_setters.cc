@@ -76,6 +76,20 @@ const Table<PomcpOptions>& PomcpTable() {
   return *table;
 }
 
+const Table<DespotOptions>& DespotTable() {
+  static const auto* table = [] {
+    auto* t = new Table<DespotOptions>{
+        {"num_scenarios", Int(&DespotOptions::num_scenarios)},
+        {"xi", Real(&DespotOptions::xi)},
+        {"pruning_constant", Real(&DespotOptions::pruning_constant)},
+        {"max_policy_sim_len", Int(&DespotOptions::max_policy_sim_len)},
+    };
+    AddSearch(t);
+    return t;
+  }();
+  return *table;
+}
+
 const Table<PomcpowOptions>& PomcpowTable() {
   static const auto* table = [] {
     auto* t = new Table<PomcpowOptions>{
@@ -170,6 +184,9 @@ Status SetOption(SearchOptions* o, std::string_view key, double value) {
 Status SetOption(PomcpOptions* o, std::string_view key, double value) {
   return Apply(PomcpTable(), o, key, value);
 }
+Status SetOption(DespotOptions* o, std::string_view key, double value) {
+  return Apply(DespotTable(), o, key, value);
+}
 Status SetOption(PomcpowOptions* o, std::string_view key, double value) {
   return Apply(PomcpowTable(), o, key, value);
 }
@@ -182,12 +199,14 @@ Status SetOption(KctOptions* o, std::string_view key, double value) {
 
 std::vector<std::string> OptionNames(const SearchOptions*) { return Keys(SearchTable()); }
 std::vector<std::string> OptionNames(const PomcpOptions*) { return Keys(PomcpTable()); }
+std::vector<std::string> OptionNames(const DespotOptions*) { return Keys(DespotTable()); }
 std::vector<std::string> OptionNames(const PomcpowOptions*) { return Keys(PomcpowTable()); }
 std::vector<std::string> OptionNames(const AdvtOptions*) { return Keys(AdvtTable()); }
 std::vector<std::string> OptionNames(const KctOptions*) { return Keys(KctTable()); }
 
 OptionValueList OptionValues(const SearchOptions& o) { return Values(SearchTable(), o); }
 OptionValueList OptionValues(const PomcpOptions& o) { return Values(PomcpTable(), o); }
+OptionValueList OptionValues(const DespotOptions& o) { return Values(DespotTable(), o); }
 OptionValueList OptionValues(const PomcpowOptions& o) { return Values(PomcpowTable(), o); }
 OptionValueList OptionValues(const AdvtOptions& o) { return Values(AdvtTable(), o); }
 OptionValueList OptionValues(const KctOptions& o) { return Values(KctTable(), o); }

@@ -140,6 +140,30 @@ TEST(SimpleLightDarkTest, DynamicsRewardsAndObservations) {
   }
 }
 
+TEST(SimpleLightDarkTest, DiscretisedObservationsAreBinsWithTheirGaussianMass) {
+  const double bin = 0.5;
+  SimpleLightDark ld(bin);
+  EXPECT_EQ(ld.observation_bin(), bin);
+  Rng rng(7);
+  // At 9 the noise is 1.0001: the bin index is floor(o / 0.5), a whole number.
+  for (int i = 0; i < 100; ++i) {
+    const double o = ld.Step(8, 3, rng).observation;
+    EXPECT_EQ(o, std::floor(o));
+    EXPECT_GT(o, 9.0 / bin - 12.0);
+    EXPECT_LT(o, 9.0 / bin + 12.0);
+  }
+  // The bins' masses sum to one, and each is the Gaussian's mass on [o, o + 1) * bin.
+  double total = 0.0;
+  for (int o = -200; o < 200; ++o) total += ld.ObservationLikelihood(3, 9, o);
+  EXPECT_NEAR(total, 1.0, 1e-9);
+  const double sd = SimpleLightDark::NoiseStd(9);
+  const double expected = 0.5 * (std::erf((9.5 - 9.0) / (sd * std::sqrt(2.0))) -
+                                 std::erf((9.0 - 9.0) / (sd * std::sqrt(2.0))));
+  EXPECT_NEAR(ld.ObservationLikelihood(3, 9, 18.0), expected, 1e-12);
+  // An invalid width means continuous observations.
+  EXPECT_EQ(SimpleLightDark(-1.0).observation_bin(), 0.0);
+}
+
 TEST(SimpleLightDarkTest, MdpValueIsExact) {
   SimpleLightDark ld;
   EXPECT_NEAR(ld.HeuristicValue(0), 100.0, 1e-9);

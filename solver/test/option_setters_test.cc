@@ -57,5 +57,20 @@ TEST(OptionSettersTest, ListsEveryKey) {
   }
 }
 
+TEST(OptionSettersTest, SetsDespotOptionsByName) {
+  DespotOptions o;
+  EXPECT_TRUE(SetOptionFromString(&o, "num_scenarios=50").ok());
+  EXPECT_TRUE(SetOptionFromString(&o, "pruning_constant=0.1").ok());
+  EXPECT_TRUE(SetOptionFromString(&o, "search.max_depth=40").ok());
+  EXPECT_EQ(o.num_scenarios, 50);
+  EXPECT_EQ(o.pruning_constant, 0.1);
+  EXPECT_EQ(o.search.max_depth, 40);
+  const Status bad = SetOptionFromString(&o, "scenarios=5");
+  EXPECT_EQ(bad.code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(bad.message().find("scenarios"), std::string::npos);
+  const auto names = OptionNames(&o);
+  EXPECT_NE(std::find(names.begin(), names.end(), "xi"), names.end());
+}
+
 }  // namespace
 }  // namespace npfkct

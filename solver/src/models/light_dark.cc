@@ -6,7 +6,10 @@
 
 namespace npfkct::models {
 
-SimpleLightDark::SimpleLightDark() : mdp_value_(2 * kRadius + 1, 0.0) {
+SimpleLightDark::SimpleLightDark(double observation_bin)
+    : observation_bin_(observation_bin > 0.0 && std::isfinite(observation_bin) ? observation_bin
+                                                                               : 0.0),
+      mdp_value_(2 * kRadius + 1, 0.0) {
   // Value iteration on the fully observable problem.
   std::vector<double> next(mdp_value_.size());
   for (int iter = 0; iter < 2000; ++iter) {
@@ -45,12 +48,17 @@ StepResult<SimpleLightDark::State, SimpleLightDark::Observation> SimpleLightDark
     r.state = std::clamp(s + kMoves[a], -kRadius, kRadius);
   }
   r.observation = rng.Normal(r.state, NoiseStd(r.state));
+  if (observation_bin_ > 0.0) r.observation = std::floor(r.observation / observation_bin_);
   return r;
 }
 
 double SimpleLightDark::ObservationLikelihood(const Action&, const State& sp,
                                               const Observation& o) const {
   const double sd = NoiseStd(sp);
+  if (observation_bin_ > 0.0) {  // the Gaussian's mass on bin o
+    auto cdf = [&](double x) { return 0.5 * std::erfc(-(x - sp) / (sd * std::numbers::sqrt2)); };
+    return cdf((o + 1.0) * observation_bin_) - cdf(o * observation_bin_);
+  }
   const double z = (o - sp) / sd;
   return std::exp(-0.5 * z * z) / (sd * std::sqrt(2.0 * std::numbers::pi));
 }
@@ -63,7 +71,8 @@ double SimpleLightDark::HeuristicValue(const State& s) const {
 bool SimpleLightDark::Reinvigorate(const State&, const Action& a, const Observation& o, Rng& rng,
                                    State* out) const {
   if (a == kDeclare || !std::isfinite(o)) return false;
-  const double guess = rng.Normal(o, NoiseStd(o));
+  const double centre = observation_bin_ > 0.0 ? (o + 0.5) * observation_bin_ : o;
+  const double guess = rng.Normal(centre, NoiseStd(centre));
   *out = static_cast<int>(std::clamp(std::round(guess), -double{kRadius}, double{kRadius}));
   return true;
 }

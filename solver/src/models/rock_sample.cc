@@ -15,6 +15,54 @@ RockSample::RockSample(int size, std::vector<std::pair<int, int>> rocks, std::pa
       discount_(discount),
       grid_(static_cast<size_t>(size) * size, -1) {
   for (int i = 0; i < num_rocks(); ++i) grid_[rocks_[i].second * size_ + rocks_[i].first] = i;
+  // gamma^d for every Manhattan distance on the grid.
+  for (int d = 0; d <= 2 * size_; ++d) discount_powers_.push_back(std::pow(discount_, d));
+  const int k = num_rocks();
+  if (k <= kMaxExactBoundRocks) {
+    // Subsets in increasing order: a subset's value needs only its strict subsets'.
+    after_sampling_.assign(static_cast<size_t>(k) << k, 0.0);
+    for (uint32_t left = 0; left < (1u << k); ++left) {
+      for (int r = 0; r < k; ++r) {
+        if (left & (1u << r)) continue;
+        after_sampling_[(static_cast<size_t>(r) << k) | left] =
+            BestFrom(rocks_[r].first, rocks_[r].second, left);
+      }
+    }
+  }
+}
+
+double RockSample::ExitValue(int x) const { return 10.0 * discount_powers_[size_ - 1 - x]; }
+
+double RockSample::BestFrom(int x, int y, uint32_t left) const {
+  const int k = num_rocks();
+  double best = ExitValue(x);
+  for (int r = 0; r < k; ++r) {
+    if (!(left & (1u << r))) continue;
+    const int d = std::abs(rocks_[r].first - x) + std::abs(rocks_[r].second - y);
+    const uint32_t rest = left & ~(1u << r);
+    // d moves, the sample's +10 at step d, the rest from the rock at step d + 1.
+    best = std::max(best,
+                    discount_powers_[d] *
+                        (10.0 + discount_ * after_sampling_[(static_cast<size_t>(r) << k) | rest]));
+  }
+  return best;
+}
+
+double RockSample::UpperBound(const State& s) const {
+  if (s.terminal) return 0.0;
+  const uint32_t left = static_cast<uint32_t>(s.good) & ~static_cast<uint32_t>(s.collected);
+  if (!after_sampling_.empty()) return BestFrom(s.x, s.y, left);
+  double total = ExitValue(s.x);
+  for (int r = 0; r < num_rocks(); ++r) {
+    if (!(left & (1u << r))) continue;
+    const int d = std::abs(rocks_[r].first - s.x) + std::abs(rocks_[r].second - s.y);
+    total += 10.0 * discount_powers_[d];
+  }
+  return total;
+}
+
+ValuedAction<RockSample::Action> RockSample::DefaultMove(const State& s) const {
+  return {kEast, s.terminal ? 0.0 : ExitValue(s.x)};
 }
 
 RockSample RockSample::Standard78() {

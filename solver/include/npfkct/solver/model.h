@@ -11,18 +11,24 @@
 //   };
 //
 // Optional members, detected at compile time, refine what planners can do:
-//   bool IsTerminal(const State&) const;                              // default: never
-//   double ObservationLikelihood(const Action&, const State& sp,      // Z(o | a, s'); needed by
-//                                const Observation&) const;           // POMCPOW-style planners
-//   Action RolloutAction(const State&, Rng&) const;                   // default: uniform legal
-//   double MinReward() const; double MaxReward() const;              // UCB scale (c = max - min)
-//   bool Reinvigorate(const State& near, const Action&,               // a particle near `near`
-//   that
-//                     const Observation&, Rng&, State* out) const;    // is consistent with (a, o)
-//   double HeuristicValue(const State&) const;                        // leaf value instead of
-//   rollout void Condition(const State& s, const Action&, const Observation&, // rewrite history
-//   kept in s'
-//                  State* sp) const;                                  // for the real observation
+//   bool IsTerminal(const State&) const;
+//       default: never terminal
+//   double ObservationLikelihood(const Action&, const State& sp, const Observation&) const;
+//       Z(o | a, s'), needed by POMCPOW-style planners
+//   Action RolloutAction(const State&, Rng&) const;
+//       the rollout policy; default: a uniformly random legal action
+//   double MinReward() const; double MaxReward() const;
+//       the UCB scale (c = max - min)
+//   bool Reinvigorate(const State& near, const Action&, const Observation&, Rng&,
+//                     State* out) const;
+//       a particle near `near` that is consistent with (a, o)
+//   double HeuristicValue(const State&) const;
+//       a leaf value instead of a rollout
+//   void Condition(const State& s, const Action&, const Observation&, State* sp) const;
+//       rewrites the history kept in s' for the real observation
+//   double UpperBound(const State&) const; ValuedAction<Action> DefaultMove(const State&) const;
+//       DESPOT's bounds: the state's value with its hidden part known, and a default policy's
+//       first action and value
 //
 // Discrete-action models (Action = int) add
 //   int NumActions() const;
@@ -32,8 +38,7 @@
 // Hybrid/continuous-action models (Action = HybridAction) add
 //   void ActionKinds(const State&, std::vector<int>*) const;          // legal kinds at a state
 //   const BoxSpace& KindSpace(int kind) const;                        // dim 0: purely discrete
-//   kind bool IsFeasible(const State&, const Action&) const;               // optional
-//   reasonability check
+//   bool IsFeasible(const State&, const Action&) const;               // optional reasonability
 #pragma once
 
 #include <array>
@@ -55,6 +60,18 @@ struct StepResult {
   Observation observation;
   double reward = 0.0;
   bool terminal = false;
+};
+
+/// An action and a value. A model's optional `ValuedAction<Action> DefaultMove(const State&)`
+/// gives the first action of its default (blind) policy from a state and that policy's value from
+/// the state, a lower bound on its optimal value (DESPOT's default move). The action must be the
+/// same for every state of a belief (it may depend on what they share, such as a known robot
+/// position), since a belief node executes one action for all its states. RockSample's is "go
+/// east and exit".
+template <class Action>
+struct ValuedAction {
+  Action action{};
+  double value = 0.0;
 };
 
 /// The core generative POMDP model concept.

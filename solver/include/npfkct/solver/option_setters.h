@@ -8,6 +8,7 @@
 
 #include "npfkct/common/status.h"
 #include "npfkct/solver/advt.h"
+#include "npfkct/solver/despot.h"
 #include "npfkct/solver/kct.h"
 #include "npfkct/solver/pomcp.h"
 #include "npfkct/solver/pomcpow.h"
@@ -19,6 +20,7 @@ namespace npfkct {
 /// OptionNames(). Unknown keys and non-finite numbers are INVALID_ARGUMENT naming the key.
 Status SetOption(SearchOptions* o, std::string_view key, double value);
 Status SetOption(PomcpOptions* o, std::string_view key, double value);
+Status SetOption(DespotOptions* o, std::string_view key, double value);
 Status SetOption(PomcpowOptions* o, std::string_view key, double value);
 Status SetOption(AdvtOptions* o, std::string_view key, double value);
 Status SetOption(KctOptions* o, std::string_view key, double value);
@@ -26,6 +28,7 @@ Status SetOption(KctOptions* o, std::string_view key, double value);
 /// The keys SetOption accepts for each options struct.
 std::vector<std::string> OptionNames(const SearchOptions*);
 std::vector<std::string> OptionNames(const PomcpOptions*);
+std::vector<std::string> OptionNames(const DespotOptions*);
 std::vector<std::string> OptionNames(const PomcpowOptions*);
 std::vector<std::string> OptionNames(const AdvtOptions*);
 std::vector<std::string> OptionNames(const KctOptions*);
@@ -36,6 +39,7 @@ using OptionValueList = std::vector<std::pair<std::string, double>>;
 /// SetOption takes), in key order: what a planner runs with.
 OptionValueList OptionValues(const SearchOptions& o);
 OptionValueList OptionValues(const PomcpOptions& o);
+OptionValueList OptionValues(const DespotOptions& o);
 OptionValueList OptionValues(const PomcpowOptions& o);
 OptionValueList OptionValues(const AdvtOptions& o);
 OptionValueList OptionValues(const KctOptions& o);

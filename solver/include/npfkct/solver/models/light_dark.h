@@ -26,7 +26,10 @@ class SimpleLightDark {
   static constexpr int kDeclare = 2;
   static constexpr int kMoves[5] = {-10, -1, 0, 1, 10};
 
-  SimpleLightDark();
+  /// The continuous problem, or with `observation_bin` > 0 the authors' discretised one
+  /// (DSimpleLightDark of ContinuousPOMDPTreeSearchExperiments.jl): the observation is the bin
+  /// index floor(o / observation_bin), its likelihood the Gaussian's mass on the bin.
+  explicit SimpleLightDark(double observation_bin = 0.0);
 
   State SampleInitialState(Rng& rng) const;
   StepResult<State, Observation> Step(const State& s, const Action& a, Rng& rng) const;
@@ -44,8 +47,11 @@ class SimpleLightDark {
 
   /// Observation noise standard deviation at position s.
   static double NoiseStd(double s) { return std::abs(s - kLight) + 1e-4; }
+  /// The observation bin width (0: continuous observations).
+  double observation_bin() const { return observation_bin_; }
 
  private:
+  double observation_bin_ = 0.0;
   std::vector<double> mdp_value_;  // index s + kRadius
 };
 

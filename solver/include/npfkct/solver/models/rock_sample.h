@@ -76,6 +76,13 @@ class RockSample {
   /// log-odds, so the belief keeps its posterior while regaining diversity.
   bool Reinvigorate(const State& near, const Action& a, const Observation& o, Rng& rng,
                     State* out) const;
+  /// DESPOT's upper bound: the value of `s` with its rocks known, the best order of visiting and
+  /// sampling the good rocks left and then exiting east (the fully observable MDP's value, as the
+  /// authors' RockSampleMDPParticleUpperBound; for more than 12 rocks the looser sum of each good
+  /// rock's discounted reward and the exit's).
+  double UpperBound(const State& s) const;
+  /// DESPOT's default lower bound for RockSample: go east and exit, worth 10 gamma^(size - 1 - x).
+  ValuedAction<Action> DefaultMove(const State& s) const;
   double MinReward() const { return -10.0; }
   double MaxReward() const { return 10.0; }
 
@@ -96,6 +103,14 @@ class RockSample {
   double half_distance_;
   double discount_;
   std::vector<int8_t> grid_;  // rock index per cell or -1
+  // The MDP value after sampling rock r with the good rocks `left` still to sample, at
+  // [r << num_rocks | left]; empty above kMaxExactBoundRocks.
+  std::vector<double> after_sampling_;
+  static constexpr int kMaxExactBoundRocks = 12;
+  std::vector<double> discount_powers_;  // gamma^d, d = 0 .. 2 size
+  double ExitValue(int x) const;
+  // The best of exiting and of sampling each rock of `left` next, from (x, y).
+  double BestFrom(int x, int y, uint32_t left) const;
 };
 
 }  // namespace npfkct::models
