@@ -99,8 +99,19 @@ struct KctOptions {
   enum class FinalAction {
     kUniformInSphere,  ///< Uniform in the sphere, rejecting infeasible points (paper).
     kCenter,           ///< The sphere's center (when feasible).
+    /// The maximiser, within the sphere, of a quadratic fitted by least squares to the root's
+    /// recorded (point, return) pairs near the sphere (within regression_reach of its radius);
+    /// kUniformInSphere's rule when too few records are near, the fit is not concave or its
+    /// point is not feasible.
+    kRegression,
   };
   FinalAction final_action = FinalAction::kUniformInSphere;
+  /// With kRegression: records within this many sphere radii of its center enter the fit.
+  double regression_reach = 3.0;
+  /// With kRegression: the fitted maximiser is kept within this many sphere radii of its center.
+  double regression_trust = 1.0;
+  /// With kRegression: the fit is used only when it explains this share of the returns' variance.
+  double regression_min_r2 = 0.9;
   /// Where Action_sam draws the point of a sphere: uniformly in the sphere (the paper), or among
   /// the candidates (Net_sam's filtered samples) the sphere covers, uniformly in it when it
   /// covers none. The candidates are where the filter found efficient actions; a uniform draw
@@ -386,6 +397,7 @@ class KCenterTree : public PlannerBase<KCenterTree<M>, M, KctOptions> {
   // Action_sam with the reasonability check: a feasible point drawn uniformly in the sphere (or
   // its center), else the best-returning feasible point tried in it; false when there is none.
   bool SampleExecutable(const Worker& w, int ai, const State& s, Rng& rng, HybridAction* out) const;
+  bool RegressedPoint(const Worker& w, int ai, const State& s, HybridAction* out) const;
 
   // Among the points executed in a sphere, the feasible one with the best mean return over the
   // episodes that executed it, counting only points executed at least twice when any was.

@@ -3,6 +3,9 @@
 // is part of the solver's interface; include npfkct/solver/kct.h instead.
 #pragma once
 
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <Eigen/QR>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -784,6 +787,10 @@ bool KCenterTree<M>::SampleExecutable(const Worker& w, int ai, const State& s, R
       IsFeasibleAction(model_, s, an.action)) {
     return true;
   }
+  if (options_.final_action == KctOptions::FinalAction::kRegression &&
+      RegressedPoint(w, ai, s, out)) {
+    return true;
+  }
   if (options_.sample_candidates && an.data.members && !an.data.members->empty()) {
     // The sphere's tried candidate with the best mean return (a candidate is a point, so it
     // gathers returns over the episodes that drew it), else any feasible candidate.
@@ -822,6 +829,71 @@ bool KCenterTree<M>::SampleExecutable(const Worker& w, int ai, const State& s, R
   }
   if (best < 0) return false;
   for (int i = 0; i < dim; ++i) out->x[i] = data.points[static_cast<size_t>(best) * dim + i];
+  return true;
+}
+
+template <HybridActionModel M>
+bool KCenterTree<M>::RegressedPoint(const Worker& w, int ai, const State& s,
+                                    HybridAction* out) const {
+  const auto& an = w.tree.act[ai];
+  const int dim = static_cast<int>(an.action.x.size());
+  const double radius = an.data.range;
+  if (dim == 0 || !(radius > 0.0)) return false;
+  // Coordinates z = (x - center) / radius; features 1, z_i, z_i z_j (i <= j).
+  const int features = (dim + 1) * (dim + 2) / 2;
+  const double reach = options_.regression_reach;
+  std::vector<double> rows;
+  std::vector<double> targets;
+  Eigen::VectorXd z(dim);
+  for (const Worker& other : workers_) {
+    if (other.tree.root < 0) continue;
+    for (int bi : other.tree.obs[other.tree.root].actions) {
+      const auto& bn = other.tree.act[bi];
+      if (bn.action.kind != an.action.kind || bn.data.points.empty()) continue;
+      for (size_t r = 0; r < bn.data.ids.size(); ++r) {
+        for (int i = 0; i < dim; ++i) {
+          z[i] = (bn.data.points[r * dim + i] - an.action.x[i]) / radius;
+        }
+        if (z.norm() > reach) continue;
+        rows.push_back(1.0);
+        for (int i = 0; i < dim; ++i) rows.push_back(z[i]);
+        for (int i = 0; i < dim; ++i) {
+          for (int j = i; j < dim; ++j) rows.push_back(z[i] * z[j]);
+        }
+        targets.push_back(bn.data.returns[r]);
+      }
+    }
+  }
+  const int n = static_cast<int>(targets.size());
+  if (n < 3 * features) return false;
+  const Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> x(
+      rows.data(), n, features);
+  const Eigen::Map<const Eigen::VectorXd> y(targets.data(), n);
+  const Eigen::VectorXd beta = x.colPivHouseholderQr().solve(y);
+  if (!beta.allFinite()) return false;
+  // The share of the returns' variance the quadratic explains.
+  const double total = (y.array() - y.mean()).square().sum();
+  const double residual = (x * beta - y).squaredNorm();
+  if (!(total > 0.0) || 1.0 - residual / total < options_.regression_min_r2) return false;
+  // Q(z) ~ beta0 + g.z + z' H z / 2 with H symmetric.
+  Eigen::VectorXd g = beta.segment(1, dim);
+  Eigen::MatrixXd h(dim, dim);
+  int k = 1 + dim;
+  for (int i = 0; i < dim; ++i) {
+    for (int j = i; j < dim; ++j, ++k) {
+      h(i, j) = h(j, i) = (i == j) ? 2.0 * beta[k] : beta[k];
+    }
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(h);
+  if (eig.info() != Eigen::Success || !(eig.eigenvalues().maxCoeff() < 0.0)) return false;
+  Eigen::VectorXd best = -h.ldlt().solve(g);
+  if (!best.allFinite()) return false;
+  // Stay where the fit has data.
+  if (best.norm() > options_.regression_trust) best *= options_.regression_trust / best.norm();
+  HybridAction a = an.action;
+  a.x = model_.KindSpace(a.kind).Clamp(an.action.x + radius * best);
+  if (!IsFeasibleAction(model_, s, a)) return false;
+  *out = std::move(a);
   return true;
 }
 
