@@ -34,6 +34,14 @@ TEST(DespotOptionsTest, ValidateNamesTheOption) {
   EXPECT_NE(o.Validate().message().find("search.threads"), std::string::npos);
 }
 
+RockSample::State At(int x, int y, int good) {
+  RockSample::State s;
+  s.x = static_cast<int8_t>(x);
+  s.y = static_cast<int8_t>(y);
+  s.good = static_cast<uint16_t>(good);
+  return s;
+}
+
 // The fully observable RockSample(3, 2) by value iteration over (x, y, good rocks left), stepping
 // the model itself: an independent check of the closed-form UpperBound.
 TEST(DespotTest, RockSampleUpperBoundIsTheFullyObservableValue) {
@@ -47,10 +55,7 @@ TEST(DespotTest, RockSampleUpperBoundIsTheFullyObservableValue) {
     for (int left = 0; left < 4; ++left) {
       for (int y = 0; y < n; ++y) {
         for (int x = 0; x < n; ++x) {
-          RockSample::State s;
-          s.x = static_cast<int8_t>(x);
-          s.y = static_cast<int8_t>(y);
-          s.good = static_cast<uint16_t>(left);
+          const RockSample::State s = At(x, y, left);
           double best = -1e9;
           for (int a = 0; a < RockSample::kFirstCheck; ++a) {
             auto step = rs.Step(s, a, rng);
@@ -69,10 +74,7 @@ TEST(DespotTest, RockSampleUpperBoundIsTheFullyObservableValue) {
   for (int left = 0; left < 4; ++left) {
     for (int y = 0; y < n; ++y) {
       for (int x = 0; x < n; ++x) {
-        RockSample::State s;
-        s.x = static_cast<int8_t>(x);
-        s.y = static_cast<int8_t>(y);
-        s.good = static_cast<uint16_t>(left);
+        const RockSample::State s = At(x, y, left);
         EXPECT_NEAR(rs.UpperBound(s), v[index(x, y, left)], 1e-9)
             << "x " << x << " y " << y << " good " << left;
         // The default move ("go east") is a lower bound.

@@ -165,5 +165,37 @@ TEST(LinearQuadraticTest, RolloutFirstPlannersLandNearThePublishedLqgOptimum) {
   EXPECT_GT(kct_default, kct);
 }
 
+TEST(LinearQuadraticTest, KctsRegressedFinalActionFindsThePublishedLqgOptimum) {
+  // The value of the first action is quadratic here: a least-squares quadratic over the root's
+  // records locates its maximiser far more finely than any one sphere's points.
+  const LinearQuadratic model(LinearQuadratic::Params::VpwLqg());
+  const ActionVec best = model.OptimalFirstAction();
+  std::vector<double> regressed, uniform;
+  for (uint64_t seed = 1; seed <= 30; ++seed) {
+    for (bool fit : {true, false}) {
+      KctOptions o;
+      o.search.max_depth = 3;
+      o.search.num_particles = 1000;
+      o.final_action = fit ? KctOptions::FinalAction::kRegression
+                           : KctOptions::FinalAction::kUniformInSphere;
+      o.regression_reach = 20.0;
+      o.regression_trust = 10.0;
+      KCenterTree<LinearQuadratic> planner(model, o);
+      Rng rng(seed);
+      planner.Reset(rng);
+      auto d = planner.Plan(Budget::Simulations(1000), rng);
+      ASSERT_TRUE(d.status.ok()) << d.status.ToString();
+      ASSERT_TRUE(model.KindSpace(0).Contains(d.action.x));
+      (fit ? regressed : uniform).push_back((d.action.x - best).norm());
+    }
+  }
+  const double fit = MeanWithInterval(regressed).mean;
+  const double sphere = MeanWithInterval(uniform).mean;
+  std::printf("mean distance to (6, -6): regressed %.3f, uniform in the sphere %.3f\n", fit,
+              sphere);
+  EXPECT_LT(fit, 0.25);  // the acceptance figure
+  EXPECT_LT(fit, 0.5 * sphere);
+}
+
 }  // namespace
 }  // namespace npfkct

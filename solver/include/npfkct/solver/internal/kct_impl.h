@@ -839,7 +839,10 @@ bool KCenterTree<M>::RegressedPoint(const Worker& w, int ai, const State& s,
   const int dim = static_cast<int>(an.action.x.size());
   const double radius = an.data.range;
   if (dim == 0 || !(radius > 0.0)) return false;
-  // Coordinates z = (x - center) / radius; features 1, z_i, z_i z_j (i <= j).
+  // Metric coordinates z = (x - center) / (scale radius), the shorter way round periodic
+  // dimensions; features 1, z_i, z_i z_j (i <= j).
+  const BoxSpace& box = model_.KindSpace(an.action.kind);
+  ActionVec point(dim);
   const int features = (dim + 1) * (dim + 2) / 2;
   const double reach = options_.regression_reach;
   std::vector<double> rows;
@@ -851,9 +854,9 @@ bool KCenterTree<M>::RegressedPoint(const Worker& w, int ai, const State& s,
       const auto& bn = other.tree.act[bi];
       if (bn.action.kind != an.action.kind || bn.data.points.empty()) continue;
       for (size_t r = 0; r < bn.data.ids.size(); ++r) {
-        for (int i = 0; i < dim; ++i) {
-          z[i] = (bn.data.points[r * dim + i] - an.action.x[i]) / radius;
-        }
+        for (int i = 0; i < dim; ++i) point[i] = bn.data.points[r * dim + i];
+        const ActionVec delta = box.Difference(point, an.action.x);
+        for (int i = 0; i < dim; ++i) z[i] = delta[i] / (box.scale()[i] * radius);
         if (z.norm() > reach) continue;
         rows.push_back(1.0);
         for (int i = 0; i < dim; ++i) rows.push_back(z[i]);
@@ -891,7 +894,7 @@ bool KCenterTree<M>::RegressedPoint(const Worker& w, int ai, const State& s,
   // Stay where the fit has data.
   if (best.norm() > options_.regression_trust) best *= options_.regression_trust / best.norm();
   HybridAction a = an.action;
-  a.x = model_.KindSpace(a.kind).Clamp(an.action.x + radius * best);
+  a.x = box.Clamp(an.action.x + radius * box.scale().cwiseProduct(best));
   if (!IsFeasibleAction(model_, s, a)) return false;
   *out = std::move(a);
   return true;
