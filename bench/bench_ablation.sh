@@ -68,6 +68,9 @@ row_args() {
     oracle) opts="" planner=oracle ;;
     *) echo "bench_ablation.sh: unknown row $1" >&2; exit 2 ;;
   esac
+  # The rows were measured with the executed point drawn in the chosen sphere, before kCT's
+  # regressed final action became the default (docs/experiments.md); a rerun keeps that.
+  [ "$planner" = oracle ] || opts="$opts final_action=0"
   ARGS=(--planner "$planner" --rollout "$rollout")
   if [ -n "$model" ]; then ARGS+=(--model "$model"); fi
   for o in $opts; do ARGS+=(--opt "$o"); done

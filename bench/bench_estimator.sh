@@ -18,7 +18,7 @@ npfkct_prepare npfkct-bench npfkct-scenegen
 SEEDS="${SEEDS:-$(seq 850001 850030)}"
 DEFAULT_ROWS="oracle oracle-cover-unknown nbv kct defaults depth30 rollout-clear r-co-0"
 DEFAULT_ROWS="$DEFAULT_ROWS target-only obstacle-covers grid-free-3 grid-odds reuse rollout-first"
-DEFAULT_ROWS="$DEFAULT_ROWS regression"
+DEFAULT_ROWS="$DEFAULT_ROWS regression uniform-final"
 ROWS="${ROWS:-$DEFAULT_ROWS}"
 OUT="$NPFKCT_ROOT/bench/results/estimator-v2/$RUN"
 export SCENE_VERSION=2
@@ -38,7 +38,9 @@ for row in $ROWS; do
     grid-odds) ARGS=(--planner npfkct --grid-sampling odds) ;;
     reuse) ARGS=(--planner npfkct --opt search.reuse_tree=1) ;;
     rollout-first) ARGS=(--planner npfkct --opt search.rollout_first=1) ;;
+    # The regressed final action, kCT's default since it was measured (the rows above ran before).
     regression) ARGS=(--planner npfkct --opt final_action=2 --opt regression_reach=20 --opt regression_trust=10) ;;
+    uniform-final) ARGS=(--planner npfkct --opt final_action=0) ;;
     grid-free-3)
       # The same scenes with the robot's grid update for a seen free cell at -3 instead of -1.
       mkdir -p "$BUILD_DIR/tuning-scenes-v2-grid3"

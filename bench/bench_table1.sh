@@ -31,7 +31,7 @@ planner_args() {
     npfkct-paper)
       ARGS=(--planner npfkct --label npfkct-paper --rollout random)
       for o in filter.target_share=0 filter.object_share=0 sample_candidates=0 final_choice=0 \
-        normalization=1 w2=0.5; do
+        final_action=0 normalization=1 w2=0.5; do
         ARGS+=(--opt "$o")
       done ;;
     *) ARGS=(--planner "$1") ;;

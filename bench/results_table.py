@@ -711,6 +711,10 @@ CLASSIC_ROWS = [
     ("SimpleLightDark", "POMCPOW", "1 s of CPU",
      [{"problem": "lightdark", "planner": "pomcpow", "cpu_ms": 1000}],
      "56.1 ± 0.6 (Sunberg & Kochenderfer 2018)"),
+    ("SimpleLightDark, observations in bins of 10^-1.5", "POMCP (`d-pomcp`)", "1 s of CPU",
+     [{"problem": "lightdark", "planner": "d-pomcp", "cpu_ms": 1000}],
+     "60.99 ± 0.41 (d_pomcp at that width, the best of seven; "
+     "ContinuousPOMDPTreeSearchExperiments.jl icaps_2018 raw data)"),
     ("VDP Tag (ToNextML rollout), seeds 1 and 2 pooled", "kCT", "1 s of CPU",
      [{"problem": "vdptag", "planner": "kct", "cpu_ms": 1000, "threads": 1, "seed": 1},
       {"problem": "vdptag", "planner": "kct", "cpu_ms": 1000, "threads": 1, "seed": 2}], "–"),
@@ -800,12 +804,17 @@ def classic(path):
                   f"{r['median_first_step_sims_per_second']:,.0f} |")
 
 
-def despot_table(path):
-    """bench/bench_despot.sh's episodes: per planner the mean discounted return ± standard error
-    (sd / sqrt(episodes)), mean steps, the median over episodes of the median trials (DESPOT) or
-    simulations (POMCP) per step, and the difference to the authors' DESPOT ± the standard error
-    of a difference of independent means."""
-    rows = [json.loads(line) for line in open(path, encoding="utf-8") if line.strip()]
+def despot_table(*paths):
+    """bench/bench_despot.sh's episodes, its runs pooled: per planner the mean discounted return
+    ± standard error (sd / sqrt(episodes)), mean steps, the median over episodes of the median
+    trials (DESPOT) or simulations (POMCP) per step, and the difference to the authors' DESPOT ±
+    the standard error of a difference of independent means; then each run's means."""
+    rows = []
+    runs = []
+    for path in paths:
+        run = [json.loads(line) for line in open(path, encoding="utf-8") if line.strip()]
+        runs.append((path, run))
+        rows += run
     by = {}
     for r in rows:
         by.setdefault(r["planner"], []).append(r)
@@ -834,6 +843,19 @@ def despot_table(path):
             diff = f"{m - base[0]:+.2f} ± {math.hypot(se, base[1]):.2f}"
         print(f"| {names.get(planner, planner)} | {len(episodes)} | {m:.2f} ± {se:.2f} | "
               f"{steps:.1f} | {trial_text} | {diff} |")
+    if len(runs) > 1:
+        print()
+        runs.sort(key=lambda run: min(r["episode"] for r in run[1]))
+        for path, run in runs:
+            episodes = sorted({r["episode"] for r in run})
+            means = []
+            for planner in order({r["planner"] for r in run}, ["despot-original", "despot", "pomcp"]):
+                m, se = summary([r for r in run if r["planner"] == planner])
+                means.append(f"{names.get(planner, planner).split(',')[0]}"
+                             f"{' (theirs)' if planner == 'despot-original' else ''} "
+                             f"{m:.2f} ± {se:.2f}")
+            print(f"- `{os.path.basename(path)}` (episodes {episodes[0]}-{episodes[-1]}): "
+                  + "; ".join(means))
     commits = {r["commit"] for r in rows if r.get("commit")}
     if commits:
         print(f"\nThe authors' code at commit {', '.join(sorted(commits))}.")
@@ -1236,12 +1258,13 @@ shades the guessed target), the `clear-macro` rows the clear macro of 267939c, r
 others at the commit each cell records. What the rows mean: docs/experiments.md. The second
 table is a later run (`reuse1`; its cells record 8851d9b, 3faa533 and 491accf, which change no
 planner) with its own `defaults` row beside the rows it compares; its `oracle` and `nbv` cells
-are run1's.
+are run1's; its `regression` row ran at 9804c30, before the regressed final action became kCT's
+default (the `defaults` row is the sphere rule).
 
     bench/bench_estimator.sh
     python3 bench/results_table.py estimator bench/results/estimator-v2/run1 \\
       bench/results/estimator-v2/scenes
-    ROWS="defaults reuse rollout-first" bench/bench_estimator.sh --run reuse1
+    ROWS="defaults reuse rollout-first regression" bench/bench_estimator.sh --run reuse1
     python3 bench/results_table.py estimator bench/results/estimator-v2/reuse1 \\
       bench/results/estimator-v2/scenes
 """, [lambda r: estimator(os.path.join(r, "estimator-v2", "run1"),
@@ -1294,8 +1317,10 @@ outside the search's clock (ours when the step is taken). Trials per step are th
 episode's steps, then over episodes, with two episodes running at once.
 
     DESPOT_SRC=/path/to/despot bench/bench_despot.sh 60
-    python3 bench/results_table.py despot bench/results/despot/rocksample-0.1s.jsonl
-""", [lambda r: despot_table(os.path.join(r, "despot", "rocksample-0.1s.jsonl"))]),
+    FIRST=61 OUT=bench/results/despot/rocksample-0.1s-run2.jsonl \\
+      DESPOT_SRC=/path/to/despot bench/bench_despot.sh 60
+    python3 bench/results_table.py despot bench/results/despot/rocksample-0.1s*.jsonl
+""", [lambda r: despot_table(*sorted(glob.glob(os.path.join(r, "despot", "rocksample-0.1s*.jsonl"))))]),
     ("The neural process filter", """\
 The shipped model (an ensemble of three networks) on test sets of layouts it never saw, 1,500
 snapshots each; the interval of an accuracy is the 95% normal interval of the ratio over
@@ -1397,7 +1422,7 @@ def main():
     commands = {"table1": (1, None), "generated": (1, 2), "ablation": (1, 1),
                 "sensitivity": (1, 1), "estimator": (1, 2), "mirror": (1, 1), "trace": (1, 1), "compare": (2, 2),
                 "flat": (1, 1), "threads": (2, 2), "model-speed": (1, 1), "classic": (1, 1),
-                "filter": (2, 2), "despot": (1, 1), "perception-stages": (1, 1), "load": (1, 1), "fleet": (1, 1),
+                "filter": (2, 2), "despot": (1, None), "perception-stages": (1, 1), "load": (1, 1), "fleet": (1, 1),
                 "maps": (1, 1),
                 "docs": (0, 1)}
     args = sys.argv[2:]

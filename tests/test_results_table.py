@@ -345,6 +345,32 @@ def test_classic_pools_runs_as_independent_samples(tmp_path):
     assert len(pooled) == 1 and "| 200 | 29.00 ± 2.50 |" in pooled[0]
 
 
+def test_despot_pools_runs_and_subtracts_the_authors_figure(tmp_path):
+    # Theirs returns 1, 2, 3 then 4, 5, 6 (mean 3.5); ours 2 more in every episode (5.5). Standard
+    # error of 1..6: 1.8708 / sqrt(6) = 0.7638; of the difference: sqrt(2) x that = 1.0801.
+    paths = []
+    for run, episodes in enumerate([(1, 2, 3), (4, 5, 6)]):
+        path = tmp_path / f"run{run}.jsonl"
+        lines = []
+        for i in episodes:
+            lines.append(json.dumps({"planner": "despot-original", "episode": i,
+                                     "discounted_return": float(i), "steps": 10,
+                                     "median_trials_per_step": 30, "commit": "abc"}))
+            lines.append(json.dumps({"planner": "despot", "episode": i,
+                                     "discounted_return": i + 2.0, "steps": 12.0,
+                                     "median_trials_per_step": 60.0}))
+        path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+        paths.append(str(path))
+    out = results_table.capture(results_table.despot_table, *reversed(paths))
+    theirs = [line for line in out.splitlines() if line.startswith("| DESPOT, the authors'")]
+    ours = [line for line in out.splitlines() if line.startswith("| DESPOT, ours")]
+    assert len(theirs) == 1 and "| 6 | 3.50 ± 0.76 | 10.0 | 30 | – |" in theirs[0]
+    assert len(ours) == 1 and "| 6 | 5.50 ± 0.76 | 12.0 | 60 | +2.00 ± 1.08 |" in ours[0]
+    runs = [line for line in out.splitlines() if line.startswith("- `")]
+    assert [line.split("`")[1] for line in runs] == ["run0.jsonl", "run1.jsonl"]
+    assert "commit abc" in out
+
+
 def test_the_readme_headline_figures_are_those_of_docs_benchmarks():
     # The README's table of headline figures is typed by hand; every figure in it must still be
     # one that docs/benchmarks.md (generated from bench/results) shows.
@@ -355,7 +381,7 @@ def test_the_readme_headline_figures_are_those_of_docs_benchmarks():
         benchmarks = f.read()
     rows = readme.split("<!-- headline -->\n", 1)[1].split("\n\n", 1)[0].splitlines()[2:]
     assert len(rows) >= 4
-    figure = re.compile(r"\d+(?:\.\d+)?%(?: ± \d+(?:\.\d+)?)?|\d+\.\d+ m?s\b")
+    figure = re.compile(r"\d+(?:\.\d+)?%(?: ± \d+(?:\.\d+)?)?|\d+\.\d+ m?s\b|\d+\.\d+ ± \d+\.\d+")
     for row in rows:
         value = row.split("|")[2]
         found = figure.findall(value)

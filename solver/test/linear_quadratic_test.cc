@@ -142,6 +142,7 @@ TEST(LinearQuadraticTest, RolloutFirstPlannersLandNearThePublishedLqgOptimum) {
       o.search.max_depth = 3;
       o.search.num_particles = 1000;
       o.search.rollout_first = first;
+      o.final_action = KctOptions::FinalAction::kUniformInSphere;  // one sphere's point
       KCenterTree<LinearQuadratic> planner(model, o);
       Rng rng(seed);
       planner.Reset(rng);
@@ -176,8 +177,8 @@ TEST(LinearQuadraticTest, KctsRegressedFinalActionFindsThePublishedLqgOptimum) {
       KctOptions o;
       o.search.max_depth = 3;
       o.search.num_particles = 1000;
-      o.final_action = fit ? KctOptions::FinalAction::kRegression
-                           : KctOptions::FinalAction::kUniformInSphere;
+      o.final_action =
+          fit ? KctOptions::FinalAction::kRegression : KctOptions::FinalAction::kUniformInSphere;
       o.regression_reach = 20.0;
       o.regression_trust = 10.0;
       KCenterTree<LinearQuadratic> planner(model, o);

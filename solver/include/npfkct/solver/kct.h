@@ -99,17 +99,20 @@ struct KctOptions {
   enum class FinalAction {
     kUniformInSphere,  ///< Uniform in the sphere, rejecting infeasible points (paper).
     kCenter,           ///< The sphere's center (when feasible).
-    /// The maximiser, within the sphere, of a quadratic fitted by least squares to the root's
-    /// recorded (point, return) pairs near the sphere (within regression_reach of its radius);
-    /// kUniformInSphere's rule when too few records are near, the fit is not concave or its
-    /// point is not feasible.
+    /// The maximiser of a quadratic fitted by least squares to the root's recorded (point,
+    /// return) pairs near the chosen sphere (within regression_reach of its radii), kept within
+    /// regression_trust radii of its center; kUniformInSphere's rule when fewer than three
+    /// records per coefficient are near, the fit explains less than regression_min_r2 of the
+    /// returns' variance, is not concave, or its point is not feasible. The sphere's points are
+    /// few and its mean is noisy; the fit pools every record around it (docs/experiments.md,
+    /// "Do the solver's planners match...").
     kRegression,
   };
-  FinalAction final_action = FinalAction::kUniformInSphere;
+  FinalAction final_action = FinalAction::kRegression;
   /// With kRegression: records within this many sphere radii of its center enter the fit.
-  double regression_reach = 3.0;
+  double regression_reach = 20.0;
   /// With kRegression: the fitted maximiser is kept within this many sphere radii of its center.
-  double regression_trust = 1.0;
+  double regression_trust = 10.0;
   /// With kRegression: the fit is used only when it explains this share of the returns' variance.
   double regression_min_r2 = 0.9;
   /// Where Action_sam draws the point of a sphere: uniformly in the sphere (the paper), or among

@@ -808,7 +808,8 @@ bool KCenterTree<M>::SampleExecutable(const Worker& w, int ai, const State& s, R
       }
     }
   }
-  if (options_.final_action == KctOptions::FinalAction::kUniformInSphere) {
+  // The sphere rule, also where the regression found no point.
+  if (options_.final_action != KctOptions::FinalAction::kCenter) {
     for (int i = 0; i < options_.max_feasibility_tries; ++i) {
       HybridAction a = SampleInSphere(w.tree, ai, rng);
       if (IsFeasibleAction(model_, s, a)) {
