@@ -31,6 +31,10 @@ RockSample::RockSample(int size, std::vector<std::pair<int, int>> rocks, std::pa
   }
 }
 
+int RockSample::RockDistance(int r, int x, int y) const {
+  return std::abs(rocks_[r].first - x) + std::abs(rocks_[r].second - y);
+}
+
 double RockSample::ExitValue(int x) const { return 10.0 * discount_powers_[size_ - 1 - x]; }
 
 double RockSample::BestFrom(int x, int y, uint32_t left) const {
@@ -38,7 +42,7 @@ double RockSample::BestFrom(int x, int y, uint32_t left) const {
   double best = ExitValue(x);
   for (int r = 0; r < k; ++r) {
     if (!(left & (1u << r))) continue;
-    const int d = std::abs(rocks_[r].first - x) + std::abs(rocks_[r].second - y);
+    const int d = RockDistance(r, x, y);
     const uint32_t rest = left & ~(1u << r);
     // d moves, the sample's +10 at step d, the rest from the rock at step d + 1.
     best = std::max(best,
@@ -55,8 +59,7 @@ double RockSample::UpperBound(const State& s) const {
   double total = ExitValue(s.x);
   for (int r = 0; r < num_rocks(); ++r) {
     if (!(left & (1u << r))) continue;
-    const int d = std::abs(rocks_[r].first - s.x) + std::abs(rocks_[r].second - s.y);
-    total += 10.0 * discount_powers_[d];
+    total += 10.0 * discount_powers_[RockDistance(r, s.x, s.y)];
   }
   return total;
 }

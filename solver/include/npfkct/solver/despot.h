@@ -178,14 +178,7 @@ class Despot : public PlannerBase<Despot<M>, M, DespotOptions, int> {
       double discount = 1.0;
       for (int t = depth; t < end && !IsTerminalState(model_, s); ++t) {
         Rng rng = Stream(p.scenario, t);
-        Action a;
-        if constexpr (requires {
-                        { model_.RolloutAction(s, rng) } -> std::same_as<Action>;
-                      }) {
-          a = model_.RolloutAction(s, rng);
-        } else {
-          a = UniformRandomAction(model_, s, rng, &scratch_);
-        }
+        const Action a = RolloutPolicyAction(model_, s, rng, &scratch_);
         if (t == depth) *first = a;
         auto step = model_.Step(s, a, rng);
         total += discount * step.reward;

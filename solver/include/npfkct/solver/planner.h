@@ -320,6 +320,20 @@ typename M::Action UniformRandomAction(const M& model, const typename M::State& 
   }
 }
 
+/// The rollout policy's action at `s`: the model's RolloutAction, or a uniformly random legal
+/// action when it has none.
+template <GenerativeModel M>
+typename M::Action RolloutPolicyAction(const M& model, const typename M::State& s, Rng& rng,
+                                       std::vector<int>* scratch) {
+  if constexpr (requires {
+                  { model.RolloutAction(s, rng) } -> std::same_as<typename M::Action>;
+                }) {
+    return model.RolloutAction(s, rng);
+  } else {
+    return UniformRandomAction(model, s, rng, scratch);
+  }
+}
+
 /// The discounted return of a rollout from `s` at `depth` with the model's rollout policy
 /// (uniform random when it has none), until a terminal state, max_depth or the discount horizon.
 template <GenerativeModel M>
@@ -336,14 +350,7 @@ double Rollout(const M& model, typename M::State s, int depth, const SearchOptio
     double horizon_discount = std::pow(gamma, depth);
     while (depth < options.max_depth && horizon_discount >= options.discount_horizon) {
       if (IsTerminalState(model, s)) break;
-      typename M::Action a;
-      if constexpr (requires {
-                      { model.RolloutAction(s, rng) } -> std::same_as<typename M::Action>;
-                    }) {
-        a = model.RolloutAction(s, rng);
-      } else {
-        a = UniformRandomAction(model, s, rng, scratch);
-      }
+      const typename M::Action a = RolloutPolicyAction(model, s, rng, scratch);
       auto step = model.Step(s, a, rng);
       total += discount * step.reward;
       if (step.terminal) break;

@@ -109,6 +109,8 @@ class RockSample {
   static constexpr int kMaxExactBoundRocks = 12;
   std::vector<double> discount_powers_;  // gamma^d, d = 0 .. 2 size
   double ExitValue(int x) const;
+  // Moves from (x, y) to rock r.
+  int RockDistance(int r, int x, int y) const;
   // The best of exiting and of sampling each rock of `left` next, from (x, y).
   double BestFrom(int x, int y, uint32_t left) const;
 };
