@@ -45,6 +45,15 @@ TEST(KctOptionsTest, ValidateNamesTheOption) {
   o.value_scale = 0.0;
   EXPECT_NE(o.Validate().message().find("value_scale"), std::string::npos);
   o = {};
+  o.regression_reach = 0.0;
+  EXPECT_NE(o.Validate().message().find("regression_reach"), std::string::npos);
+  o = {};
+  o.regression_trust = -1.0;
+  EXPECT_NE(o.Validate().message().find("regression_trust"), std::string::npos);
+  o = {};
+  o.regression_min_r2 = 1.5;
+  EXPECT_NE(o.Validate().message().find("regression_min_r2"), std::string::npos);
+  o = {};
   o.final_lcb = -1.0;
   EXPECT_NE(o.Validate().message().find("final_lcb"), std::string::npos);
   o.final_lcb = 101.0;

@@ -155,6 +155,15 @@ struct KctOptions {
     if (!(final_lcb >= 0.0 && final_lcb <= 100.0)) {
       return InvalidArgumentError("final_lcb must be in [0, 100]");
     }
+    if (!(regression_reach > 0.0 && regression_reach <= 1000.0)) {
+      return InvalidArgumentError("regression_reach must be in (0, 1000]");
+    }
+    if (!(regression_trust >= 0.0 && regression_trust <= 1000.0)) {
+      return InvalidArgumentError("regression_trust must be in [0, 1000]");
+    }
+    if (!(regression_min_r2 >= 0.0 && regression_min_r2 <= 1.0)) {
+      return InvalidArgumentError("regression_min_r2 must be in [0, 1]");
+    }
     if (num_candidates < 1 || num_candidates > 100000) {
       return InvalidArgumentError("num_candidates must be in [1, 100000]");
     }
