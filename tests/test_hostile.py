@@ -573,8 +573,11 @@ def test_plans_whose_save_failed_still_count_against_the_session(tmp_path):
     assert len(codes) >= 2 and codes[-1] == 429 and set(codes[:-1]) == {503}, codes
     assert field_of(r) == "budget", r.text
     assert "Retry-After" not in r.headers, r.headers  # no retry clears a spent budget
+    # The server refuses a plan once less than 10 ms of the budget is left (Session::ClaimForPlan)
+    # and grants the last plan only what is left, so what was used is at least 0.99 s, and whether
+    # it reaches 1.0 depends on how far that plan overran its clock.
     used = http("GET", f"{url}/v1/sessions/{sid}", rec).json()["planningSecondsUsed"]
-    assert used >= 1.0, used
+    assert used > 0.99, used
     assert_clean_exit(server)
 
 
