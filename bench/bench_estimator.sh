@@ -18,7 +18,7 @@ npfkct_prepare npfkct-bench npfkct-scenegen
 SEEDS="${SEEDS:-$(seq 850001 850030)}"
 DEFAULT_ROWS="oracle oracle-cover-unknown nbv kct defaults depth30 rollout-clear r-co-0"
 DEFAULT_ROWS="$DEFAULT_ROWS target-only obstacle-covers grid-free-3 grid-odds reuse rollout-first"
-DEFAULT_ROWS="$DEFAULT_ROWS regression uniform-final"
+DEFAULT_ROWS="$DEFAULT_ROWS regression uniform-final covers"
 ROWS="${ROWS:-$DEFAULT_ROWS}"
 OUT="$NPFKCT_ROOT/bench/results/estimator-v2/$RUN"
 export SCENE_VERSION=2
@@ -35,6 +35,9 @@ for row in $ROWS; do
     r-co-0) ARGS=(--planner npfkct --plan-r-co 0) ;;
     target-only) ARGS=(--planner npfkct --opt search.max_depth=30 --rollout clear --plan-r-co 0) ;;
     obstacle-covers) ARGS=(--planner npfkct --rollout clear --obstacle-reward covers) ;;
+    # R_co in planning only for declaring what hides the particle's guessed target (the world
+    # still pays R_co for every obstacle): no steps spent collecting declarations.
+    covers) ARGS=(--planner npfkct --obstacle-reward covers) ;;
     grid-odds) ARGS=(--planner npfkct --grid-sampling odds) ;;
     reuse) ARGS=(--planner npfkct --opt search.reuse_tree=1) ;;
     rollout-first) ARGS=(--planner npfkct --opt search.rollout_first=1) ;;
