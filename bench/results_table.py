@@ -684,72 +684,114 @@ def model_speed(root):
 CLASSIC_ROWS = [
     ("Tiger (γ 0.95, 100 steps)", "POMCP", "5,000 sims",
      [{"problem": "tiger", "planner": "pomcp", "sims": 5000, "rollout": ""}],
-     "19.25 (the 100-step optimum)"),
+     "19.25 (the 100-step optimum)",
+     "tiger"),
     ("RockSample(7,8)", "POMCP", "1 s",
      [{"problem": "rocksample", "planner": "pomcp", "time_ms": 1000, "threads": 2}],
-     "20.71 ± 0.21 (Silver & Veness 2010)"),
+     "20.71 ± 0.21 (Silver & Veness 2010)",
+     "rocksample"),
     ("SimpleLightDark", "POMCPOW", "1 s",
      [{"problem": "lightdark", "planner": "pomcpow", "time_ms": 1000}],
-     "56.1 ± 0.6 (Sunberg & Kochenderfer 2018)"),
+     "56.1 ± 0.6 (Sunberg & Kochenderfer 2018)",
+     "lightdark"),
     ("SimpleLightDark", "POMCP", "0.1 s",
      [{"problem": "lightdark", "planner": "pomcp", "time_ms": 100}],
-     "-7.1 ± 1.0 (ibid., at 1 s)"),
+     "-7.1 ± 1.0 (ibid., at 1 s)",
+     "lightdark"),
     ("VDP Tag", "POMCPOW", "0.1 s",
      [{"problem": "vdptag", "planner": "pomcpow", "time_ms": 100}],
-     "29.3 ± 0.8 (ibid., at 1 s)"),
+     "29.3 ± 0.8 (ibid., at 1 s)",
+     "vdptag"),
     ("VDP Tag", "VOMCPOW", "0.1 s",
      [{"problem": "vdptag", "planner": "vomcpow", "time_ms": 100}],
-     "above POMCPOW (Lim, Tomlin & Sunberg 2021)"),
+     "above POMCPOW (Lim, Tomlin & Sunberg 2021)",
+     "vdptag"),
     ("VDP Tag (ToNextML rollout)", "POMCPOW", "1 s",
      [{"problem": "vdptag", "planner": "pomcpow", "time_ms": 1000, "rollout": "tonextml"}],
-     "28.3 ± 1.0 (ibid.)"),
+     "28.3 ± 1.0 (ibid.)",
+     "vdptag"),
     ("VDP Tag (ToNextML rollout)", "VOMCPOW", "1 s",
      [{"problem": "vdptag", "planner": "vomcpow", "time_ms": 1000, "rollout": "tonextml"}],
-     "33.2 ± 0.9 (ibid.)"),
+     "33.2 ± 0.9 (ibid.)",
+     "vdptag"),
     ("SimpleLightDark", "kCT", "1 s of CPU",
-     [{"problem": "lightdark", "planner": "kct", "cpu_ms": 1000}], "–"),
+     [{"problem": "lightdark", "planner": "kct", "cpu_ms": 1000}], "–",
+     "kct-lightdark"),
     ("SimpleLightDark", "POMCPOW", "1 s of CPU",
      [{"problem": "lightdark", "planner": "pomcpow", "cpu_ms": 1000}],
-     "56.1 ± 0.6 (Sunberg & Kochenderfer 2018)"),
+     "56.1 ± 0.6 (Sunberg & Kochenderfer 2018)",
+     "kct-lightdark"),
     ("SimpleLightDark, observations in bins of 10^-1.5", "POMCP (`d-pomcp`)", "1 s of CPU",
      [{"problem": "lightdark", "planner": "d-pomcp", "cpu_ms": 1000}],
      "60.99 ± 0.41 (d_pomcp at that width, the best of seven; "
-     "ContinuousPOMDPTreeSearchExperiments.jl icaps_2018 raw data)"),
+     "ContinuousPOMDPTreeSearchExperiments.jl icaps_2018 raw data)",
+     "lightdark-discretised"),
     ("VDP Tag (ToNextML rollout), seeds 1 and 2 pooled", "kCT", "1 s of CPU",
      [{"problem": "vdptag", "planner": "kct", "cpu_ms": 1000, "threads": 1, "seed": 1},
-      {"problem": "vdptag", "planner": "kct", "cpu_ms": 1000, "threads": 1, "seed": 2}], "–"),
+      {"problem": "vdptag", "planner": "kct", "cpu_ms": 1000, "threads": 1, "seed": 2}], "–",
+     "THREADS=1 SEED=1 kct-vdptag; THREADS=1 SEED=2 kct-vdptag"),
     ("VDP Tag (ToNextML rollout), seeds 1 and 2 pooled", "VOMCPOW", "1 s of CPU",
      [{"problem": "vdptag", "planner": "vomcpow", "cpu_ms": 1000, "threads": 1, "seed": 1},
       {"problem": "vdptag", "planner": "vomcpow", "cpu_ms": 1000, "threads": 1, "seed": 2}],
-     "33.2 ± 0.9 (Lim, Tomlin & Sunberg 2021)"),
+     "33.2 ± 0.9 (Lim, Tomlin & Sunberg 2021)",
+     "THREADS=1 SEED=1 kct-vdptag; THREADS=1 SEED=2 kct-vdptag"),
     ("VDP Tag, the VPW paper's configuration", "VOMCPOW", "1 s of CPU",
      [{"problem": "vdptag", "planner": "vomcpow", "cpu_ms": 1000,
        "options": ["search.rollout_first=1", "search.num_particles=100000"]}],
-     "33.2 ± 0.9 (Lim, Tomlin & Sunberg 2021)"),
+     "33.2 ± 0.9 (Lim, Tomlin & Sunberg 2021)",
+     "vdptag-published"),
     ("VDP Tag, the VPW paper's configuration", "POMCPOW", "1 s of CPU",
      [{"problem": "vdptag", "planner": "pomcpow", "cpu_ms": 1000,
        "options": ["search.rollout_first=1", "search.num_particles=100000"]}],
-     "28.3 ± 1.0 (ibid.)"),
+     "28.3 ± 1.0 (ibid.)",
+     "vdptag-published"),
     ("VDP Tag, the VPW paper's configuration", "kCT", "1 s of CPU",
      [{"problem": "vdptag", "planner": "kct", "cpu_ms": 1000,
-       "options": ["search.rollout_first=1", "search.num_particles=100000"]}], "–"),
+       "options": ["search.rollout_first=1", "search.num_particles=100000"]}], "–",
+     "vdptag-published"),
     ("VDP Tag (ToNextML rollout), seed 1", "kCT", "1 s of CPU",
-     [{"problem": "vdptag", "planner": "kct", "cpu_ms": 1000, "threads": 1, "seed": 1}], "–"),
+     [{"problem": "vdptag", "planner": "kct", "cpu_ms": 1000, "threads": 1, "seed": 1}], "–",
+     "THREADS=1 SEED=1 kct-vdptag"),
     ("VDP Tag (ToNextML rollout), seed 1", "VOMCPOW", "1 s of CPU",
-     [{"problem": "vdptag", "planner": "vomcpow", "cpu_ms": 1000, "threads": 1, "seed": 1}], "–"),
+     [{"problem": "vdptag", "planner": "vomcpow", "cpu_ms": 1000, "threads": 1, "seed": 1}], "–",
+     "THREADS=1 SEED=1 kct-vdptag"),
     ("VDP Tag (ToNextML rollout), seed 2", "kCT", "1 s of CPU",
-     [{"problem": "vdptag", "planner": "kct", "cpu_ms": 1000, "threads": 1, "seed": 2}], "–"),
+     [{"problem": "vdptag", "planner": "kct", "cpu_ms": 1000, "threads": 1, "seed": 2}], "–",
+     "THREADS=1 SEED=2 kct-vdptag"),
     ("VDP Tag (ToNextML rollout), seed 2", "VOMCPOW", "1 s of CPU",
-     [{"problem": "vdptag", "planner": "vomcpow", "cpu_ms": 1000, "threads": 1, "seed": 2}], "–"),
+     [{"problem": "vdptag", "planner": "vomcpow", "cpu_ms": 1000, "threads": 1, "seed": 2}], "–",
+     "THREADS=1 SEED=2 kct-vdptag"),
 ]
 # Defaults of fields older lines of classic.jsonl leave out.
 CLASSIC_DEFAULTS = {"cpu_ms": 0, "time_ms": 0, "sims": 0, "seed": 1, "rollout": ""}
 
 
+def classic_command(sections):
+    """The bench command of a classic row: `ENV bench/bench_classic.sh SECTION`, `;`-separated."""
+    commands = []
+    for part in sections.split(";"):
+        words = part.split()
+        env = [w for w in words if "=" in w]
+        rest = [w for w in words if "=" not in w]
+        commands.append("`" + " ".join(env + ["bench/bench_classic.sh"] + rest) + "`")
+    return "; ".join(commands)
+
+
+def despot_summary(episodes):
+    """Mean discounted return ± standard error (sd / sqrt(n)) of bench_despot.sh episodes."""
+    values = [e["discounted_return"] for e in episodes]
+    m = statistics.fmean(values)
+    se = statistics.stdev(values) / math.sqrt(len(values)) if len(values) > 1 else 0.0
+    return m, se
+
+
 def classic(path):
-    """The classic problems with published results (bench/bench_classic.sh): mean discounted
-    return ± standard error; runs pooled as independent samples (the mean weighted by episodes,
-    the standard error sqrt(sum n_i^2 se_i^2) / sum n_i)."""
+    """One table of the solver beside its peers: the classic problems with published results
+    (bench/bench_classic.sh; mean discounted return ± standard error, runs pooled as independent
+    samples: the mean weighted by episodes, the standard error sqrt(sum n_i^2 se_i^2) / sum n_i),
+    the VPW paper's LQG (the first action's distance to the optimum) from the same file, and the
+    DESPOT side-by-side (bench/bench_despot.sh, the files despot/rocksample-0.1s*.jsonl beside
+    `path`, pooled), each row with the command that measures it."""
     lines = [json.loads(line) for line in open(path, encoding="utf-8") if line.strip()]
 
     def last(selector):
@@ -759,10 +801,10 @@ def classic(path):
             sys.exit(f"{path}: no run with {selector}")
         return found[-1]
 
-    print("| Problem | Planner | Budget | Episodes | Ours: return ± s.e. | Steps | Success | "
-          "Published |")
-    print("|---|---|---|---|---|---|---|---|")
-    for problem, planner, budget, selectors, published in CLASSIC_ROWS:
+    print("| Problem | Planner | Budget | Episodes | Measure | Ours ± s.e. | Steps | Success | "
+          "Published | Command |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for problem, planner, budget, selectors, published, sections in CLASSIC_ROWS:
         runs = [last(sel) for sel in selectors]
         n = sum(r["episodes"] for r in runs)
         mean = sum(r["episodes"] * r["mean_discounted_return"] for r in runs) / n
@@ -771,28 +813,41 @@ def classic(path):
         rates = [r["success_rate"] for r in runs]
         success = ("–" if any(x is None for x in rates) else
                    f"{100 * sum(r['episodes'] * r['success_rate'] for r in runs) / n:.1f}%")
-        print(f"| {problem} | {planner} | {budget} | {n} | {mean:.2f} ± {se:.2f} | {steps:.1f} | "
-              f"{success} | {published} |")
-    lqg = [r for r in lines if r["problem"] == "lqg"]
-    if lqg:
-        print("\nThe VPW paper's 2-D LQG (Lim, Tomlin & Sunberg 2021): plans from the initial belief, "
-              "the mean distance of the first action to the LQR optimum (6, -6) ± standard error "
-              "(lower is better):\n")
-        print("| Planner | Options | Plans | Simulations per plan | Mean distance ± s.e. | Median | "
-              "Published |")
-        print("|---|---|---|---|---|---|---|")
-        published = {"vomcpow": "0.246 (RolloutFirst)", "pomcpow": "0.277 (RolloutFirst)"}
-        latest = {}
-        for r in lqg:  # the last run of each planner and options
+        print(f"| {problem} | {planner} | {budget} | {n} | return | {mean:.2f} ± {se:.2f} | "
+              f"{steps:.1f} | {success} | {published} | {classic_command(sections)} |")
+    despot_files = sorted(glob.glob(os.path.join(os.path.dirname(os.path.abspath(path)), "despot",
+                                                 "rocksample-0.1s*.jsonl")))
+    by = {}
+    for file in despot_files:
+        for line in open(file, encoding="utf-8"):
+            if line.strip():
+                r = json.loads(line)
+                by.setdefault(r["planner"], []).append(r)
+    names = {"despot-original": "DESPOT, the authors' code run here",
+             "despot": "DESPOT (`despot`)", "pomcp": "POMCP"}
+    for planner in order(by, ["despot-original", "despot", "pomcp"]):
+        m, se = despot_summary(by[planner])
+        steps = statistics.fmean(e["steps"] for e in by[planner])
+        print(f"| RockSample(7,8), episodes interleaved with the authors' DESPOT | "
+              f"{names.get(planner, planner)} | 0.1 s of CPU | {len(by[planner])} | return | "
+              f"{m:.2f} ± {se:.2f} | {steps:.1f} | – | – | "
+              f"`DESPOT_SRC=/path/to/despot bench/bench_despot.sh 60`, again with `FIRST=61` |")
+    published = {"vomcpow": "0.246 (RolloutFirst; Lim, Tomlin & Sunberg 2021)",
+                 "pomcpow": "0.277 (RolloutFirst; ibid.)"}
+    latest = {}
+    for r in lines:  # the last LQG run of each planner and options
+        if r["problem"] == "lqg":
             latest[(r["planner"], tuple(r["options"]))] = r
-        for (planner, options), r in latest.items():
-            name = {"kct": "kCT", "pomcpow": "POMCPOW", "vomcpow": "VOMCPOW"}[planner]
-            opts = ", ".join(f"`{o}`" for o in options) or "–"
-            if planner != "kct":
-                opts = "RolloutFirst, the script's constants"
-            print(f"| {name} | {opts} | {r['plans']} | {r['sims']:,} | "
-                  f"{r['mean_distance']:.3f} ± {r['stderr']:.3f} | {r['median_distance']:.3f} | "
-                  f"{published.get(planner, '–')} |")
+    for (planner, options), r in latest.items():
+        name = {"kct": "kCT", "pomcpow": "POMCPOW", "vomcpow": "VOMCPOW"}[planner]
+        if planner != "kct":
+            name += ", RolloutFirst, the script's constants"
+        elif options:
+            name += ", " + ", ".join(f"`{o}`" for o in options)
+        print(f"| The VPW paper's 2-D LQG | {name} | {r['sims']:,} sims | {r['plans']} plans | "
+              f"first action's distance to the optimum (lower is better) | "
+              f"{r['mean_distance']:.3f} ± {r['stderr']:.3f} | – | – | "
+              f"{published.get(planner, '–')} | `bench/bench_classic.sh lqg` |")
     print("\nSimulations per second of POMCP on RockSample(7,8) at 1 s per step (median over "
           "steps):\n")
     print("| Episodes | Episodes at once | Return ± s.e. | Median sims/s | First step sims/s |")
@@ -1290,9 +1345,11 @@ rounds, 1,000 simulations per step, 2 trials per cell, the same seeds.
     python3 bench/results_table.py model-speed bench/results/model_speed
 """, [lambda r: model_speed(os.path.join(r, "model_speed"))]),
     ("Classic problems with published results", """\
-The planners of `solver/` on the problems their authors published (`solver/include/npfkct/solver/
-models/`). The rows at 1 s of CPU give kCT (the project's defaults) and the planner beside it the
-same rollout, run on one machine; the rows above them used wall-clock or simulation budgets.
+One table of the solver beside its peers: the planners of `solver/` on the problems their authors
+published (`solver/include/npfkct/solver/models/`), the DESPOT side-by-side (details in the next
+section) and the VPW paper's LQG, each row with the command that measures it. The rows at 1 s of
+CPU give kCT (the project's defaults) and the planner beside it the same rollout, run on one
+machine; the rows above them used wall-clock or simulation budgets.
 Pooled rows pool two runs with new episodes (seeds 1 and 2) as independent samples. "The VPW
 paper's configuration" is VOOTreeSearch.jl's `scripts/VDPTag2/compare.jl`: ToNextML rollouts,
 the root's first action towards the belief's mean target's next position (RootToNextMLFirst),

@@ -342,7 +342,39 @@ def test_classic_pools_runs_as_independent_samples(tmp_path):
     finally:
         results_table.CLASSIC_ROWS = saved
     pooled = [line for line in out.splitlines() if "pooled | kCT" in line]
-    assert len(pooled) == 1 and "| 200 | 29.00 ± 2.50 |" in pooled[0]
+    assert len(pooled) == 1 and "| 200 | return | 29.00 ± 2.50 |" in pooled[0]
+
+
+def test_classic_is_one_table_with_the_lqg_and_the_despot_runs_beside_it(tmp_path):
+    # The classic rows, the LQG's last run per planner and options, and the DESPOT episodes of
+    # despot/ beside classic.jsonl pooled over its files: rows of one table, each with a command.
+    lines = [{"problem": "lightdark", "planner": "kct", "episodes": 10, "cpu_ms": 1000,
+              "mean_discounted_return": 60.0, "stderr": 1.0, "mean_steps": 9.0,
+              "success_rate": 1.0}]
+    for distance in (0.9, 0.06):  # the later run of kct wins
+        lines.append({"problem": "lqg", "planner": "kct", "options": [], "plans": 1000,
+                      "sims": 1000, "mean_distance": distance, "stderr": 0.006})
+    (tmp_path / "classic.jsonl").write_text("\n".join(json.dumps(r) for r in lines) + "\n",
+                                            encoding="utf-8")
+    (tmp_path / "despot").mkdir()
+    for run, returns in enumerate([(1.0, 2.0), (3.0, 4.0)]):
+        episodes = [{"planner": "despot", "episode": 2 * run + i, "discounted_return": x,
+                     "steps": 10} for i, x in enumerate(returns)]
+        (tmp_path / "despot" / f"rocksample-0.1s-{run}.jsonl").write_text(
+            "\n".join(json.dumps(e) for e in episodes) + "\n", encoding="utf-8")
+    rows = [r for r in results_table.CLASSIC_ROWS if r[1] == "kCT" and "LightDark" in r[0]]
+    saved = results_table.CLASSIC_ROWS
+    results_table.CLASSIC_ROWS = rows
+    try:
+        out = results_table.capture(results_table.classic, str(tmp_path / "classic.jsonl"))
+    finally:
+        results_table.CLASSIC_ROWS = saved
+    table = [line for line in out.split("\n\n")[0].splitlines() if line.startswith("| ")]
+    assert len(table) == 1 + 3  # the header, then one row each
+    assert "| 10 | return | 60.00 ± 1.00 |" in table[1] and "kct-lightdark`" in table[1]
+    # 1, 2, 3, 4: mean 2.5, sd 1.291, s.e. 0.645.
+    assert "DESPOT (`despot`) | 0.1 s of CPU | 4 | return | 2.50 ± 0.65 |" in table[2]
+    assert "| 0.060 ± 0.006 |" in table[3] and "bench_classic.sh lqg`" in table[3]
 
 
 def test_despot_pools_runs_and_subtracts_the_authors_figure(tmp_path):
