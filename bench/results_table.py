@@ -1314,7 +1314,8 @@ others at the commit each cell records. What the rows mean: docs/experiments.md.
 table is a later run (`reuse1`; its cells record 8851d9b, 3faa533 and 491accf, which change no
 planner) with its own `defaults` row beside the rows it compares; its `oracle` and `nbv` cells
 are run1's; its `regression` row ran at 9804c30, before the regressed final action became kCT's
-default (the `defaults` row is the sphere rule).
+default (the `defaults` row is the sphere rule). The third table (`covers1`, at 74dc901) runs the
+defaults with the regressed final action beside the row `covers`, with run1's `oracle` and `nbv`.
 
     bench/bench_estimator.sh
     python3 bench/results_table.py estimator bench/results/estimator-v2/run1 \\
@@ -1322,10 +1323,16 @@ default (the `defaults` row is the sphere rule).
     ROWS="defaults reuse rollout-first regression" bench/bench_estimator.sh --run reuse1
     python3 bench/results_table.py estimator bench/results/estimator-v2/reuse1 \\
       bench/results/estimator-v2/scenes
+    ROWS="defaults covers" bench/bench_estimator.sh --run covers1
+    python3 bench/results_table.py estimator bench/results/estimator-v2/covers1 \\
+      bench/results/estimator-v2/scenes
 """, [lambda r: estimator(os.path.join(r, "estimator-v2", "run1"),
                           os.path.join(r, "estimator-v2", "scenes")),
       lambda r: print(),
       lambda r: estimator(os.path.join(r, "estimator-v2", "reuse1"),
+                          os.path.join(r, "estimator-v2", "scenes")),
+      lambda r: print(),
+      lambda r: estimator(os.path.join(r, "estimator-v2", "covers1"),
                           os.path.join(r, "estimator-v2", "scenes"))]),
     ("Planning on several cores", """\
 `npfkct` with 1 and 2 root-parallel search threads, 1 s of wall time per step, trials one after
