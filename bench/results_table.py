@@ -876,19 +876,13 @@ def despot_table(*paths):
     names = {"despot-original": "DESPOT, the authors' code (AdaCompNUS/despot)",
              "despot": "DESPOT, ours (`despot`)", "pomcp": "POMCP, ours (`pomcp`)"}
 
-    def summary(episodes):
-        values = [e["discounted_return"] for e in episodes]
-        m = statistics.fmean(values)
-        se = statistics.stdev(values) / math.sqrt(len(values)) if len(values) > 1 else 0.0
-        return m, se
-
-    base = summary(by["despot-original"]) if "despot-original" in by else None
+    base = despot_summary(by["despot-original"]) if "despot-original" in by else None
     print("| Planner | Episodes | Return ± s.e. | Steps | Trials (sims) per step | "
           "Minus the original ± s.e. |")
     print("|---|---|---|---|---|---|")
     for planner in order(by, ["despot-original", "despot", "pomcp"]):
         episodes = by[planner]
-        m, se = summary(episodes)
+        m, se = despot_summary(episodes)
         steps = statistics.fmean(e["steps"] for e in episodes)
         trials = [e["median_trials_per_step"] for e in episodes
                   if e.get("median_trials_per_step") is not None]
@@ -905,7 +899,7 @@ def despot_table(*paths):
             episodes = sorted({r["episode"] for r in run})
             means = []
             for planner in order({r["planner"] for r in run}, ["despot-original", "despot", "pomcp"]):
-                m, se = summary([r for r in run if r["planner"] == planner])
+                m, se = despot_summary([r for r in run if r["planner"] == planner])
                 means.append(f"{names.get(planner, planner).split(',')[0]}"
                              f"{' (theirs)' if planner == 'despot-original' else ''} "
                              f"{m:.2f} ± {se:.2f}")
@@ -1240,20 +1234,39 @@ not told which object covers the target.
 
     bench/bench_generated.sh --run rollout-aimed
     python3 bench/results_table.py generated bench/results/generated/rollout-aimed
-""", [lambda r: generated(os.path.join(r, "generated", "rollout-aimed"))]),
+
+The second table (run `regression`) ran `oracle`, `npfkct` and `kct` again with kCT's final
+action by regression (the default since 83f8f9b); its other planners' cells are
+`rollout-aimed`'s. The scene files are kept in `bench/results/generated/scenes`; they are
+`rollout-aimed`'s scenes (the oracle's steps match that run's in 144 of 150 trials; the other six,
+all first trials, differ by one step: the oracle changed in between).
+
+    PLANNERS="oracle npfkct kct" bench/bench_generated.sh --run regression  # + the others
+    python3 bench/results_table.py generated bench/results/generated/regression \\
+      bench/results/generated/scenes
+""", [lambda r: generated(os.path.join(r, "generated", "rollout-aimed")),
+      lambda r: print(),
+      lambda r: generated(os.path.join(r, "generated", "regression"),
+                          os.path.join(r, "generated", "scenes"))]),
     ("Held-out v2 generated scenes", """\
 The 60 held-out scenes of `npfkct-scenegen --version 2` (seeds 930001-930060: 20 with the target in
 the open, 20 hidden behind walls or in pockets, 20 covered, among decoy covers, stacked covers and
 immovable boxes; the files are kept in `bench/results/generated-v2/scenes`), 0.25 s of CPU per
 step, 5 trials per scene and planner, aimed rollout, the shipped filter. `nbv` is the greedy
 next-best view over the same belief, with no tree; `rollout` the model's rollout policy with no
-search.
+search. Run 2 ran `npfkct` and `kct` again with kCT's final action by regression (the default
+since 83f8f9b); its `oracle`, `nbv`, `gpomcp` and `rollout` cells are run 1's, planners that
+change does not touch. Run 1 (every planner, the sphere rule) is the second table: a rerun inside
+its intervals.
 
     SCENE_VERSION=2 bench/bench_generated.sh --run run1
-    python3 bench/results_table.py generated bench/results/generated-v2/run1 \\
+    SCENE_VERSION=2 PLANNERS="npfkct kct" bench/bench_generated.sh --run run2  # + run1's others
+    python3 bench/results_table.py generated bench/results/generated-v2/run2 \\
       bench/results/generated-v2/scenes
-""", [lambda r: generated(os.path.join(r, "generated-v2", "run1"),
-                          os.path.join(r, "generated-v2", "scenes"))]),
+""", [lambda r: generated(os.path.join(r, "generated-v2", "run2"),
+                          os.path.join(r, "generated-v2", "scenes")),
+      lambda r: print(),
+      lambda r: generated_runs([("run1 (sphere rule)", os.path.join(r, "generated-v2", "run1"))])]),
     ("Held-out generated scenes by placement of the target", """\
 The same cells grouped by where the generator put the target (in the open, hidden behind tall
 boxes, covered by a larger box), as each scene file's description says. The scene files are not
