@@ -777,6 +777,23 @@ def classic_command(sections):
     return "; ".join(commands)
 
 
+def despot_runs(paths):
+    """bench_despot.sh's files: [(path, its episodes)], and all episodes grouped by planner."""
+    runs = []
+    by = {}
+    for path in paths:
+        run = [json.loads(line) for line in open(path, encoding="utf-8") if line.strip()]
+        runs.append((path, run))
+        for r in run:
+            by.setdefault(r["planner"], []).append(r)
+    return runs, by
+
+
+def despot_files(results):
+    """The DESPOT side-by-side's files under a results folder, in order."""
+    return sorted(glob.glob(os.path.join(results, "despot", "rocksample-0.1s*.jsonl")))
+
+
 def despot_summary(episodes):
     """Mean discounted return ± standard error (sd / sqrt(n)) of bench_despot.sh episodes."""
     values = [e["discounted_return"] for e in episodes]
@@ -815,14 +832,7 @@ def classic(path):
                    f"{100 * sum(r['episodes'] * r['success_rate'] for r in runs) / n:.1f}%")
         print(f"| {problem} | {planner} | {budget} | {n} | return | {mean:.2f} ± {se:.2f} | "
               f"{steps:.1f} | {success} | {published} | {classic_command(sections)} |")
-    despot_files = sorted(glob.glob(os.path.join(os.path.dirname(os.path.abspath(path)), "despot",
-                                                 "rocksample-0.1s*.jsonl")))
-    by = {}
-    for file in despot_files:
-        for line in open(file, encoding="utf-8"):
-            if line.strip():
-                r = json.loads(line)
-                by.setdefault(r["planner"], []).append(r)
+    _, by = despot_runs(despot_files(os.path.dirname(os.path.abspath(path))))
     names = {"despot-original": "DESPOT, the authors' code run here",
              "despot": "DESPOT (`despot`)", "pomcp": "POMCP"}
     for planner in order(by, ["despot-original", "despot", "pomcp"]):
@@ -864,15 +874,7 @@ def despot_table(*paths):
     ± standard error (sd / sqrt(episodes)), mean steps, the median over episodes of the median
     trials (DESPOT) or simulations (POMCP) per step, and the difference to the authors' DESPOT ±
     the standard error of a difference of independent means; then each run's means."""
-    rows = []
-    runs = []
-    for path in paths:
-        run = [json.loads(line) for line in open(path, encoding="utf-8") if line.strip()]
-        runs.append((path, run))
-        rows += run
-    by = {}
-    for r in rows:
-        by.setdefault(r["planner"], []).append(r)
+    runs, by = despot_runs(paths)
     names = {"despot-original": "DESPOT, the authors' code (AdaCompNUS/despot)",
              "despot": "DESPOT, ours (`despot`)", "pomcp": "POMCP, ours (`pomcp`)"}
 
@@ -905,7 +907,7 @@ def despot_table(*paths):
                              f"{m:.2f} ± {se:.2f}")
             print(f"- `{os.path.basename(path)}` (episodes {episodes[0]}-{episodes[-1]}): "
                   + "; ".join(means))
-    commits = {r["commit"] for r in rows if r.get("commit")}
+    commits = {r["commit"] for run in by.values() for r in run if r.get("commit")}
     if commits:
         print(f"\nThe authors' code at commit {', '.join(sorted(commits))}.")
 
@@ -1397,7 +1399,7 @@ episode's steps, then over episodes, with two episodes running at once.
     FIRST=61 OUT=bench/results/despot/rocksample-0.1s-run2.jsonl \\
       DESPOT_SRC=/path/to/despot bench/bench_despot.sh 60
     python3 bench/results_table.py despot bench/results/despot/rocksample-0.1s*.jsonl
-""", [lambda r: despot_table(*sorted(glob.glob(os.path.join(r, "despot", "rocksample-0.1s*.jsonl"))))]),
+""", [lambda r: despot_table(*despot_files(r))]),
     ("The neural process filter", """\
 The shipped model (an ensemble of three networks) on test sets of layouts it never saw, 1,500
 snapshots each; the interval of an accuracy is the 95% normal interval of the ratio over
