@@ -8,7 +8,7 @@
 #   as CPU time of the planning thread; lightdark-discretised: the authors' discretised POMCP,
 #   half an hour; kct-vdptag and kct-lightdark: either half of it; lqg: the VPW paper's first-action
 #   benchmark on its 2-D LQG, a few minutes; vdptag-published: VDP Tag at the VPW paper's own
-#   configuration, EPISODES per planner, default 100)
+#   configuration, EPISODES per planner, default 100, PLANNERS, default "vomcpow kct pomcpow")
 # Takes about three hours on a 2-core machine with every section.
 # env: THREADS (episodes at once; default: the number of cores), SEED (the kct sections' seed,
 # default 1; a second seed gives new episodes to pool with the first).
@@ -79,7 +79,7 @@ for section in "${sections[@]}"; do
       # rollouts, the root's first action towards the belief's mean target's next position
       # (RootToNextMLFirst = search.rollout_first), 100,000 particles; its constants are
       # npfkct-bench's. kCT beside it with the same rollout, first action and particles.
-      for planner in vomcpow kct pomcpow; do
+      for planner in ${PLANNERS:-vomcpow kct pomcpow}; do
         run --problem vdptag --planner "$planner" --episodes "${EPISODES:-100}" --cpu-ms 1000 \
           --threads "$THREADS" --rollout tonextml --seed "$SEED" \
           --opt search.rollout_first=1 --opt search.num_particles=100000

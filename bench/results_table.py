@@ -42,6 +42,11 @@
                                    trial removes later could already be declared, obstacles
                                    declared and how many of them were removed later, means per
                                    trial.
+  results_table.py steps DIR SCENES
+                                   Where the steps go, per row of DIR/ROW.trace.gz
+                                   (bench/bench_estimator.sh with TRACE=1) and per placement of
+                                   the target: the trace figures above, obstacles declared and
+                                   never removed, and success.
   results_table.py compare A B     Whether two runs of the same cells agree: each mean inside the
                                    other run's 95% interval.
   results_table.py flat FILE       A table from one file of JSON lines (rows planners, columns
@@ -73,6 +78,7 @@ writes them per cell, and this script computes them the same way for derived fig
 
 import contextlib
 import glob
+import gzip
 import io
 import json
 import math
@@ -554,34 +560,87 @@ TRACE_LINE = re.compile(r"^(\S+) (\S+) trial (\d+) step +(\d+): (move|declare ob
                         r"declare target|remove) ?(\S*)")
 
 
-def trace(path):
-    # (scene, planner, trial) -> [(kind, object, the objects that could be declared after it)];
-    # the bench marks an object that can be declared with * after its face counts.
+def trace_trials(path):
+    """(scene, planner, trial) -> [(kind, object, objects that could be declared after it)] from
+    an npfkct-bench --trace file (gzipped when its name ends in .gz); the bench marks an object
+    that can be declared with * after its face counts."""
     trials = {}
-    for line in open(path, encoding="utf-8"):
+    opener = gzip.open if path.endswith(".gz") else open
+    for line in opener(path, "rt", encoding="utf-8"):
         m = TRACE_LINE.match(line)
         if m:
             known = line.rsplit("|", 1)[-1].split()
             ready = {t.rsplit(":", 1)[0] for t in known if t.endswith("*")}
             trials.setdefault((m[1], m[2], int(m[3])), []).append((m[5], m[6], ready))
+    return trials
+
+
+STEP_COLUMNS = ["Steps", "Moves", "of them while an object removed later could be declared",
+                "Obstacles declared", "of them removed", "Obstacles declared, never removed"]
+
+
+def trial_steps(actions):
+    """One traced trial's steps, moves, idle moves (made while an object the trial removes later
+    could already be declared: the declaration and removal were due, the move was not),
+    obstacles declared, of them removed later, and declared but never removed."""
+    declared = {o for k, o, _ in actions if k == "declare obstacle"}
+    removed = {o for k, o, _ in actions if k == "remove"}
+    idle = sum(k == "move" and bool(actions[i - 1][2] & removed)
+               for i, (k, _, _) in enumerate(actions) if i)
+    return (len(actions), sum(k == "move" for k, _, _ in actions), idle, len(declared),
+            len(declared & removed), len(declared - removed))
+
+
+def trace(path):
     groups = {}
-    for (scene, planner, _), actions in trials.items():
-        declared = {o for k, o, _ in actions if k == "declare obstacle"}
-        removed = {o for k, o, _ in actions if k == "remove"}
-        # A move made while an object the trial removes later could already be declared (after
-        # the step before the move): the declaration and removal were due, the move was not.
-        idle = sum(k == "move" and bool(actions[i - 1][2] & removed)
-                   for i, (k, _, _) in enumerate(actions) if i)
-        groups.setdefault((scene, planner), []).append((
-            len(actions), sum(k == "move" for k, _, _ in actions), idle, len(declared),
-            len(declared & removed)))
-    print("| Scene | Planner | Trials | Steps | Moves | of them while an object removed later "
-          "could be declared | Obstacles declared | of them removed |")
+    for (scene, planner, _), actions in trace_trials(path).items():
+        groups.setdefault((scene, planner), []).append(trial_steps(actions))
+    print("| Scene | Planner | Trials | " + " | ".join(STEP_COLUMNS[:5]) + " |")
     print("|---|---|---|---|---|---|---|---|")
     for (scene, planner), rows in sorted(groups.items()):
         means = [sum(r[i] for r in rows) / len(rows) for i in range(5)]
         print(f"| {scene} | {planner} | {len(rows)} | " + " | ".join(f"{m:.2f}" for m in means)
               + " |")
+
+
+STEPS_ROW_ORDER = ["oracle", "oracle-cover-unknown", "nbv", "kct", "defaults", "covers"]
+
+
+def steps(root, scenes_dir):
+    """Where the steps go: per row of ROOT/ROW.trace.gz (bench_estimator.sh with TRACE=1) and
+    per placement of the target, the mean per trial of each trial_steps figure, and success."""
+    rows = {}
+    for name in os.listdir(root):
+        if name.endswith(".trace.gz"):
+            rows[name[:-len(".trace.gz")]] = trace_trials(os.path.join(root, name))
+    placements = {}
+    table = {}
+    for row, trials in rows.items():
+        for (scene, _, _), actions in trials.items():
+            if scene not in placements:
+                path = os.path.join(scenes_dir, scene + ".json")
+                placements[scene] = (scene_placement(path) if os.path.exists(path) else None) \
+                    or "unknown"
+            done = bool(actions) and actions[-1][0] == "remove" and \
+                not any(k == "declare obstacle" and o == actions[-1][1] for k, o, _ in actions)
+            for group in ("all", placements[scene]):
+                table.setdefault((row, group), []).append(trial_steps(actions) + (done,))
+    groups = order({g for _, g in table} - {"all"}, [name for _, name in PLACEMENTS]) + ["all"]
+    scenes = {g: len({s for s, p in placements.items() if p == g or g == "all"}) for g in groups}
+    print("Means per trial. Idle moves: " + STEP_COLUMNS[2] + " (the declaration and removal "
+          "were due, the move was not). Success: the trial's last step removed the target.\n")
+    print("| Row | Target | Trials | " + " | ".join(STEP_COLUMNS[:2]) + " | Idle moves | " +
+          " | ".join(STEP_COLUMNS[3:]) + " | Success |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for row in order(set(rows), STEPS_ROW_ORDER):
+        for g in groups:
+            r = table.get((row, g))
+            if not r:
+                continue
+            means = [sum(x[i] for x in r) / len(r) for i in range(6)]
+            success = 100 * sum(x[6] for x in r) / len(r)
+            print(f"| {row} | {g} ({scenes[g]} scenes) | {len(r)} | " +
+                  " | ".join(f"{m:.1f}" for m in means) + f" | {success:.0f}% |")
 
 
 def compare(a_root, b_root):
@@ -1256,13 +1315,16 @@ the open, 20 hidden behind walls or in pockets, 20 covered, among decoy covers, 
 immovable boxes; the files are kept in `bench/results/generated-v2/scenes`), 0.25 s of CPU per
 step, 5 trials per scene and planner, aimed rollout, the shipped filter. `nbv` is the greedy
 next-best view over the same belief, with no tree; `rollout` the model's rollout policy with no
-search. Run 2 ran `npfkct` and `kct` again with kCT's final action by regression (the default
-since 83f8f9b); its `oracle`, `nbv`, `gpomcp` and `rollout` cells are run 1's, planners that
-change does not touch. Run 1 (every planner, the sphere rule) is the second table: a rerun inside
-its intervals.
+search. `oracle-cover-unknown` is a reference told part of the answer: where every box is, seen
+or not, with its views aimed at the true target, but not which box covers it (it clears the
+movable box of the largest footprint first). Run 2 ran `npfkct` and `kct` again with kCT's final
+action by regression (the default since 83f8f9b), and `oracle-cover-unknown` (at 915dc5f); its
+`oracle`, `nbv`, `gpomcp` and `rollout` cells are run 1's, planners that change does not touch.
+Run 1 (every planner, the sphere rule) is the second table: a rerun inside its intervals.
 
     SCENE_VERSION=2 bench/bench_generated.sh --run run1
-    SCENE_VERSION=2 PLANNERS="npfkct kct" bench/bench_generated.sh --run run2  # + run1's others
+    SCENE_VERSION=2 PLANNERS="npfkct kct oracle-cover-unknown" bench/bench_generated.sh \
+      --run run2  # + run1's others
     python3 bench/results_table.py generated bench/results/generated-v2/run2 \\
       bench/results/generated-v2/scenes
 """, [lambda r: generated(os.path.join(r, "generated-v2", "run2"),
@@ -1499,7 +1561,7 @@ def docs():
 
 def main():
     commands = {"table1": (1, None), "generated": (1, 2), "ablation": (1, 1),
-                "sensitivity": (1, 1), "estimator": (1, 2), "mirror": (1, 1), "trace": (1, 1), "compare": (2, 2),
+                "sensitivity": (1, 1), "estimator": (1, 2), "mirror": (1, 1), "trace": (1, 1), "steps": (2, 2), "compare": (2, 2),
                 "flat": (1, 1), "threads": (2, 2), "model-speed": (1, 1), "classic": (1, 1),
                 "filter": (2, 2), "despot": (1, None), "perception-stages": (1, 1), "load": (1, 1), "fleet": (1, 1),
                 "maps": (1, 1),
@@ -1539,6 +1601,8 @@ def main():
         mirror(*args)
     elif command == "trace":
         trace(*args)
+    elif command == "steps":
+        steps(*args)
     elif command == "compare":
         compare(*args)
     elif command == "threads":

@@ -2,6 +2,7 @@
 quantiles, the share of the oracle's reward and the ablation's paired change, on cells with known
 answers; and docs/benchmarks.md itself, which must be what the script makes of bench/results."""
 
+import gzip
 import json
 import os
 import re
@@ -138,28 +139,30 @@ def test_mirror_counts_the_first_views_that_saw_the_target(tmp_path):
     assert row == ["| npfkct | 100.0 ± 0.0 \\| 5.00 ± 0.00 \\| 1/2 |"]
 
 
+TRACE_LINES = [
+    "S p trial 0 step  1: move x=1 y=2 yaw=0 lift=0 pan=0 tilt=0  moved  sims 1 value 1 "
+    "| box-1:0/6* box-2:0/6*",
+    "S p trial 0 step  2: declare obstacle box-1     declared  sims 1 value 1 root: move n=3 "
+    "q=1, declare obstacle box-1 n=2 q=2 | box-1:0/6 box-2:0/6*",
+    "S p trial 0 step  3: declare obstacle box-2     declared  sims 1 value 1 | box-1:0/6",
+    "S p trial 0 step  4: remove box-1               removed   sims 1 value 1 | box-2:0/6",
+    "S p trial 0 step  5: declare target target      declared  sims 1 value 1 | target:6/0",
+    "S p trial 0 step  6: remove target              removed   sims 1 value 1 |",
+    "S p trial 1 step  1: move x=1 y=2 yaw=0 lift=0 pan=0 tilt=0  moved  sims 1 value 1 "
+    "| box-3:1/6* box-4:0/6*",
+    "S p trial 1 step  2: move x=1 y=2 yaw=0 lift=0 pan=0 tilt=0  moved  sims 1 value 1 "
+    "| box-3:1/6* box-4:0/6*",
+    "S p trial 1 step  3: move x=1 y=2 yaw=0 lift=0 pan=0 tilt=0  moved  sims 1 value 1 "
+    "| box-3:1/6*",
+    "S p trial 1 step  4: declare obstacle box-4     declared  sims 1 value 1 | box-3:1/6*",
+    "S p trial 1 step  5: remove box-4               removed   sims 1 value 1 | box-3:1/6*",
+    "npfkct: building every target",
+]
+
+
 def test_trace_counts_moves_and_declared_obstacles_per_trial(tmp_path):
     path = tmp_path / "t.trace"
-    lines = [
-        "S p trial 0 step  1: move x=1 y=2 yaw=0 lift=0 pan=0 tilt=0  moved  sims 1 value 1 "
-        "| box-1:0/6* box-2:0/6*",
-        "S p trial 0 step  2: declare obstacle box-1     declared  sims 1 value 1 root: move n=3 "
-        "q=1, declare obstacle box-1 n=2 q=2 | box-1:0/6 box-2:0/6*",
-        "S p trial 0 step  3: declare obstacle box-2     declared  sims 1 value 1 | box-1:0/6",
-        "S p trial 0 step  4: remove box-1               removed   sims 1 value 1 | box-2:0/6",
-        "S p trial 0 step  5: declare target target      declared  sims 1 value 1 | target:6/0",
-        "S p trial 0 step  6: remove target              removed   sims 1 value 1 |",
-        "S p trial 1 step  1: move x=1 y=2 yaw=0 lift=0 pan=0 tilt=0  moved  sims 1 value 1 "
-        "| box-3:1/6* box-4:0/6*",
-        "S p trial 1 step  2: move x=1 y=2 yaw=0 lift=0 pan=0 tilt=0  moved  sims 1 value 1 "
-        "| box-3:1/6* box-4:0/6*",
-        "S p trial 1 step  3: move x=1 y=2 yaw=0 lift=0 pan=0 tilt=0  moved  sims 1 value 1 "
-        "| box-3:1/6*",
-        "S p trial 1 step  4: declare obstacle box-4     declared  sims 1 value 1 | box-3:1/6*",
-        "S p trial 1 step  5: remove box-4               removed   sims 1 value 1 | box-3:1/6*",
-        "npfkct: building every target",
-    ]
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    path.write_text("\n".join(TRACE_LINES) + "\n", encoding="utf-8")
     out = subprocess.run([sys.executable, os.path.join(SCRIPTS, "results_table.py"), "trace",
                           str(path)], check=True, capture_output=True, text=True).stdout
     # Trial 0: 6 steps, 1 move (the first, before anything could be declared), 2 obstacles
@@ -167,6 +170,25 @@ def test_trace_counts_moves_and_declared_obstacles_per_trial(tmp_path):
     # removes later, could be declared (box-3, never removed, does not count), 1 obstacle
     # declared and removed.
     assert "| S | p | 2 | 5.50 | 2.00 | 1.00 | 1.50 | 1.00 |" in out.splitlines()
+
+
+def test_steps_groups_traced_trials_by_placement_and_counts_success(tmp_path):
+    run = tmp_path / "run"
+    run.mkdir()
+    with gzip.open(run / "defaults.trace.gz", "wt", encoding="utf-8") as f:
+        f.write("\n".join(TRACE_LINES) + "\n")
+    scenes = tmp_path / "scenes"
+    scenes.mkdir()
+    (scenes / "S.json").write_text(json.dumps(
+        {"description": "Generated: 4 objects, the target covered by box-1."}), encoding="utf-8")
+    out = subprocess.run([sys.executable, os.path.join(SCRIPTS, "results_table.py"), "steps",
+                          str(run), str(scenes)], check=True, capture_output=True,
+                         text=True).stdout
+    # As above, and declared but never removed: box-2 in trial 0, none in trial 1 (0.5 a trial);
+    # trial 0 ends by removing the target, trial 1 does not (50%).
+    figures = "| 2 | 5.5 | 2.0 | 1.0 | 1.5 | 1.0 | 0.5 | 50% |"
+    assert f"| defaults | covered (1 scenes) {figures}" in out.splitlines()
+    assert f"| defaults | all (1 scenes) {figures}" in out.splitlines()
 
 
 def test_mirror_pools_a_scene_with_its_mirror_image(tmp_path):
