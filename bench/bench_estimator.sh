@@ -86,6 +86,14 @@ for row in $ROWS; do
     continue
   fi
   npfkct_bench_row "$OUT/$row" "${ARGS[@]}"
+  if [ "${SCENE_FILES[0]}" != "${TUNING_SCENES[0]}" ]; then
+    # Each cell names the scene parameters its row changed (the bench line does not).
+    for cell in "$OUT/$row"/*.jsonl; do
+      python3 -c "import json,sys; d=json.loads(open(sys.argv[1]).readline()); \
+d['scene_params']={'gridFreeDelta': -3.0}; open(sys.argv[1],'w').write(json.dumps(d)+chr(10))" \
+        "$cell"
+    done
+  fi
 done
 if [ "${TRACE:-0}" = 1 ]; then
   python3 "$NPFKCT_ROOT/bench/results_table.py" steps "$OUT" "$BUILD_DIR/tuning-scenes-v2" |

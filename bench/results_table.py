@@ -1392,7 +1392,8 @@ table is a later run (`reuse1`; its cells record 8851d9b, 3faa533 and 491accf, w
 planner) with its own `defaults` row beside the rows it compares; its `oracle` and `nbv` cells
 are run1's; its `regression` row ran at 9804c30, before the regressed final action became kCT's
 default (the `defaults` row is the sphere rule). The third table (`covers1`, at 74dc901) runs the
-defaults with the regressed final action beside the row `covers`, with run1's `oracle` and `nbv`.
+defaults with the regressed final action beside the row `covers`, with run1's `oracle` and `nbv`;
+its row `covers-grid-free-3` ran later (68efb37; "-dirty" there is an edit of this script).
 
     bench/bench_estimator.sh
     python3 bench/results_table.py estimator bench/results/estimator-v2/run1 \\
@@ -1400,7 +1401,7 @@ defaults with the regressed final action beside the row `covers`, with run1's `o
     ROWS="defaults reuse rollout-first regression" bench/bench_estimator.sh --run reuse1
     python3 bench/results_table.py estimator bench/results/estimator-v2/reuse1 \\
       bench/results/estimator-v2/scenes
-    ROWS="defaults covers" bench/bench_estimator.sh --run covers1
+    ROWS="defaults covers covers-grid-free-3" bench/bench_estimator.sh --run covers1
     python3 bench/results_table.py estimator bench/results/estimator-v2/covers1 \\
       bench/results/estimator-v2/scenes
 """, [lambda r: estimator(os.path.join(r, "estimator-v2", "run1"),
@@ -1411,6 +1412,21 @@ defaults with the regressed final action beside the row `covers`, with run1's `o
       lambda r: print(),
       lambda r: estimator(os.path.join(r, "estimator-v2", "covers1"),
                           os.path.join(r, "estimator-v2", "scenes"))]),
+    ("Where the steps go on the v2 tuning scenes", """\
+Every step of 2 trials per v2 tuning scene (trials 0 and 1 of the estimator rows, the same world
+draws), 0.25 s of CPU per step, from `npfkct-bench --trace` at 915dc5f: the moves, the moves made
+while an object the trial removes later could already be declared (idle moves), the obstacles
+declared, how many of them were removed later and how many never were. `defaults` is `npfkct`;
+`covers` the estimator row of that name (R_co in planning only for declaring what hides the
+particle's guessed target; the world still pays it for every obstacle). What the figures say:
+[experiments.md](experiments.md#where-do-the-steps-go-on-the-v2-scenes).
+
+    TRACE=1 ROWS="oracle oracle-cover-unknown nbv defaults covers" bench/bench_estimator.sh \\
+      --run steps1 --trials 2
+    python3 bench/results_table.py steps bench/results/estimator-v2/steps1 \\
+      bench/results/estimator-v2/scenes
+""", [lambda r: steps(os.path.join(r, "estimator-v2", "steps1"),
+                      os.path.join(r, "estimator-v2", "scenes"))]),
     ("Planning on several cores", """\
 `npfkct` with 1 and 2 root-parallel search threads, 1 s of wall time per step, trials one after
 the other on an otherwise idle 2-core machine, 8 trials per scene.
