@@ -22,7 +22,7 @@ npfkct_prepare npfkct-bench npfkct-scenegen
 SEEDS="${SEEDS:-$(seq 850001 850030)}"
 DEFAULT_ROWS="oracle oracle-cover-unknown nbv kct defaults depth30 rollout-clear r-co-0"
 DEFAULT_ROWS="$DEFAULT_ROWS target-only obstacle-covers grid-free-3 grid-odds reuse rollout-first"
-DEFAULT_ROWS="$DEFAULT_ROWS regression uniform-final covers covers-grid-free-3"
+DEFAULT_ROWS="$DEFAULT_ROWS regression uniform-final covers covers-grid-free-3 filter-exact"
 ROWS="${ROWS:-$DEFAULT_ROWS}"
 OUT="$NPFKCT_ROOT/bench/results/estimator-v2/$RUN"
 export SCENE_VERSION=2
@@ -59,6 +59,9 @@ for row in $ROWS; do
     # The regressed final action, kCT's default since it was measured (the rows above ran before).
     regression) ARGS=(--planner npfkct --opt final_action=2 --opt regression_reach=20 --opt regression_trust=10) ;;
     uniform-final) ARGS=(--planner npfkct --opt final_action=0) ;;
+    # The filter's ceiling: Net_sam ranking the proposals by g computed exactly, as a network
+    # without error would. If it does not beat kct, no filter trained on g can.
+    filter-exact) ARGS=(--planner npfkct --opt filter.exact=1) ;;
     grid-free-3)
       # The same scenes with the robot's grid update for a seen free cell at -3 instead of -1.
       grid_free_3_scenes

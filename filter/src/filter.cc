@@ -150,7 +150,18 @@ class NetSam final : public CandidateSampler<State> {
       if (j % 256 == 255 && stop.ShouldStop(0)) return unfiltered();
       QueryOf(w, configs[scored[j]], candidate, probe, &q[j * kQueryDim]);
     }
-    const Prediction p = filter_->Predict(scene, context.queries, context.scores, q, &stop);
+    Prediction p;
+    if (options_.exact != 0) {
+      p.mu.resize(scored.size());
+      p.sigma.assign(scored.size(), 0.0f);
+      for (size_t j = 0; j < scored.size(); ++j) {
+        if (j % 64 == 63 && stop.ShouldStop(0)) return unfiltered();
+        p.mu[j] =
+            static_cast<float>(TargetScore(model_, s, candidate, configs[scored[j]], placements));
+      }
+    } else {
+      p = filter_->Predict(scene, context.queries, context.scores, q, &stop);
+    }
     if (p.mu.size() < scored.size()) return unfiltered();
     const double beta = options_.Beta();
     std::vector<std::pair<double, int>> ranked(scored.size());
@@ -239,6 +250,7 @@ Status FilterOptions::Validate() const {
   if (!(object_share >= 0.0 && object_share <= 1.0 - target_share)) {
     return InvalidArgumentError("object_share must be in [0, 1 - target_share]");
   }
+  if (exact != 0 && exact != 1) return InvalidArgumentError("exact must be 0 or 1");
   if (explore + object_share >= 1.0) {
     return InvalidArgumentError("explore + object_share must be below 1");
   }
@@ -259,6 +271,7 @@ const option_table::Table<FilterOptions>& FilterTable() {
       {"explore", Real(&FilterOptions::explore)},
       {"target_share", Real(&FilterOptions::target_share)},
       {"object_share", Real(&FilterOptions::object_share)},
+      {"exact", Int(&FilterOptions::exact)},
   };
   return *table;
 }

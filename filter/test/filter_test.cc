@@ -547,6 +547,56 @@ TEST(FilterTest, NetSamReturnsBetterCandidatesThanUniform) {
   EXPECT_FALSE(MakeNetSam(*filter, model, bad).ok());
 }
 
+// filter.exact ranks the proposals by g itself: what it keeps scores at least as well as what the
+// network keeps, and the option is refused outside {0, 1}.
+TEST(FilterTest, NetSamWithExactScoresKeepsTheEfficientProposals) {
+  auto filter = NeuralFilter::Load(NPFKCT_FILTER_MODEL);
+  ASSERT_TRUE(filter.ok()) << filter.status().ToString();
+  const World w = SceneWorld("complex1", 3);
+  ObjectSearchModel model(std::make_shared<const World>(w));
+  Rng rng(12);
+  std::vector<State> particles;
+  for (int i = 0; i < 100; ++i) particles.push_back(model.SampleInitialState(rng));
+  ParticleBelief<State> belief(particles);
+  FilterOptions options;
+  options.min_keep = 1;
+  FilterOptions exact = options;
+  ASSERT_TRUE(SetOption(&exact, "exact", 1).ok());
+  auto by_g = MakeNetSam(*filter, model, exact);
+  auto by_network = MakeNetSam(*filter, model, options);
+  ASSERT_TRUE(by_g.ok() && by_network.ok());
+  const BoxSpace& box = model.KindSpace(object_search::kMoveKind);
+  const TerminationCondition unlimited(Budget::Time(60'000.0));
+  const int candidate = object_search::TargetCandidate(w);
+  const auto placements = SamplePlacements(w, 256, rng);
+  // (mean g, share with g = 0) of the kept target views, against fresh placements.
+  auto scores = [&](CandidateSampler<State>& sampler) {
+    std::vector<ActionVec> kept;
+    EXPECT_TRUE(
+        sampler.Sample(belief, object_search::kMoveKind, box, 256, unlimited, rng, &kept, nullptr)
+            .ok());
+    EXPECT_FALSE(kept.empty());
+    double sum = 0, zero = 0;
+    for (const ActionVec& x : kept) {
+      const double g = TargetScore(model, belief.Sample(rng), candidate,
+                                   ObjectSearchModel::ConfigOf(x), placements);
+      sum += g;
+      zero += g == 0.0;
+    }
+    const double n = std::max<size_t>(1, kept.size());
+    return std::make_pair(sum / n, zero / n);
+  };
+  const auto [g, g_zero] = scores(**by_g);
+  const auto [net, net_zero] = scores(**by_network);
+  EXPECT_GT(g, 0.0);
+  EXPECT_GE(g, 0.9 * net) << "exact " << g << " network " << net;
+  FilterOptions bad;
+  ASSERT_TRUE(SetOption(&bad, "exact", 2).ok());
+  const Status refused = bad.Validate();
+  EXPECT_FALSE(refused.ok());
+  EXPECT_NE(refused.message().find("exact"), std::string::npos);
+}
+
 // 100,000 candidates took 13 s in a sparse world whatever the plan's budget: the sampler, its
 // exact context scores and the network stop with the search.
 TEST(FilterTest, NetSamAndPredictStopWithTheSearch) {

@@ -30,6 +30,9 @@ struct FilterOptions {
   /// that confirm an obstacle), the rest uniform.
   double target_share = 0.7;
   double object_share = 0.2;
+  /// 1: rank the proposals by g computed exactly in place of the network's prediction (sigma 0):
+  /// the filter's ceiling, a network that predicted its label without error. 0: the network.
+  int exact = 0;
   /// Checks every field; the message names the offending one.
   Status Validate() const;
   /// beta* of the confidence.
@@ -37,8 +40,8 @@ struct FilterOptions {
 };
 
 /// Sets FilterOptions field `key` (snake_case: candidates, confidence, context, placements,
-/// min_keep, explore, target_share, object_share) to `value`; unknown keys and non-integers for
-/// integer fields are INVALID_ARGUMENT naming the key (Validate() checks the ranges).
+/// min_keep, explore, target_share, object_share, exact) to `value`; unknown keys and non-integers
+/// for integer fields are INVALID_ARGUMENT naming the key (Validate() checks the ranges).
 Status SetOption(FilterOptions* o, std::string_view key, double value);
 /// Every FilterOptions field as (key, value), keyed as SetOption's keys, in key order.
 std::vector<std::pair<std::string, double>> OptionValues(const FilterOptions& o);
