@@ -18,11 +18,13 @@
 #        930001 ... 930060 for version 2), PLANNERS, BUILD_DIR, ROLLOUT (the model's rollout policy
 #        for every planner: aimed, the default, clear, or greedy, that of run1 and run2),
 #        OBSTACLE_REWARD (what the planners' model pays for obstacle declarations: every, the
-#        paper's, or covers). The v2 tuning scenes: SCENE_VERSION=2 SEEDS="$(seq 850001 850030)".
+#        paper's, or covers), OPTS (planner options for every planner, KEY=VALUE separated by
+#        spaces, as npfkct-bench --opt takes them). The v2 tuning scenes: SCENE_VERSION=2
+#        SEEDS="$(seq 850001 850030)".
 set -euo pipefail
 NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 source "$NPFKCT_ROOT/scripts/deps.sh"
-npfkct_bench_args 250 5 21 "$@"
+npfkct_bench_args 250 5 23 "$@"
 npfkct_prepare npfkct-bench npfkct-scenegen
 export SCENE_VERSION="${SCENE_VERSION:-1}"
 if [[ "$SCENE_VERSION" == 2 ]]; then
@@ -38,13 +40,15 @@ else
 fi
 # shellcheck disable=SC2086  # one seed per word
 npfkct_generate_scenes "$SCENES_DIR" $SEEDS
+OPT_ARGS=()
+for opt in ${OPTS:-}; do OPT_ARGS+=(--opt "$opt"); done
 for scene in "${SCENE_FILES[@]}"; do
   seed="$(basename "$scene" .json)"
   seed="${seed#gen-}"
   for planner in $PLANNERS; do
     npfkct_bench_cell "$OUT/$seed/$planner.jsonl" "$TRIALS" --scenario "$scene" \
       --planner "$planner" --trials "$TRIALS" --cpu-ms "$CPU_MS" --threads "$(nproc)" --seed 1 \
-      --rollout "${ROLLOUT:-aimed}" --obstacle-reward "${OBSTACLE_REWARD:-every}"
+      --rollout "${ROLLOUT:-aimed}" --obstacle-reward "${OBSTACLE_REWARD:-every}" "${OPT_ARGS[@]}"
   done
 done
 python3 "$NPFKCT_ROOT/bench/results_table.py" generated "$OUT" "$SCENES_DIR" |
