@@ -740,6 +740,9 @@ def model_speed(root):
 # The classic problems' rows (bench/bench_classic.sh, bench/results/classic.jsonl): the problem,
 # planner and budget as printed, the fields a run must have (the last line that has them is
 # taken; several selectors are pooled), and the figure its authors published.
+# The seeds of the 25-episode kCT runs at the VPW paper's VDP Tag configuration, pooled with
+# seed 1's 100 episodes (episode i of seed S is seeded S * 1000003 + i: no two runs share one).
+VDP_CHUNK_SEEDS = list(range(2, 9))
 CLASSIC_ROWS = [
     ("Tiger (γ 0.95, 100 steps)", "POMCP", "5,000 sims",
      [{"problem": "tiger", "planner": "pomcp", "sims": 5000, "rollout": ""}],
@@ -804,10 +807,18 @@ CLASSIC_ROWS = [
        "options": ["search.rollout_first=1", "search.num_particles=100000"]}],
      "28.3 ± 1.0 (ibid.)",
      "vdptag-published"),
-    ("VDP Tag, the VPW paper's configuration", "kCT", "1 s of CPU",
-     [{"problem": "vdptag", "planner": "kct", "cpu_ms": 1000,
+    ("VDP Tag, the VPW paper's configuration, seed 1", "kCT", "1 s of CPU",
+     [{"problem": "vdptag", "planner": "kct", "cpu_ms": 1000, "seed": 1, "episodes": 100,
        "options": ["search.rollout_first=1", "search.num_particles=100000"]}], "–",
      "vdptag-published"),
+    (f"VDP Tag, the VPW paper's configuration, seeds 1-{VDP_CHUNK_SEEDS[-1]} pooled", "kCT",
+     "1 s of CPU",
+     [{"problem": "vdptag", "planner": "kct", "cpu_ms": 1000, "seed": 1, "episodes": 100,
+       "options": ["search.rollout_first=1", "search.num_particles=100000"]}] +
+     [{"problem": "vdptag", "planner": "kct", "cpu_ms": 1000, "seed": seed, "episodes": 25,
+       "options": ["search.rollout_first=1", "search.num_particles=100000"]}
+      for seed in VDP_CHUNK_SEEDS], "–",
+     "PLANNERS=kct vdptag-published; PLANNERS=kct EPISODES=25 SEED=S vdptag-published"),
     ("VDP Tag (ToNextML rollout), seed 1", "kCT", "1 s of CPU",
      [{"problem": "vdptag", "planner": "kct", "cpu_ms": 1000, "threads": 1, "seed": 1}], "–",
      "THREADS=1 SEED=1 kct-vdptag"),
@@ -1179,6 +1190,12 @@ GENERATED_COMPARISONS = [
      ("cells", "generated/rollout-aimed", "kct"), ("cells", "generated/rollout-aimed", "npfkct")),
     ("1 s of CPU per step against 0.25 s (npfkct, greedy rollout)",
      ("cells", "generated/run2", "npfkct"), ("cells", "generated/budget1000", "npfkct")),
+    ("v2 set: npfkct against kct (run 2)",
+     ("cells", "generated-v2/run2", "kct"), ("cells", "generated-v2/run2", "npfkct")),
+    ("v2 set: the filter's ceiling against kct (npfkct `filter.exact=1`: g computed exactly)",
+     ("cells", "generated-v2/run2", "kct"), ("cells", "generated-v2/filter-exact", "npfkct")),
+    ("v2 set: the filter's ceiling against the network (npfkct `filter.exact=1` against npfkct)",
+     ("cells", "generated-v2/run2", "npfkct"), ("cells", "generated-v2/filter-exact", "npfkct")),
 ] + [
     (f"Faster model and machine, run 2 against run 1 ({p}, greedy rollout)",
      ("cells", "generated/run1", p), ("cells", "generated/run2", p))
@@ -1354,7 +1371,12 @@ machine); `rollout-greedy` is npfkct with the greedy rollout run beside the aime
                                 for name in ["run1", "run2", "rollout-greedy", "budget1000"]])]),
     ("Paired comparisons on the held-out generated scenes", """\
 Two sets of cells compared scene by scene (each against the oracle of its own folder; `rows` of
-`ablation/generated` are the ablation's rows below).
+`ablation/generated` are the ablation's rows below). The v2 rows are on the 60 v2 held-out scenes;
+`generated-v2/filter-exact` holds `npfkct` with `filter.exact=1` (at 0a5c4eb) beside copies of
+run 2's `oracle` and `kct` cells:
+
+    SCENE_VERSION=2 PLANNERS=npfkct OPTS=filter.exact=1 bench/bench_generated.sh \\
+      --run filter-exact  # + run 2's oracle and kct cells
 """, [lambda r: paired(GENERATED_COMPARISONS, r)]),
     ("Ablation", """\
 NPF-kCT from the paper's algorithm to the shipped planner, one change per row, each row keeping
@@ -1393,7 +1415,9 @@ planner) with its own `defaults` row beside the rows it compares; its `oracle` a
 are run1's; its `regression` row ran at 9804c30, before the regressed final action became kCT's
 default (the `defaults` row is the sphere rule). The third table (`covers1`, at 74dc901) runs the
 defaults with the regressed final action beside the row `covers`, with run1's `oracle` and `nbv`;
-its row `covers-grid-free-3` ran later (68efb37; "-dirty" there is an edit of this script).
+its row `covers-grid-free-3` ran later (68efb37; "-dirty" there is an edit of this script), and
+later still `filter-exact` (the filter's ceiling: g computed exactly in place of the network)
+and `kct` (0a5c4eb).
 
     bench/bench_estimator.sh
     python3 bench/results_table.py estimator bench/results/estimator-v2/run1 \\
@@ -1401,7 +1425,8 @@ its row `covers-grid-free-3` ran later (68efb37; "-dirty" there is an edit of th
     ROWS="defaults reuse rollout-first regression" bench/bench_estimator.sh --run reuse1
     python3 bench/results_table.py estimator bench/results/estimator-v2/reuse1 \\
       bench/results/estimator-v2/scenes
-    ROWS="defaults covers covers-grid-free-3" bench/bench_estimator.sh --run covers1
+    ROWS="defaults covers covers-grid-free-3 filter-exact kct" bench/bench_estimator.sh \\
+      --run covers1
     python3 bench/results_table.py estimator bench/results/estimator-v2/covers1 \\
       bench/results/estimator-v2/scenes
 """, [lambda r: estimator(os.path.join(r, "estimator-v2", "run1"),
