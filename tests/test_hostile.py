@@ -1267,6 +1267,10 @@ def test_work_inside_a_simulation_or_before_it_stops_with_the_plan(hostile_serve
     planners = [
         ("npfkct", 10000, dict(caps, **{"filter.candidates": 100000, "filter.context": 256,
                                         "filter.placements": 4096}), 50),
+        # The same with every candidate scored exactly (4,096 placements each) in place of the
+        # network.
+        ("npfkct", 10000, dict(caps, **{"filter.candidates": 100000, "filter.context": 256,
+                                        "filter.placements": 4096, "filter.exact": 1}), 50),
         ("kct", 10000, dict(caps, maxFeasibilityTries=10000, treeFeasibilityTries=1000,
                             **{"search.threads": 4}), 300),
         ("advt", 100, {"walkSteps": 10000, "splitCoefficient": 1000, "feasibilityTries": 10000,
