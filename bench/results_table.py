@@ -742,7 +742,7 @@ def model_speed(root):
 # taken; several selectors are pooled), and the figure its authors published.
 # The seeds of the 25-episode kCT runs at the VPW paper's VDP Tag configuration, pooled with
 # seed 1's 100 episodes (episode i of seed S is seeded S * 1000003 + i: no two runs share one).
-VDP_CHUNK_SEEDS = list(range(2, 9))
+VDP_CHUNK_SEEDS = list(range(2, 18))
 CLASSIC_ROWS = [
     ("Tiger (γ 0.95, 100 steps)", "POMCP", "5,000 sims",
      [{"problem": "tiger", "planner": "pomcp", "sims": 5000, "rollout": ""}],
