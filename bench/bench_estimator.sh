@@ -29,19 +29,22 @@ export SCENE_VERSION=2
 # shellcheck disable=SC2086  # one seed per word
 npfkct_generate_scenes "$BUILD_DIR/tuning-scenes-v2" $SEEDS
 TUNING_SCENES=("${SCENE_FILES[@]}")
-# SCENE_FILES: the tuning scenes with the robot's grid update for a seen free cell at -3.
+# SCENE_FILES: the tuning scenes with the robot's grid update for a seen free cell at -3;
+# SCENE_PARAMS: those scene parameters, which the row's cells then name.
 grid_free_3_scenes() {
+  SCENE_PARAMS='{"gridFreeDelta": -3.0}'
   mkdir -p "$BUILD_DIR/tuning-scenes-v2-grid3"
   SCENE_FILES=()
   for file in "${TUNING_SCENES[@]}"; do
     python3 -c "import json,sys; d=json.load(open(sys.argv[1])); \
-d['params']={'gridFreeDelta': -3.0}; json.dump(d, open(sys.argv[2], 'w'))" \
-      "$file" "$BUILD_DIR/tuning-scenes-v2-grid3/$(basename "$file")"
+d['params']=json.loads(sys.argv[3]); json.dump(d, open(sys.argv[2], 'w'))" \
+      "$file" "$BUILD_DIR/tuning-scenes-v2-grid3/$(basename "$file")" "$SCENE_PARAMS"
     SCENE_FILES+=("$BUILD_DIR/tuning-scenes-v2-grid3/$(basename "$file")")
   done
 }
 for row in $ROWS; do
   SCENE_FILES=("${TUNING_SCENES[@]}")
+  SCENE_PARAMS=""
   case "$row" in
     oracle | oracle-cover-unknown | nbv | kct) ARGS=(--planner "$row") ;;
     defaults) ARGS=(--planner npfkct) ;;
@@ -89,12 +92,12 @@ for row in $ROWS; do
     continue
   fi
   npfkct_bench_row "$OUT/$row" "${ARGS[@]}"
-  if [ "${SCENE_FILES[0]}" != "${TUNING_SCENES[0]}" ]; then
+  if [ -n "$SCENE_PARAMS" ]; then
     # Each cell names the scene parameters its row changed (the bench line does not).
     for cell in "$OUT/$row"/*.jsonl; do
       python3 -c "import json,sys; d=json.loads(open(sys.argv[1]).readline()); \
-d['scene_params']={'gridFreeDelta': -3.0}; open(sys.argv[1],'w').write(json.dumps(d)+chr(10))" \
-        "$cell"
+d['scene_params']=json.loads(sys.argv[2]); open(sys.argv[1],'w').write(json.dumps(d)+chr(10))" \
+        "$cell" "$SCENE_PARAMS"
     done
   fi
 done

@@ -737,14 +737,31 @@ def model_speed(root):
     print(f"\nMedian ratio over the {len(cells)} cells: {statistics.median(ratios):.2f}x")
 
 
-# The classic problems' rows (bench/bench_classic.sh, bench/results/classic.jsonl): the problem,
-# planner and budget as printed, the fields a run must have (the last line that has them is
-# taken; several selectors are pooled), and the figure its authors published.
 # The seeds of the 25-episode kCT runs at the VPW paper's VDP Tag configuration, pooled with
 # seed 1's 100 episodes (episode i of seed S is seeded S * 1000003 + i: no two runs share one).
 VDP_CHUNK_SEEDS = list(range(2, 18))
 # The same for VOMCPOW beside it.
 VOMCPOW_CHUNK_SEEDS = list(range(2, 10))
+
+
+def vpw_vdptag(planner, seed=None, episodes=None):
+    """The selector of a run of bench_classic.sh vdptag-published (the VPW paper's VDP Tag
+    configuration) of one planner; with a seed and episodes, of that run alone."""
+    selector = {"problem": "vdptag", "planner": planner, "cpu_ms": 1000,
+                "options": ["search.rollout_first=1", "search.num_particles=100000"]}
+    if seed is not None:
+        selector.update(seed=seed, episodes=episodes)
+    return selector
+
+
+def vpw_vdptag_pooled(planner, seeds):
+    """Seed 1's 100 episodes of a planner at the VPW configuration and its 25-episode runs."""
+    return [vpw_vdptag(planner, 1, 100)] + [vpw_vdptag(planner, s, 25) for s in seeds]
+
+
+# The classic problems' rows (bench/bench_classic.sh, bench/results/classic.jsonl): the problem,
+# planner and budget as printed, the fields a run must have (the last line that has them is
+# taken; several selectors are pooled), and the figure its authors published.
 CLASSIC_ROWS = [
     ("Tiger (γ 0.95, 100 steps)", "POMCP", "5,000 sims",
      [{"problem": "tiger", "planner": "pomcp", "sims": 5000, "rollout": ""}],
@@ -800,35 +817,18 @@ CLASSIC_ROWS = [
      "33.2 ± 0.9 (Lim, Tomlin & Sunberg 2021)",
      "THREADS=1 SEED=1 kct-vdptag; THREADS=1 SEED=2 kct-vdptag"),
     ("VDP Tag, the VPW paper's configuration", "VOMCPOW", "1 s of CPU",
-     [{"problem": "vdptag", "planner": "vomcpow", "cpu_ms": 1000, "seed": 1, "episodes": 100,
-       "options": ["search.rollout_first=1", "search.num_particles=100000"]}],
-     "33.2 ± 0.9 (Lim, Tomlin & Sunberg 2021)",
+     [vpw_vdptag("vomcpow", 1, 100)], "33.2 ± 0.9 (Lim, Tomlin & Sunberg 2021)",
      "vdptag-published"),
     (f"VDP Tag, the VPW paper's configuration, seeds 1-{VOMCPOW_CHUNK_SEEDS[-1]} pooled",
-     "VOMCPOW", "1 s of CPU",
-     [{"problem": "vdptag", "planner": "vomcpow", "cpu_ms": 1000, "seed": 1, "episodes": 100,
-       "options": ["search.rollout_first=1", "search.num_particles=100000"]}] +
-     [{"problem": "vdptag", "planner": "vomcpow", "cpu_ms": 1000, "seed": seed, "episodes": 25,
-       "options": ["search.rollout_first=1", "search.num_particles=100000"]}
-      for seed in VOMCPOW_CHUNK_SEEDS],
+     "VOMCPOW", "1 s of CPU", vpw_vdptag_pooled("vomcpow", VOMCPOW_CHUNK_SEEDS),
      "33.2 ± 0.9 (Lim, Tomlin & Sunberg 2021)",
      "vdptag-published; PLANNERS=vomcpow EPISODES=25 SEED=S vdptag-published"),
     ("VDP Tag, the VPW paper's configuration", "POMCPOW", "1 s of CPU",
-     [{"problem": "vdptag", "planner": "pomcpow", "cpu_ms": 1000,
-       "options": ["search.rollout_first=1", "search.num_particles=100000"]}],
-     "28.3 ± 1.0 (ibid.)",
-     "vdptag-published"),
+     [vpw_vdptag("pomcpow")], "28.3 ± 1.0 (ibid.)", "vdptag-published"),
     ("VDP Tag, the VPW paper's configuration, seed 1", "kCT", "1 s of CPU",
-     [{"problem": "vdptag", "planner": "kct", "cpu_ms": 1000, "seed": 1, "episodes": 100,
-       "options": ["search.rollout_first=1", "search.num_particles=100000"]}], "–",
-     "vdptag-published"),
+     [vpw_vdptag("kct", 1, 100)], "–", "vdptag-published"),
     (f"VDP Tag, the VPW paper's configuration, seeds 1-{VDP_CHUNK_SEEDS[-1]} pooled", "kCT",
-     "1 s of CPU",
-     [{"problem": "vdptag", "planner": "kct", "cpu_ms": 1000, "seed": 1, "episodes": 100,
-       "options": ["search.rollout_first=1", "search.num_particles=100000"]}] +
-     [{"problem": "vdptag", "planner": "kct", "cpu_ms": 1000, "seed": seed, "episodes": 25,
-       "options": ["search.rollout_first=1", "search.num_particles=100000"]}
-      for seed in VDP_CHUNK_SEEDS], "–",
+     "1 s of CPU", vpw_vdptag_pooled("kct", VDP_CHUNK_SEEDS), "–",
      "PLANNERS=kct vdptag-published; PLANNERS=kct EPISODES=25 SEED=S vdptag-published"),
     ("VDP Tag (ToNextML rollout), seed 1", "kCT", "1 s of CPU",
      [{"problem": "vdptag", "planner": "kct", "cpu_ms": 1000, "threads": 1, "seed": 1}], "–",

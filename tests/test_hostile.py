@@ -1264,13 +1264,13 @@ def test_work_inside_a_simulation_or_before_it_stops_with_the_plan(hostile_serve
     url, rec = hostile_server.url, Recorder()
     world = sparse_world()
     caps = {"numCandidates": 4096, "maxInitialClusters": 16, "k": 16}
+    filter_caps = dict(caps, **{"filter.candidates": 100000, "filter.context": 256,
+                                "filter.placements": 4096})
     planners = [
-        ("npfkct", 10000, dict(caps, **{"filter.candidates": 100000, "filter.context": 256,
-                                        "filter.placements": 4096}), 50),
+        ("npfkct", 10000, filter_caps, 50),
         # The same with every candidate scored exactly (4,096 placements each) in place of the
         # network.
-        ("npfkct", 10000, dict(caps, **{"filter.candidates": 100000, "filter.context": 256,
-                                        "filter.placements": 4096, "filter.exact": 1}), 50),
+        ("npfkct", 10000, dict(filter_caps, **{"filter.exact": 1}), 50),
         ("kct", 10000, dict(caps, maxFeasibilityTries=10000, treeFeasibilityTries=1000,
                             **{"search.threads": 4}), 300),
         ("advt", 100, {"walkSteps": 10000, "splitCoefficient": 1000, "feasibilityTries": 10000,
