@@ -125,7 +125,11 @@ void PrintJson(const Config& c, const RunSummary& s, int max_steps) {
       s.median_sims_per_cpu_second, s.median_first_step_sims_per_second, s.wall_seconds,
       s.failed_episodes);
   if (!s.first_error.empty()) std::printf(", \"error\": \"%s\"", JsonEscape(s.first_error).c_str());
-  std::printf("}\n");
+  std::printf(", \"episode_returns\": [");
+  for (size_t i = 0; i < s.returns.size(); ++i) std::printf("%s%.4f", i ? ", " : "", s.returns[i]);
+  std::printf("], \"episode_steps\": [");
+  for (size_t i = 0; i < s.steps.size(); ++i) std::printf("%s%d", i ? ", " : "", s.steps[i]);
+  std::printf("]}\n");
   std::fflush(stdout);
 }
 
