@@ -8,7 +8,8 @@
 #   as CPU time of the planning thread; lightdark-discretised: the authors' discretised POMCP,
 #   half an hour; kct-vdptag and kct-lightdark: either half of it; lqg: the VPW paper's first-action
 #   benchmark on its 2-D LQG, a few minutes; vdptag-published: VDP Tag at the VPW paper's own
-#   configuration, EPISODES per planner, default 100, PLANNERS, default "vomcpow kct pomcpow")
+#   configuration, EPISODES per planner, default 100, PLANNERS, default "vomcpow kct pomcpow";
+#   kct-lightdark takes EPISODES, default 200, and PLANNERS, default "kct pomcpow", likewise)
 # Takes about three hours on a 2-core machine with every section.
 # env: THREADS (episodes at once; default: the number of cores), SEED (the kct sections' seed,
 # default 1; a second seed gives new episodes to pool with the first).
@@ -69,9 +70,9 @@ for section in "${sections[@]}"; do
         run --problem vdptag --planner "$planner" --episodes 100 --cpu-ms 1000 --threads "$THREADS" \
           --rollout tonextml --seed "$SEED"
       done
-      [ "$section" = kct-vdptag ] || for planner in kct pomcpow; do
-        run --problem lightdark --planner "$planner" --episodes 200 --cpu-ms 1000 --threads "$THREADS" \
-          --seed "$SEED"
+      [ "$section" = kct-vdptag ] || for planner in ${PLANNERS:-kct pomcpow}; do
+        run --problem lightdark --planner "$planner" --episodes "${EPISODES:-200}" --cpu-ms 1000 \
+          --threads "$THREADS" --seed "$SEED"
       done
       ;;
     vdptag-published)

@@ -57,6 +57,10 @@
                                    (bench/bench_model_speed.sh, DIR/{base,new}-rN.jsonl).
   results_table.py classic FILE    The classic problems beside their published results
                                    (bench/bench_classic.sh, bench/results/classic.jsonl).
+  results_table.py classic-paired FILE
+                                   Runs on a classic problem with one seed compared episode by
+                                   episode (npfkct-bench's episode_returns): each against the run
+                                   of its group with the fewest options.
   results_table.py despot FILE     The solver beside the authors' DESPOT on RockSample(7,8)
                                    (bench/bench_despot.sh, one JSON line per planner and episode):
                                    return ± standard error, steps, trials per step, and each
@@ -641,6 +645,39 @@ def steps(root, scenes_dir):
             success = 100 * sum(x[6] for x in r) / len(r)
             print(f"| {row} | {g} ({scenes[g]} scenes) | {len(r)} | " +
                   " | ".join(f"{m:.1f}" for m in means) + f" | {success:.0f}% |")
+
+
+def classic_paired(path):
+    """Runs of npfkct-bench on a classic problem compared episode by episode: within each group of
+    runs with one problem, planner, seed, episodes, budget and rollout that list their episodes,
+    every run against the group's run with the fewest options (its base; the first such run):
+    the mean of the per-episode differences of return and of steps with their 95% t intervals."""
+    groups = {}
+    for line in open(path, encoding="utf-8"):
+        if not line.strip():
+            continue
+        r = json.loads(line)
+        if "episode_returns" not in r:
+            continue
+        key = tuple(r.get(k) for k in ("problem", "planner", "seed", "episodes", "cpu_ms",
+                                      "time_ms", "sims", "rollout", "max_steps"))
+        groups.setdefault(key, []).append(r)
+    print("| Problem | Planner | Seed | Episodes | Base options | Options beside the base | "
+          "Base return | Return | Difference ± 95% | Steps difference ± 95% |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for (problem, planner, seed, episodes, *_), runs in groups.items():
+        base = min(runs, key=lambda r: len(r["options"]))
+        for r in runs:
+            if r is base:
+                continue
+            extra = [o for o in r["options"] if o not in base["options"]]
+            dr, cr = mean_ci([a - b for a, b in zip(r["episode_returns"],
+                                                    base["episode_returns"])])
+            ds, cs = mean_ci([a - b for a, b in zip(r["episode_steps"], base["episode_steps"])])
+            print(f"| {problem} | {planner} | {seed} | {episodes} | "
+                  f"{', '.join(base['options']) or '–'} | {', '.join(extra) or '–'} | "
+                  f"{base['mean_discounted_return']:.2f} | {r['mean_discounted_return']:.2f} | "
+                  f"{dr:+.2f} ± {cr:.2f} | {ds:+.1f} ± {cs:.1f} |")
 
 
 def compare(a_root, b_root):
@@ -1614,7 +1651,7 @@ def docs():
 def main():
     commands = {"table1": (1, None), "generated": (1, 2), "ablation": (1, 1),
                 "sensitivity": (1, 1), "estimator": (1, 2), "mirror": (1, 1), "trace": (1, 1), "steps": (2, 2), "compare": (2, 2),
-                "flat": (1, 1), "threads": (2, 2), "model-speed": (1, 1), "classic": (1, 1),
+                "flat": (1, 1), "threads": (2, 2), "model-speed": (1, 1), "classic": (1, 1), "classic-paired": (1, 1),
                 "filter": (2, 2), "despot": (1, None), "perception-stages": (1, 1), "load": (1, 1), "fleet": (1, 1),
                 "maps": (1, 1),
                 "docs": (0, 1)}
@@ -1663,6 +1700,8 @@ def main():
         model_speed(*args)
     elif command == "classic":
         classic(*args)
+    elif command == "classic-paired":
+        classic_paired(*args)
     elif command == "despot":
         despot_table(*args)
     elif command == "filter":
