@@ -9,7 +9,8 @@
 #   half an hour; kct-vdptag and kct-lightdark: either half of it; lqg: the VPW paper's first-action
 #   benchmark on its 2-D LQG, a few minutes; vdptag-published: VDP Tag at the VPW paper's own
 #   configuration, EPISODES per planner, default 100, PLANNERS, default "vomcpow kct pomcpow";
-#   kct-lightdark takes EPISODES, default 200, and PLANNERS, default "kct pomcpow", likewise)
+#   kct-lightdark takes EPISODES, default 200, and PLANNERS, default "kct pomcpow", likewise;
+#   tag: Tag at DESPOT's protocol, EPISODES, default 60, PLANNERS, default "despot pomcp")
 # Takes about three hours on a 2-core machine with every section.
 # env: THREADS (episodes at once; default: the number of cores), SEED (the kct sections' seed,
 # default 1; a second seed gives new episodes to pool with the first).
@@ -84,6 +85,14 @@ for section in "${sections[@]}"; do
         run --problem vdptag --planner "$planner" --episodes "${EPISODES:-100}" --cpu-ms 1000 \
           --threads "$THREADS" --rollout tonextml --seed "$SEED" \
           --opt search.rollout_first=1 --opt search.num_particles=100000
+      done
+      ;;
+    tag)
+      # Tag as DESPOT's papers run it: 1 s per step, 90 steps at most. Somani et al. (2013),
+      # Table 1: POMCP -7.14 +- 0.28, AR-DESPOT -6.26 +- 0.28.
+      for planner in ${PLANNERS:-despot pomcp}; do
+        run --problem tag --planner "$planner" --episodes "${EPISODES:-60}" --cpu-ms 1000 \
+          --threads "$THREADS" --seed "$SEED"
       done
       ;;
     lqg)

@@ -19,6 +19,7 @@
 #include "npfkct/solver/models/light_dark.h"
 #include "npfkct/solver/models/linear_quadratic.h"
 #include "npfkct/solver/models/rock_sample.h"
+#include "npfkct/solver/models/tag.h"
 #include "npfkct/solver/models/tiger.h"
 #include "npfkct/solver/models/vdp_tag.h"
 #include "npfkct/solver/models/vpw_lqg.h"
@@ -204,6 +205,30 @@ int RunRockSample(const Config& c) {
     o.search.num_particles = 4096;
     o.search.belief.reinvigoration_fraction = 1.0 / 16.0;
     return Run<models::RockSample, Despot<models::RockSample>>(c, model, o, 100, true, exited);
+  }
+  return Unsupported(c);
+}
+
+// Tag as DESPOT's papers run it (Somani et al. 2013; the authors' examples/cpp_models/tag): 90
+// steps at most, the opponent tagged is the success.
+int RunTag(const Config& c) {
+  const models::Tag model;
+  auto tagged = [](const auto& step) { return step.state.tagged; };
+  if (c.planner == "pomcp") {
+    PomcpOptions o;  // c = reward range 20, rollouts of the model's policy
+    o.search.num_particles = 4096;
+    o.search.max_depth = 90;
+    o.search.discount_horizon = 0.01;
+    return Run<models::Tag, Pomcp<models::Tag>>(c, model, o, 90, true, tagged);
+  }
+  if (c.planner == "despot") {
+    // The authors' Tag settings (K 500, depth 90, xi 0.95, pruning constant 0.01) and their
+    // default upper bound (shortest path); the lower bound is rollouts of the model's policy
+    // (theirs: the MDP policy of the belief's mode).
+    DespotOptions o;
+    o.search.num_particles = 4096;
+    o.pruning_constant = 0.01;
+    return Run<models::Tag, Despot<models::Tag>>(c, model, o, 90, true, tagged);
   }
   return Unsupported(c);
 }
@@ -413,7 +438,7 @@ int main(int argc, char** argv) {
       "benchmarks (--problem) or on object-search scenarios (--scenario)"};
   app.set_version_flag("--version", std::string("npfkct-bench ") + npfkct::kVersion);
   app.add_option("--problem", c.problem,
-                 "tiger | rocksample | lightdark | vdptag | lqg (the VPW paper's LQG: each "
+                 "tiger | rocksample | tag | lightdark | vdptag | lqg (the VPW paper's LQG: each "
                  "episode is one plan, scored by its first action's distance to the optimum)");
   app.add_option("--scenario", search.scenarios,
                  "object-search scenario file(s) (repeatable or comma-separated)")
@@ -499,6 +524,7 @@ int main(int argc, char** argv) {
   if (c.problem == "lightdark") return npfkct::bench::RunLightDark(c);
   if (c.problem == "vdptag") return npfkct::bench::RunVdpTag(c);
   if (c.problem == "lqg") return npfkct::bench::RunLqg(c);
+  if (c.problem == "tag") return npfkct::bench::RunTag(c);
   std::cerr << "npfkct-bench: set --problem or --scenario (unknown problem '" << c.problem
             << "')\n";
   return 2;

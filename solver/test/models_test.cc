@@ -6,6 +6,7 @@
 
 #include "npfkct/solver/models/light_dark.h"
 #include "npfkct/solver/models/rock_sample.h"
+#include "npfkct/solver/models/tag.h"
 #include "npfkct/solver/models/tiger.h"
 #include "npfkct/solver/models/vdp_tag.h"
 
@@ -243,6 +244,96 @@ TEST(VdpTagTest, BeamsRewardsAndLikelihood) {
       tag.ObservationLikelihood(HybridAction{VdpTag::kMove, MakeActionVec({0})}, truth, o) /
       tag.ObservationLikelihood(HybridAction{VdpTag::kMove, MakeActionVec({0})}, mirrored, o);
   EXPECT_LT(ratio, 10.0);
+}
+
+TEST(TagTest, PineausFloor) {
+  const Tag tag;
+  ASSERT_EQ(tag.num_cells(), 29);
+  // The room's nine cells are columns 5-7 of rows 0-2; the corridor is rows 3-4, columns 0-9.
+  int room = 0;
+  for (int i = 0; i < tag.num_cells(); ++i) {
+    if (tag.y(i) < 3) {
+      ++room;
+      EXPECT_GE(tag.x(i), 5);
+      EXPECT_LE(tag.x(i), 7);
+    }
+  }
+  EXPECT_EQ(room, 9);
+  // On this floor the shortest path is the Manhattan distance; walls stop a move.
+  for (int i = 0; i < tag.num_cells(); ++i) {
+    for (int j = 0; j < tag.num_cells(); ++j) {
+      EXPECT_EQ(tag.Distance(i, j), std::abs(tag.x(i) - tag.x(j)) + std::abs(tag.y(i) - tag.y(j)));
+    }
+  }
+  EXPECT_EQ(tag.Distance(0, 28), 2 + 4 + 2);  // (5, 0) to (9, 4)
+  EXPECT_EQ(tag.Neighbour(0, Tag::kNorth), 0);
+  EXPECT_EQ(tag.Neighbour(0, Tag::kWest), 0);
+}
+
+TEST(TagTest, RewardsObservationsAndTheOpponentRunningAway) {
+  const Tag tag;
+  Rng rng(3);
+  const int corner = 9;  // (0, 3), the corridor's west end
+  ASSERT_EQ(tag.x(corner), 0);
+  ASSERT_EQ(tag.y(corner), 3);
+  Tag::State s{static_cast<int8_t>(corner), static_cast<int8_t>(corner), false};
+  auto r = tag.Step(s, Tag::kTag, rng);
+  EXPECT_EQ(r.reward, 10.0);
+  EXPECT_TRUE(r.terminal);
+  EXPECT_EQ(r.observation, tag.same_cell());
+  // A failed tag costs 10 and the robot stays; a move costs 1 and is observed.
+  s.opponent = 15;  // (6, 3)
+  r = tag.Step(s, Tag::kTag, rng);
+  EXPECT_EQ(r.reward, -10.0);
+  EXPECT_FALSE(r.terminal);
+  EXPECT_EQ(r.state.robot, corner);
+  r = tag.Step(s, Tag::kEast, rng);
+  EXPECT_EQ(r.reward, -1.0);
+  EXPECT_EQ(r.state.robot, tag.Neighbour(corner, Tag::kEast));
+  EXPECT_EQ(r.observation, r.state.robot);
+  EXPECT_DOUBLE_EQ(tag.ObservationLikelihood(Tag::kEast, r.state, r.state.robot), 1.0);
+  EXPECT_DOUBLE_EQ(tag.ObservationLikelihood(Tag::kEast, r.state, tag.same_cell()), 0.0);
+  // Robot at the corridor's west end, opponent at (2, 3) in the same row: 0.4 east, 0.2 south,
+  // 0.2 north (a wall: stays), 0.2 stays.
+  s.opponent = 11;
+  ASSERT_EQ(tag.x(11), 2);
+  ASSERT_EQ(tag.y(11), 3);
+  int moved_east = 0, stayed = 0, went_south = 0;
+  const int trials = 20000;
+  for (int i = 0; i < trials; ++i) {
+    const int o = tag.Step(s, Tag::kTag, rng).state.opponent;
+    moved_east += o == tag.Neighbour(11, Tag::kEast);
+    stayed += o == 11;
+    went_south += o == tag.Neighbour(11, Tag::kSouth);
+  }
+  EXPECT_NEAR(moved_east / static_cast<double>(trials), 0.4, 0.02);
+  EXPECT_NEAR(went_south / static_cast<double>(trials), 0.2, 0.02);
+  EXPECT_NEAR(stayed / static_cast<double>(trials), 0.4, 0.02);
+}
+
+TEST(TagTest, UpperBoundAndRolloutAndReinvigoration) {
+  const Tag tag;
+  Rng rng(5);
+  Tag::State s{9, 9, false};
+  EXPECT_DOUBLE_EQ(tag.UpperBound(s), 10.0);
+  EXPECT_EQ(tag.RolloutAction(s, rng), Tag::kTag);
+  s.opponent = 11;  // two moves east
+  EXPECT_NEAR(tag.UpperBound(s), -1.0 - 0.95 + 10.0 * 0.95 * 0.95, 1e-12);
+  for (int i = 0; i < 100; ++i) {
+    const int a = tag.RolloutAction(s, rng);
+    EXPECT_NE(a, Tag::kTag);
+    EXPECT_NE(tag.Neighbour(s.robot, a), s.robot);  // never into a wall
+  }
+  Tag::State out;
+  ASSERT_TRUE(tag.Reinvigorate(s, Tag::kEast, 10, rng, &out));
+  EXPECT_EQ(out.robot, 10);
+  EXPECT_EQ(out.opponent, 11);
+  ASSERT_TRUE(tag.Reinvigorate(s, Tag::kEast, 11, rng, &out));
+  EXPECT_EQ(out.robot, 11);
+  EXPECT_NE(out.opponent, 11);
+  ASSERT_TRUE(tag.Reinvigorate(s, Tag::kEast, tag.same_cell(), rng, &out));
+  EXPECT_EQ(out.robot, out.opponent);
+  EXPECT_FALSE(tag.Reinvigorate(s, Tag::kEast, tag.same_cell() + 1, rng, &out));
 }
 
 }  // namespace
