@@ -384,7 +384,7 @@ def test_classic_is_one_table_with_the_lqg_and_the_despot_runs_beside_it(tmp_pat
                      "steps": 10} for i, x in enumerate(returns)]
         (tmp_path / "despot" / f"rocksample-0.1s-{run}.jsonl").write_text(
             "\n".join(json.dumps(e) for e in episodes) + "\n", encoding="utf-8")
-    rows = [r for r in results_table.CLASSIC_ROWS if r[1] == "kCT" and "LightDark" in r[0]]
+    rows = [r for r in results_table.CLASSIC_ROWS if r[1] == "kCT" and r[0] == "SimpleLightDark"]
     saved = results_table.CLASSIC_ROWS
     results_table.CLASSIC_ROWS = rows
     try:
@@ -397,6 +397,26 @@ def test_classic_is_one_table_with_the_lqg_and_the_despot_runs_beside_it(tmp_pat
     # 1, 2, 3, 4: mean 2.5, sd 1.291, s.e. 0.645.
     assert "DESPOT (`despot`) | 0.1 s of CPU | 4 | return | 2.50 ± 0.65 |" in table[2]
     assert "| 0.060 ± 0.006 |" in table[3] and "bench_classic.sh lqg`" in table[3]
+
+
+def test_classic_paired_compares_runs_of_one_seed_episode_by_episode(tmp_path):
+    # Two runs of one seed: the base (fewest options) returns 1, 2, 3 in 10, 10, 10 steps, the
+    # other 2, 4, 3 in 9, 8, 10: differences 1, 2, 0 (mean 1, sd 1, 95% t interval 4.303 /
+    # sqrt(3) = 2.48) and -1, -2, 0 steps. A run of another seed has no base and no row.
+    base = {"problem": "vdptag", "planner": "kct", "seed": 7, "episodes": 3, "cpu_ms": 1000,
+            "time_ms": 0, "sims": 0, "rollout": "tonextml", "max_steps": 100,
+            "options": ["a=1"], "mean_discounted_return": 2.0,
+            "episode_returns": [1.0, 2.0, 3.0], "episode_steps": [10, 10, 10]}
+    other = dict(base, options=["a=1", "d_lim=0.05"], mean_discounted_return=3.0,
+                 episode_returns=[2.0, 4.0, 3.0], episode_steps=[9, 8, 10])
+    alone = dict(base, seed=8)
+    path = tmp_path / "runs.jsonl"
+    path.write_text("\n".join(json.dumps(r) for r in (other, base, alone)) + "\n",
+                    encoding="utf-8")
+    out = results_table.capture(results_table.classic_paired, str(path))
+    rows = [line for line in out.splitlines() if line.startswith("| vdptag")]
+    assert rows == ["| vdptag | kct | 7 | 3 | a=1 | d_lim=0.05 | 2.00 | 3.00 | +1.00 ± 2.48 | "
+                    "-1.0 ± 2.5 |"]
 
 
 def test_despot_pools_runs_and_subtracts_the_authors_figure(tmp_path):

@@ -7,12 +7,14 @@
 #include <vector>
 
 #include "npfkct/solver/models/rock_sample.h"
+#include "npfkct/solver/models/tag.h"
 #include "npfkct/solver/models/tiger.h"
 
 namespace npfkct {
 namespace {
 
 using models::RockSample;
+using models::Tag;
 using models::Tiger;
 
 TEST(DespotOptionsTest, ValidateNamesTheOption) {
@@ -100,6 +102,46 @@ TEST(DespotTest, TigerListensThenOpensTheOtherDoor) {
   planner.Advance(Tiger::kListen, 0, rng);
   // Heard the tiger on the left twice (P = 0.97): open the right door.
   EXPECT_EQ(planner.Plan(Budget::Simulations(500), rng).action, Tiger::kOpenRight);
+}
+
+TEST(DespotTest, TagShortestPathBoundIsAnUpperBound) {
+  // U(s) >= r + gamma U(s') on every transition and U = 0 once tagged: then U is at least the
+  // fully observable value, so at least the value of any policy.
+  const Tag tag;
+  Rng rng(2);
+  for (int robot = 0; robot < tag.num_cells(); ++robot) {
+    for (int opponent = 0; opponent < tag.num_cells(); ++opponent) {
+      const Tag::State s{static_cast<int8_t>(robot), static_cast<int8_t>(opponent), false};
+      for (int a = 0; a < tag.NumActions(); ++a) {
+        for (int k = 0; k < 20; ++k) {
+          auto step = tag.Step(s, a, rng);
+          const double next = step.terminal ? 0.0 : tag.UpperBound(step.state);
+          EXPECT_GE(tag.UpperBound(s) + 1e-12, step.reward + tag.Discount() * next)
+              << "robot " << robot << " opponent " << opponent << " action " << a;
+        }
+      }
+    }
+  }
+}
+
+TEST(DespotTest, TagTagsOnlyWhenItSeesTheOpponent) {
+  const Tag tag;
+  Rng rng(3);
+  DespotOptions o;
+  o.num_scenarios = 100;  // rollouts of up to 90 steps from each scenario of each new node
+  Despot<Tag> planner(tag, o);
+  planner.Reset(rng);
+  // Told it shares its cell with the opponent: tag.
+  planner.Advance(Tag::kWest, tag.same_cell(), rng);
+  auto d = planner.Plan(Budget::Simulations(30), rng);
+  ASSERT_TRUE(d.status.ok()) << d.status.ToString();
+  EXPECT_EQ(d.action, Tag::kTag);
+  // Told only where it is: a tag there fails for sure, so move.
+  planner.Reset(rng);
+  planner.Advance(Tag::kWest, 9, rng);
+  d = planner.Plan(Budget::Simulations(30), rng);
+  ASSERT_TRUE(d.status.ok()) << d.status.ToString();
+  EXPECT_NE(d.action, Tag::kTag);
 }
 
 TEST(DespotTest, RockSampleSearchTightensTheRootBoundsAndMovesSensibly) {
