@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <numbers>
+#include <vector>
 
 #include "npfkct/solver/models/light_dark.h"
 #include "npfkct/solver/models/rock_sample.h"
@@ -309,6 +310,26 @@ TEST(TagTest, RewardsObservationsAndTheOpponentRunningAway) {
   EXPECT_NEAR(moved_east / static_cast<double>(trials), 0.4, 0.02);
   EXPECT_NEAR(went_south / static_cast<double>(trials), 0.2, 0.02);
   EXPECT_NEAR(stayed / static_cast<double>(trials), 0.4, 0.02);
+}
+
+TEST(TagTest, DefaultPolicyChasesTheMostCommonOpponentCell) {
+  const Tag tag;
+  // The robot at the corridor's west end (cell 9); most scenarios put the opponent at (2, 3)
+  // (cell 11), one at (0, 4) (cell 19), one shares the robot's cell.
+  std::vector<Tag::State> states = {{9, 11, false}, {9, 11, false}, {9, 19, false}, {9, 9, false}};
+  std::vector<int> actions;
+  tag.DefaultPolicyActions(states, &actions);
+  ASSERT_EQ(actions.size(), states.size());
+  EXPECT_EQ(actions[0], Tag::kEast);
+  EXPECT_EQ(actions[1], Tag::kEast);
+  EXPECT_EQ(actions[2], Tag::kEast);  // the most common cell, not its own
+  EXPECT_EQ(actions[3], Tag::kTag);   // it observes that it shares the opponent's cell
+  // Where the most common cell is a scenario's own robot cell (before the first observation the
+  // robot's cell differs between scenarios), the next most common: from (2, 3) towards (0, 4).
+  states = {{9, 11, false}, {9, 11, false}, {11, 19, false}};
+  tag.DefaultPolicyActions(states, &actions);
+  EXPECT_EQ(actions[0], Tag::kEast);
+  EXPECT_EQ(actions[2], Tag::kSouth);
 }
 
 TEST(TagTest, UpperBoundAndRolloutAndReinvigoration) {

@@ -126,6 +126,40 @@ Tag::Action Tag::RolloutAction(const State& s, Rng& rng) const {
   return count == 0 ? kTag : open[rng.UniformInt(count)];
 }
 
+void Tag::DefaultPolicyActions(const std::vector<State>& states, std::vector<Action>* out) const {
+  // The two most common opponent cells among the scenarios not sharing the robot's cell.
+  int count[64] = {};
+  for (const State& s : states) {
+    if (s.robot != s.opponent) ++count[s.opponent];
+  }
+  int first = -1, second = -1;
+  for (int i = 0; i < num_cells(); ++i) {
+    if (first < 0 || count[i] > count[first]) {
+      second = first;
+      first = i;
+    } else if (second < 0 || count[i] > count[second]) {
+      second = i;
+    }
+  }
+  out->resize(states.size());
+  for (size_t k = 0; k < states.size(); ++k) {
+    const State& s = states[k];
+    if (s.robot == s.opponent) {
+      (*out)[k] = kTag;
+      continue;
+    }
+    const int goal = first != s.robot ? first : second;
+    Action a = kTag;
+    for (int d = 0; d < 4; ++d) {
+      if (Distance(Neighbour(s.robot, d), goal) < Distance(s.robot, goal)) {
+        a = d;
+        break;
+      }
+    }
+    (*out)[k] = a;
+  }
+}
+
 double Tag::UpperBound(const State& s) const {
   if (s.tagged) return 0.0;
   const double gamma_d = std::pow(Discount(), Distance(s.robot, s.opponent));

@@ -66,9 +66,12 @@ struct DespotOptions {
 
 /// DESPOT over a discrete-action generative model with hashable, comparable observations. Uses the
 /// model's optional `double UpperBound(const State&) const` (the value of the state with its hidden
-/// part known, e.g. an MDP value; else MaxReward() / (1 - gamma)) and
-/// `ValuedAction<int> DefaultMove(const State&) const` (else rollouts of the model's rollout policy
-/// on the scenarios' streams). The model must outlive the planner.
+/// part known, e.g. an MDP value; else MaxReward() / (1 - gamma)) and, for the lower bound, the
+/// first it has of `void DefaultPolicyActions(const std::vector<State>&, std::vector<int>*) const`
+/// (a default policy of the node's scenarios taken together, as the authors' belief-level default
+/// policies: one action per scenario from what all of them say and what that scenario observes;
+/// run on all of them at once), `ValuedAction<int> DefaultMove(const State&) const`, or rollouts
+/// of the model's rollout policy on each scenario's streams. The model must outlive the planner.
 template <DiscreteActionModel M>
 class Despot : public PlannerBase<Despot<M>, M, DespotOptions, int> {
   using Base = PlannerBase<Despot<M>, M, DespotOptions, int>;
@@ -147,6 +150,12 @@ class Despot : public PlannerBase<Despot<M>, M, DespotOptions, int> {
 
   double Discount(int depth) const { return std::pow(model_.Discount(), depth); }
 
+  // Whether the model states a default policy of a node's scenarios taken together.
+  static constexpr bool kHasJointDefaultPolicy =
+      requires(const M& m, const std::vector<State>& states, std::vector<Action>* out) {
+    m.DefaultPolicyActions(states, out);
+  };
+
   // The generator of scenario `scenario` at `depth`: the same numbers whenever a scenario steps at
   // that depth, whichever branch it is in (DESPOT's random streams).
   Rng Stream(int scenario, int depth) const {
@@ -203,20 +212,64 @@ class Despot : public PlannerBase<Despot<M>, M, DespotOptions, int> {
     }
   }
 
+  // The value of a model's default policy of the node's scenarios (DefaultPolicyActions), run
+  // on all of them together on their streams; first_votes_ gets each scenario's first action.
+  double JointDefaultValue(const VNode& v) {
+    const double gamma = model_.Discount();
+    const int end = std::min(options_.search.max_depth, v.depth + options_.max_policy_sim_len);
+    joint_.clear();
+    joint_scenarios_.clear();
+    for (const Particle& p : v.particles) {
+      if (IsTerminalState(model_, p.state)) continue;
+      joint_.push_back(p.state);
+      joint_scenarios_.push_back(p.scenario);
+    }
+    first_votes_.assign(v.particles.size(), Action{});
+    double total = 0.0;
+    double discount = 1.0;
+    for (int t = v.depth; t < end && !joint_.empty(); ++t) {
+      model_.DefaultPolicyActions(joint_, &joint_actions_);
+      if (t == v.depth) {
+        first_votes_.assign(joint_actions_.begin(), joint_actions_.end());
+      }
+      size_t kept = 0;
+      for (size_t i = 0; i < joint_.size(); ++i) {
+        Rng rng = Stream(joint_scenarios_[i], t);
+        auto step = model_.Step(joint_[i], joint_actions_[i], rng);
+        total += discount * step.reward;
+        if (step.terminal) continue;
+        joint_[kept] = std::move(step.state);
+        joint_scenarios_[kept] = joint_scenarios_[i];
+        ++kept;
+      }
+      joint_.resize(kept);
+      joint_scenarios_.resize(kept);
+      discount *= gamma;
+    }
+    return total;
+  }
+
   void InitBounds(int vi) {
     VNode& v = v_[vi];
     const double scale = Discount(v.depth) * weight_;
     double lower = 0.0;
     double upper = 0.0;
     first_votes_.clear();
-    for (const Particle& p : v.particles) {
-      Action first = 0;
-      lower += DefaultValue(p, v.depth, &first);
-      upper += ParticleUpperBound(p.state);
-      first_votes_.push_back(first);
+    if constexpr (kHasJointDefaultPolicy) {
+      lower = JointDefaultValue(v);
+      for (const Particle& p : v.particles) upper += ParticleUpperBound(p.state);
+    } else {
+      for (const Particle& p : v.particles) {
+        Action first = 0;
+        lower += DefaultValue(p, v.depth, &first);
+        upper += ParticleUpperBound(p.state);
+        first_votes_.push_back(first);
+      }
     }
     // A model's DefaultMove names one action for the belief; rollouts vote for their first.
-    constexpr bool kHasDefaultMove = requires { model_.DefaultMove(v.particles.front().state); };
+    constexpr bool kHasDefaultMove = !kHasJointDefaultPolicy && requires {
+      model_.DefaultMove(v.particles.front().state);
+    };
     v.default_move = {kHasDefaultMove ? first_votes_.front() : MostCommon(&first_votes_),
                       scale * lower};
     v.lower = v.default_move.value;
@@ -470,6 +523,9 @@ class Despot : public PlannerBase<Despot<M>, M, DespotOptions, int> {
   std::vector<Action> first_votes_;
   std::vector<Particle> stepped_;
   std::vector<int> group_of_;
+  std::vector<State> joint_;
+  std::vector<int> joint_scenarios_;
+  std::vector<Action> joint_actions_;
 };
 
 }  // namespace npfkct

@@ -48,6 +48,11 @@ class Tag {
   /// that), else a uniformly random move that does not run into a wall: a policy of what the robot
   /// observes, so that DESPOT's rollouts of it are a lower bound.
   Action RolloutAction(const State& s, Rng& rng) const;
+  /// DESPOT's default policy of a node's scenarios (the authors' MODE-SP lower bound, in spirit):
+  /// each scenario tags when its robot and opponent share a cell (what it observes), else steps
+  /// along a shortest path towards the cell where most scenarios put the opponent (the next most
+  /// common when that is the robot's own cell).
+  void DefaultPolicyActions(const std::vector<State>& states, std::vector<Action>* out) const;
   /// DESPOT's shortest-path upper bound: the robot walks the shortest path to where the opponent
   /// is now and tags there, -(1 - gamma^d) / (1 - gamma) + 10 gamma^d (the authors' default, SP).
   double UpperBound(const State& s) const;
