@@ -808,14 +808,16 @@ CLASSIC_ROWS = [
      [{"problem": "rocksample", "planner": "pomcp", "time_ms": 1000, "threads": 2}],
      "20.71 ± 0.21 (Silver & Veness 2010)",
      "rocksample"),
-    ("Tag", "DESPOT (`despot`)", "1 s of CPU",
-     [{"problem": "tag", "planner": "despot", "cpu_ms": 1000}],
+    ("Tag, seeds 1 and 2 pooled", "DESPOT (`despot`)", "1 s of CPU",
+     [{"problem": "tag", "planner": "despot", "cpu_ms": 1000, "seed": 1},
+      {"problem": "tag", "planner": "despot", "cpu_ms": 1000, "seed": 2}],
      "-6.26 ± 0.28 (AR-DESPOT; Somani et al. 2013)",
-     "tag"),
-    ("Tag", "POMCP", "1 s of CPU",
-     [{"problem": "tag", "planner": "pomcp", "cpu_ms": 1000}],
+     "tag; SEED=2 tag"),
+    ("Tag, seeds 1 and 2 pooled", "POMCP", "1 s of CPU",
+     [{"problem": "tag", "planner": "pomcp", "cpu_ms": 1000, "seed": 1},
+      {"problem": "tag", "planner": "pomcp", "cpu_ms": 1000, "seed": 2}],
      "-7.14 ± 0.28 (ibid.)",
-     "tag"),
+     "tag; SEED=2 tag"),
     ("SimpleLightDark", "POMCPOW", "1 s",
      [{"problem": "lightdark", "planner": "pomcpow", "time_ms": 1000}],
      "56.1 ± 0.6 (Sunberg & Kochenderfer 2018)",
@@ -1535,11 +1537,11 @@ rounds, 1,000 simulations per step, 2 trials per cell, the same seeds.
 """, [lambda r: model_speed(os.path.join(r, "model_speed"))]),
     ("Classic problems with published results", """\
 One table of the solver beside its peers: the planners of `solver/` on the problems their authors
-published (`solver/include/npfkct/solver/models/`), the DESPOT side-by-side (details in the next
-section) and the VPW paper's LQG, each row with the command that measures it. The rows at 1 s of
-CPU give kCT (the project's defaults) and the planner beside it the same rollout, run on one
-machine; the rows above them used wall-clock or simulation budgets.
-Pooled rows pool two runs with new episodes (seeds 1 and 2) as independent samples. "The VPW
+published (`solver/include/npfkct/solver/models/`), Tag at the DESPOT papers' protocol, the
+DESPOT side-by-side (details in the next section) and the VPW paper's LQG, each row with the
+command that measures it. The rows at 1 s of CPU give kCT (the project's defaults) and the planner
+beside it the same rollout, run on one machine; the rows above them used wall-clock or simulation
+budgets. Pooled rows pool runs with new episodes (other seeds) as independent samples. "The VPW
 paper's configuration" is VOOTreeSearch.jl's `scripts/VDPTag2/compare.jl`: ToNextML rollouts,
 the root's first action towards the belief's mean target's next position (RootToNextMLFirst),
 100,000 particles; kCT is given the same. Standard errors are the sample standard deviation over
@@ -1547,8 +1549,9 @@ the square root of the episodes (or plans).
 
     bench/bench_classic.sh                     # every section; or name some: tiger rocksample ...
     SEED=2 THREADS=1 bench/bench_classic.sh kct-vdptag
-    bench/bench_classic.sh lqg vdptag-published
+    bench/bench_classic.sh lqg vdptag-published tag
     python3 bench/results_table.py classic bench/results/classic.jsonl
+    python3 bench/results_table.py classic-paired FILE   # runs of one seed, episode by episode
 """, [lambda r: classic(os.path.join(r, "classic.jsonl"))]),
     ("Beside the authors' DESPOT", """\
 The solver's planners and the authors' DESPOT (AdaCompNUS/despot, built from a checkout outside
