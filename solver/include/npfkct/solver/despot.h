@@ -229,6 +229,7 @@ class Despot : public PlannerBase<Despot<M>, M, DespotOptions, int> {
     double discount = 1.0;
     for (int t = v.depth; t < end && !joint_.empty(); ++t) {
       model_.DefaultPolicyActions(joint_, &joint_actions_);
+      joint_actions_.resize(joint_.size());  // one action per scenario, whatever the model gave
       if (t == v.depth) {
         first_votes_.assign(joint_actions_.begin(), joint_actions_.end());
       }
