@@ -3,7 +3,7 @@
 # Results are appended as JSON lines to bench/results/classic.jsonl (one object per run, see
 # npfkct-bench --help).
 # Usage: bench/bench_classic.sh [section ...]
-#   sections: tiger rocksample throughput lightdark lightdark-discretised vdptag kct lqg (kct:
+#   sections: tiger rocksample tag throughput lightdark lightdark-discretised vdptag kct lqg (kct:
 #   kCT beside POMCPOW and VOMCPOW on VDP Tag and SimpleLightDark at the published 1 s budgets,
 #   as CPU time of the planning thread; lightdark-discretised: the authors' discretised POMCP,
 #   half an hour; kct-vdptag and kct-lightdark: either half of it; lqg: the VPW paper's first-action
@@ -11,9 +11,9 @@
 #   configuration, EPISODES per planner, default 100, PLANNERS, default "vomcpow kct pomcpow";
 #   kct-lightdark takes EPISODES, default 200, and PLANNERS, default "kct pomcpow", likewise;
 #   tag: Tag at DESPOT's protocol, EPISODES, default 60, PLANNERS, default "despot pomcp")
-# Takes about three hours on a 2-core machine with every section.
-# env: THREADS (episodes at once; default: the number of cores), SEED (the kct sections' seed,
-# default 1; a second seed gives new episodes to pool with the first).
+# Takes about three and a half hours on a 2-core machine with every section (tag: 25 minutes).
+# env: THREADS (episodes at once; default: the number of cores), SEED (the kct and tag sections'
+# seed, default 1; a second seed gives new episodes to pool with the first).
 set -euo pipefail
 NPFKCT_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 source "$NPFKCT_ROOT/scripts/deps.sh"
@@ -25,7 +25,7 @@ THREADS="${THREADS:-$(nproc)}"
 SEED="${SEED:-1}"
 run() { "$BENCH" "$@" | tee -a "$OUT"; }
 sections=("$@")
-[ ${#sections[@]} -eq 0 ] && sections=(tiger rocksample throughput lightdark lightdark-discretised vdptag kct lqg)
+[ ${#sections[@]} -eq 0 ] && sections=(tiger rocksample tag throughput lightdark lightdark-discretised vdptag kct lqg)
 
 for section in "${sections[@]}"; do
   case "$section" in
