@@ -129,7 +129,7 @@ void PrintJson(const Config& c, const RunSummary& s, int max_steps) {
   std::printf(", \"episode_returns\": [");
   for (size_t i = 0; i < s.returns.size(); ++i) std::printf("%s%.4f", i ? ", " : "", s.returns[i]);
   std::printf("], \"episode_steps\": [");
-  for (size_t i = 0; i < s.steps.size(); ++i) std::printf("%s%d", i ? ", " : "", s.steps[i]);
+  for (size_t i = 0; i < s.steps.size(); ++i) std::printf("%s%g", i ? ", " : "", s.steps[i]);
   std::printf("]}\n");
   std::fflush(stdout);
 }
@@ -222,9 +222,9 @@ int RunTag(const Config& c) {
     return Run<models::Tag, Pomcp<models::Tag>>(c, model, o, 90, true, tagged);
   }
   if (c.planner == "despot") {
-    // The authors' Tag settings (K 500, depth 90, xi 0.95, pruning constant 0.01) and their
-    // default upper bound (shortest path); the lower bound is rollouts of the model's policy
-    // (theirs: the MDP policy of the belief's mode).
+    // The authors' Tag settings (K 500, depth 90, xi 0.95, pruning constant 0.01), their
+    // default upper bound (shortest path) and a lower bound in the spirit of their default
+    // (the model's DefaultPolicyActions: chase the scenarios' most common opponent cell).
     DespotOptions o;
     o.search.num_particles = 4096;
     o.pruning_constant = 0.01;

@@ -58,7 +58,7 @@ struct RunSummary {
   /// Each episode's discounted return and steps, by episode index (for paired comparisons of two
   /// runs with the same seed).
   std::vector<double> returns;
-  std::vector<int> steps;
+  std::vector<double> steps;
 };
 
 /// Runs `jobs` jobs `run(index)` on `threads` threads (each job is one episode) and returns their
@@ -133,8 +133,8 @@ inline RunSummary Summarize(const std::vector<EpisodeResult>& results, bool succ
   s.median_sims_per_cpu_second = Median(cpu_rate);
   s.median_first_step_sims_per_second = Median(first_rate);
   s.median_cpu_ms_per_step = Median(cpu_ms);
-  s.returns = returns;
-  for (const auto& r : results) s.steps.push_back(r.steps);
+  s.returns = std::move(returns);
+  s.steps = std::move(steps);
   return s;
 }
 

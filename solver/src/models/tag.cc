@@ -128,6 +128,7 @@ Tag::Action Tag::RolloutAction(const State& s, Rng& rng) const {
 
 void Tag::DefaultPolicyActions(const std::vector<State>& states, std::vector<Action>* out) const {
   // The two most common opponent cells among the scenarios not sharing the robot's cell.
+  static_assert(kWidth * kHeight <= 64, "one counter per cell");
   int count[64] = {};
   for (const State& s : states) {
     if (s.robot != s.opponent) ++count[s.opponent];

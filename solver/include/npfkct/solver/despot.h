@@ -213,7 +213,8 @@ class Despot : public PlannerBase<Despot<M>, M, DespotOptions, int> {
   }
 
   // The value of a model's default policy of the node's scenarios (DefaultPolicyActions), run
-  // on all of them together on their streams; first_votes_ gets each scenario's first action.
+  // on all of them together on their streams; first_votes_ (empty when called) gets each live
+  // scenario's first action.
   double JointDefaultValue(const VNode& v) {
     const double gamma = model_.Discount();
     const int end = std::min(options_.search.max_depth, v.depth + options_.max_policy_sim_len);
@@ -224,7 +225,6 @@ class Despot : public PlannerBase<Despot<M>, M, DespotOptions, int> {
       joint_.push_back(p.state);
       joint_scenarios_.push_back(p.scenario);
     }
-    first_votes_.assign(v.particles.size(), Action{});
     double total = 0.0;
     double discount = 1.0;
     for (int t = v.depth; t < end && !joint_.empty(); ++t) {

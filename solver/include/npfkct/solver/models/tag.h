@@ -25,7 +25,7 @@ class Tag {
   };
   /// 0 north, 1 east, 2 south, 3 west, 4 tag.
   using Action = int;
-  /// The robot's cell, or kSameCell when it shares it with the opponent.
+  /// The robot's cell, or same_cell() when it shares it with the opponent.
   using Observation = int;
 
   static constexpr int kNorth = 0;
@@ -46,7 +46,7 @@ class Tag {
   double ObservationLikelihood(const Action& a, const State& sp, const Observation& o) const;
   /// Tag when robot and opponent share a cell (after the first step the observation says exactly
   /// that), else a uniformly random move that does not run into a wall: a policy of what the robot
-  /// observes, so that DESPOT's rollouts of it are a lower bound.
+  /// observes (the rollouts of POMCP and the like).
   Action RolloutAction(const State& s, Rng& rng) const;
   /// DESPOT's default policy of a node's scenarios (the authors' MODE-SP lower bound, in spirit):
   /// each scenario tags when its robot and opponent share a cell (what it observes), else steps
