@@ -146,7 +146,6 @@ const Table<KctOptions>& KctTable() {
         {"final_lcb", Real(&KctOptions::final_lcb)},
         {"num_candidates", Int(&KctOptions::num_candidates)},
         {"max_initial_clusters", Int(&KctOptions::max_initial_clusters)},
-        {"initial_clusters", Int(&KctOptions::initial_clusters)},
         {"max_feasibility_tries", Int(&KctOptions::max_feasibility_tries)},
         {"tree_feasibility_tries", Int(&KctOptions::tree_feasibility_tries)},
         {"backup",
@@ -172,8 +171,6 @@ const Table<KctOptions>& KctTable() {
               "0 (observed range), 1 (value scale) or 2 (sibling range)")},
         {"w2_ratio", Real(&KctOptions::w2_ratio)},
         {"sample_candidates", Bool(&KctOptions::sample_candidates)},
-        {"point_ucb", Bool(&KctOptions::point_ucb)},
-        {"rollout_first_point", Bool(&KctOptions::rollout_first_point)},
         {"refine_share", Real(&KctOptions::refine_share)},
     };
     AddSearch(t);

@@ -86,9 +86,6 @@ struct KctOptions {
   int num_candidates = 256;
   /// Upper bound of k_i for the elbow method on the candidates.
   int max_initial_clusters = 8;
-  /// k_i when > 0: the candidates are clustered into exactly this many spheres (at most the
-  /// candidates) instead of the elbow method's count.
-  int initial_clusters = 0;
   /// Which root sphere the executed action comes from.
   enum class FinalChoice {
     kMaxValue,     ///< The highest Qhat among visited spheres (paper, algorithm 1 line 12).
@@ -123,14 +120,6 @@ struct KctOptions {
   /// covers none. The candidates are where the filter found efficient actions; a uniform draw
   /// also lands on the parts of the sphere between them.
   bool sample_candidates = true;
-  /// With sample_candidates: inside the tree, Action_sam picks the sphere's candidate by UCB1 on
-  /// the returns of the episodes that executed it (untried candidates first) instead of
-  /// uniformly, so that a sphere's episodes concentrate on its best point and its value
-  /// approaches that point's rather than the sphere's mean.
-  bool point_ucb = false;
-  /// With search.rollout_first and sample_candidates: the rollout policy's root entry executes
-  /// exactly the rollout's action (its only candidate) instead of points uniform in its sphere.
-  bool rollout_first_point = false;
   /// Draws tried by Action_sam before it falls back to the center.
   int max_feasibility_tries = 100;
   /// Draws tried inside the tree to find a point of a sphere that passes the model's
@@ -180,9 +169,6 @@ struct KctOptions {
     }
     if (max_initial_clusters < 1 || max_initial_clusters > 64) {
       return InvalidArgumentError("max_initial_clusters must be in [1, 64]");
-    }
-    if (initial_clusters < 0 || initial_clusters > 64) {
-      return InvalidArgumentError("initial_clusters must be in [0, 64]");
     }
     if (max_feasibility_tries < 1 || max_feasibility_tries > 100000) {
       return InvalidArgumentError("max_feasibility_tries must be in [1, 100000]");
@@ -305,11 +291,6 @@ class KCenterTree : public PlannerBase<KCenterTree<M>, M, KctOptions> {
     std::vector<double> rewards;   // immediate reward
     std::vector<int32_t> entries;  // children entry reached, -1 when terminal
     std::vector<float> points;     // executed point, dim floats per record (continuous kinds)
-    // With point_ucb: visits and summed returns per member, over the first `member_records`
-    // records (rebuilt from the records when they disagree, e.g. after a refinement's copy).
-    std::vector<int32_t> member_n;
-    std::vector<double> member_sum;
-    size_t member_records = 0;
   };
   using Tree = BeliefTree<M, Sphere>;
 
@@ -397,9 +378,6 @@ class KCenterTree : public PlannerBase<KCenterTree<M>, M, KctOptions> {
   double VStar(const Tree& tree, int node) const;
 
   HybridAction SampleInSphere(const Tree& tree, int ai, Rng& rng) const;
-
-  // With point_ucb: the index of the member of sphere `ai` that UCB1 picks; -1 without members.
-  int UcbMember(Worker& w, int ai);
 
   // A point of the sphere; with tree_feasibility_tries > 1 one that passes the reasonability
   // check in state s (the last draw when none passes, so that the model's penalty teaches the tree

@@ -309,12 +309,8 @@ Status KCenterTree<M>::EnsureSpheres(int kind, Rng& rng, const TerminationCondit
                    std::max(box.Diameter() / 2.0, options_.d_lim), nullptr});
     return OkStatus();
   }
-  const std::vector<Cluster> clusters =
-      options_.initial_clusters > 0
-          ? KMeans(box, points, std::min<int>(options_.initial_clusters, points.size()), rng,
-                   [&stop] { return stop.ShouldStop(0); })
-          : ClusterByElbow(box, points, options_.max_initial_clusters, rng,
-                           [&stop] { return stop.ShouldStop(0); });
+  const std::vector<Cluster> clusters = ClusterByElbow(box, points, options_.max_initial_clusters,
+                                                       rng, [&stop] { return stop.ShouldStop(0); });
   if (stop.cancelled()) return CancelledError("planning was cancelled");
   for (const Cluster& c : clusters) {
     auto members = std::make_shared<std::vector<ActionVec>>();
@@ -412,11 +408,7 @@ void KCenterTree<M>::AddRolloutFirst(Worker& w, Rng& rng) {
                 }) {
     const HybridAction a = RolloutFirstAction(model_, belief_, belief_.Sample(rng), rng);
     if (model_.KindSpace(a.kind).dim() == 0) return;
-    std::shared_ptr<const std::vector<ActionVec>> point;
-    if (options_.rollout_first_point) {
-      point = std::make_shared<const std::vector<ActionVec>>(1, a.x);
-    }
-    AddSphere(w, w.tree.root, {a.kind, a.x, options_.d_lim, point}, Origin(a.kind, 999999));
+    AddSphere(w, w.tree.root, {a.kind, a.x, options_.d_lim, nullptr}, Origin(a.kind, 999999));
     // Move it to the front so that it is the first untried entry U picks.
     auto& list = w.tree.obs[w.tree.root].actions;
     std::rotate(list.rbegin(), list.rbegin() + 1, list.rend());
@@ -511,10 +503,7 @@ double KCenterTree<M>::Simulate(Worker& w, const State& s, int node, int depth, 
   }
   const int ai = Select(w, node);
   Refine(w, node, ai);
-  const int member = options_.point_ucb && options_.sample_candidates ? UcbMember(w, ai) : -1;
-  const HybridAction executed =
-      member >= 0 ? HybridAction{w.tree.act[ai].action.kind, (*w.tree.act[ai].data.members)[member]}
-                  : SampleFeasibleInSphere(w.tree, ai, s, w.rng);
+  const HybridAction executed = SampleFeasibleInSphere(w.tree, ai, s, w.rng);
   auto t = w.tree.Descend(model_, ai, executed, s, options_.observations, episode, w.rng);
   const double gamma = model_.Discount();
   double total = t.reward;
@@ -547,59 +536,7 @@ double KCenterTree<M>::Simulate(Worker& w, const State& s, int node, int depth, 
   for (int i = 0; i < executed.x.size(); ++i) {
     sp.points.push_back(static_cast<float>(executed.x[i]));
   }
-  if (member >= 0 && sp.member_records + 1 == sp.ids.size()) {
-    ++sp.member_n[member];
-    sp.member_sum[member] += total;
-    sp.member_records = sp.ids.size();
-  }
   return total;
-}
-
-template <HybridActionModel M>
-int KCenterTree<M>::UcbMember(Worker& w, int ai) {
-  Sphere& sp = w.tree.act[ai].data;
-  if (!sp.members || sp.members->empty()) return -1;
-  const auto& members = *sp.members;
-  const int m = static_cast<int>(members.size());
-  if (sp.member_n.size() != members.size() || sp.member_records != sp.ids.size()) {
-    // Rebuild from the records: a record counts for the member it executed.
-    const int dim = static_cast<int>(members[0].size());
-    std::map<std::vector<float>, int> index;
-    for (int i = 0; i < m; ++i) {
-      std::vector<float> key(dim);
-      for (int d = 0; d < dim; ++d) key[d] = static_cast<float>(members[i][d]);
-      index.emplace(std::move(key), i);
-    }
-    sp.member_n.assign(m, 0);
-    sp.member_sum.assign(m, 0.0);
-    for (size_t r = 0; r < sp.ids.size() && !sp.points.empty(); ++r) {
-      std::vector<float> key(sp.points.begin() + r * dim, sp.points.begin() + (r + 1) * dim);
-      if (auto it = index.find(key); it != index.end()) {
-        ++sp.member_n[it->second];
-        sp.member_sum[it->second] += sp.returns[r];
-      }
-    }
-    sp.member_records = sp.ids.size();
-  }
-  // Untried members first, from a random start so that no order is favoured.
-  const int start = static_cast<int>(w.rng.UniformInt(m));
-  for (int j = 0; j < m; ++j) {
-    const int i = (start + j) % m;
-    if (sp.member_n[i] == 0) return i;
-  }
-  const double log_n = std::log(static_cast<double>(std::max<int64_t>(w.tree.act[ai].n, 1)));
-  const double span = w.vmax > w.vmin ? w.vmax - w.vmin : 1.0;
-  int best = 0;
-  double best_score = -std::numeric_limits<double>::infinity();
-  for (int i = 0; i < m; ++i) {
-    const double q = (sp.member_sum[i] / sp.member_n[i] - w.vmin) / span;
-    const double score = Ucb1(q, sp.member_n[i], log_n, options_.w1);
-    if (score > best_score) {
-      best_score = score;
-      best = i;
-    }
-  }
-  return best;
 }
 
 template <HybridActionModel M>
