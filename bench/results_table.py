@@ -57,10 +57,11 @@
                                    (bench/bench_model_speed.sh, DIR/{base,new}-rN.jsonl).
   results_table.py classic FILE    The classic problems beside their published results
                                    (bench/bench_classic.sh, bench/results/classic.jsonl).
-  results_table.py classic-paired FILE
+  results_table.py classic-paired FILE [BASE_PLANNER]
                                    Runs on a classic problem with one seed compared episode by
                                    episode (npfkct-bench's episode_returns): each against the run
-                                   of its group with the fewest options.
+                                   of its group with the fewest options; with BASE_PLANNER,
+                                   every planner's runs against that planner's.
   results_table.py despot FILE     The solver beside the authors' DESPOT on RockSample(7,8)
                                    (bench/bench_despot.sh, one JSON line per planner and episode):
                                    return ± standard error, steps, trials per step, and each
@@ -647,11 +648,13 @@ def steps(root, scenes_dir):
                   " | ".join(f"{m:.1f}" for m in means) + f" | {success:.0f}% |")
 
 
-def classic_paired(path):
+def classic_paired(path, base_planner=None):
     """Runs of npfkct-bench on a classic problem compared episode by episode: within each group of
     runs with one problem, planner, seed, episodes, budget and rollout that list their episodes,
     every run against the group's run with the fewest options (its base; the first such run):
-    the mean of the per-episode differences of return and of steps with their 95% t intervals."""
+    the mean of the per-episode differences of return and of steps with their 95% t intervals.
+    With `base_planner` the groups span planners and the base is that planner's run with the
+    fewest options."""
     groups = {}
     for line in open(path, encoding="utf-8"):
         if not line.strip():
@@ -660,16 +663,24 @@ def classic_paired(path):
         if "episode_returns" not in r:
             continue
         key = tuple(r.get(k) for k in ("problem", "planner", "seed", "episodes", "cpu_ms",
-                                      "time_ms", "sims", "rollout", "max_steps"))
+                                      "time_ms", "sims", "rollout", "max_steps")
+                    if not (base_planner and k == "planner"))
         groups.setdefault(key, []).append(r)
     print("| Problem | Planner | Seed | Episodes | Base options | Options beside the base | "
           "Base return | Return | Difference ± 95% | Steps difference ± 95% |")
     print("|---|---|---|---|---|---|---|---|---|---|")
-    for (problem, planner, seed, episodes, *_), runs in groups.items():
-        base = min(runs, key=lambda r: len(r["options"]))
+    for runs in groups.values():
+        candidates = [r for r in runs if not base_planner or r["planner"] == base_planner]
+        if not candidates:
+            continue
+        base = min(candidates, key=lambda r: len(r["options"]))
+        problem, seed, episodes = base["problem"], base["seed"], base["episodes"]
         for r in runs:
             if r is base:
                 continue
+            planner = r["planner"]
+            if planner != base["planner"]:
+                planner = f"{planner} (base: {base['planner']})"
             extra = [o for o in r["options"] if o not in base["options"]]
             dr, cr = mean_ci([a - b for a, b in zip(r["episode_returns"],
                                                     base["episode_returns"])])
@@ -1551,7 +1562,7 @@ the square root of the episodes (or plans).
     SEED=2 THREADS=1 bench/bench_classic.sh kct-vdptag
     bench/bench_classic.sh lqg vdptag-published tag
     python3 bench/results_table.py classic bench/results/classic.jsonl
-    python3 bench/results_table.py classic-paired FILE   # runs of one seed, episode by episode
+    python3 bench/results_table.py classic-paired FILE [BASE_PLANNER]   # one seed's runs, paired
 """, [lambda r: classic(os.path.join(r, "classic.jsonl"))]),
     ("Beside the authors' DESPOT", """\
 The solver's planners and the authors' DESPOT (AdaCompNUS/despot, built from a checkout outside
@@ -1670,7 +1681,7 @@ def docs():
 def main():
     commands = {"table1": (1, None), "generated": (1, 2), "ablation": (1, 1),
                 "sensitivity": (1, 1), "estimator": (1, 2), "mirror": (1, 1), "trace": (1, 1), "steps": (2, 2), "compare": (2, 2),
-                "flat": (1, 1), "threads": (2, 2), "model-speed": (1, 1), "classic": (1, 1), "classic-paired": (1, 1),
+                "flat": (1, 1), "threads": (2, 2), "model-speed": (1, 1), "classic": (1, 1), "classic-paired": (1, 2),
                 "filter": (2, 2), "despot": (1, None), "perception-stages": (1, 1), "load": (1, 1), "fleet": (1, 1),
                 "maps": (1, 1),
                 "docs": (0, 1)}

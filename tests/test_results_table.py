@@ -419,6 +419,31 @@ def test_classic_paired_compares_runs_of_one_seed_episode_by_episode(tmp_path):
                     "-1.0 ± 2.5 |"]
 
 
+def test_classic_paired_against_a_base_planner(tmp_path):
+    # VOMCPOW's run is the base; kCT's two runs are compared with it, episode by episode: the
+    # first returns 1 less in every episode (interval 0), the second 1, 0, -2 more (mean -1/3).
+    base = {"problem": "vdptag", "planner": "vomcpow", "seed": 7, "episodes": 3, "cpu_ms": 100,
+            "time_ms": 0, "sims": 0, "rollout": "tonextml", "max_steps": 100,
+            "options": ["a=1"], "mean_discounted_return": 2.0,
+            "episode_returns": [1.0, 2.0, 3.0], "episode_steps": [10, 10, 10]}
+    kct = dict(base, planner="kct", mean_discounted_return=1.0,
+               episode_returns=[0.0, 1.0, 2.0], episode_steps=[11, 11, 11])
+    arm = dict(kct, options=["a=1", "w2=0"], episode_returns=[2.0, 2.0, 1.0])
+    path = tmp_path / "runs.jsonl"
+    path.write_text("\n".join(json.dumps(r) for r in (kct, arm, base)) + "\n", encoding="utf-8")
+    out = results_table.capture(results_table.classic_paired, str(path), "vomcpow")
+    rows = [line for line in out.splitlines() if line.startswith("| vdptag")]
+    assert rows[0] == ("| vdptag | kct (base: vomcpow) | 7 | 3 | a=1 | – | 2.00 | 1.00 | "
+                       "-1.00 ± 0.00 | +1.0 ± 0.0 |")
+    assert rows[1].startswith("| vdptag | kct (base: vomcpow) | 7 | 3 | a=1 | w2=0 | 2.00 |")
+    assert "-0.33 ± " in rows[1] and len(rows) == 2
+    # Without a base planner each planner is its own group: kCT's arm against kCT's run.
+    out = results_table.capture(results_table.classic_paired, str(path))
+    rows = [line for line in out.splitlines() if line.startswith("| vdptag")]
+    assert rows == ["| vdptag | kct | 7 | 3 | a=1 | w2=0 | 1.00 | 1.00 | +0.67 ± 3.79 | "
+                    "+0.0 ± 0.0 |"]
+
+
 def test_despot_pools_runs_and_subtracts_the_authors_figure(tmp_path):
     # Theirs returns 1, 2, 3 then 4, 5, 6 (mean 3.5); ours 2 more in every episode (5.5). Standard
     # error of 1..6: 1.8708 / sqrt(6) = 0.7638; of the difference: sqrt(2) x that = 1.0801.
