@@ -61,7 +61,8 @@
                                    Runs on a classic problem with one seed compared episode by
                                    episode (npfkct-bench's episode_returns): each against the run
                                    of its group with the fewest options; with BASE_PLANNER,
-                                   every planner's runs against that planner's.
+                                   every planner's runs against that planner's; then each
+                                   comparison made on several seeds, pooled.
   results_table.py despot FILE     The solver beside the authors' DESPOT on RockSample(7,8)
                                    (bench/bench_despot.sh, one JSON line per planner and episode):
                                    return ± standard error, steps, trials per step, and each
@@ -652,7 +653,8 @@ def classic_paired(path, base_planner=None):
     """Runs of npfkct-bench on a classic problem compared episode by episode: within each group of
     runs with one problem, planner, seed, episodes, budget and rollout that list their episodes,
     every run against the group's run with the fewest options (its base; the first such run):
-    the mean of the per-episode differences of return and of steps with their 95% t intervals.
+    the mean of the per-episode differences of return and of steps with their 95% t intervals;
+    then each comparison made on several seeds once more, its episodes pooled.
     With `base_planner` the groups span planners and the base is that planner's run with the
     fewest options."""
     groups = {}
@@ -669,6 +671,9 @@ def classic_paired(path, base_planner=None):
     print("| Problem | Planner | Seed | Episodes | Base options | Options beside the base | "
           "Base return | Return | Difference ± 95% | Steps difference ± 95% |")
     print("|---|---|---|---|---|---|---|---|---|---|")
+    # The same comparison on several seeds, pooled: (problem, planner, budget, base and extra
+    # options) -> seeds, base returns, returns, return and step differences.
+    pooled = {}
     for runs in groups.values():
         candidates = [r for r in runs if not base_planner or r["planner"] == base_planner]
         if not candidates:
@@ -689,6 +694,27 @@ def classic_paired(path, base_planner=None):
                   f"{', '.join(base['options']) or '–'} | {', '.join(extra) or '–'} | "
                   f"{base['mean_discounted_return']:.2f} | {r['mean_discounted_return']:.2f} | "
                   f"{dr:+.2f} ± {cr:.2f} | {ds:+.1f} ± {cs:.1f} |")
+            key = (problem, planner, r.get("cpu_ms"), r.get("time_ms"), r.get("sims"),
+                   ", ".join(base["options"]) or "–", ", ".join(extra) or "–")
+            p = pooled.setdefault(key, ([], [], [], [], []))
+            p[0].append(seed)
+            p[1].extend(base["episode_returns"])
+            p[2].extend(r["episode_returns"])
+            p[3].extend(a - b for a, b in zip(r["episode_returns"], base["episode_returns"]))
+            p[4].extend(a - b for a, b in zip(r["episode_steps"], base["episode_steps"]))
+    pooled = {k: v for k, v in pooled.items() if len(v[0]) > 1}
+    if not pooled:
+        return
+    print("\nThe same comparisons pooled over their seeds (95% t of the per-episode differences):\n")
+    print("| Problem | Planner | Seeds | Episodes | Base options | Options beside the base | "
+          "Base return | Return | Difference ± 95% | Steps difference ± 95% |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for (problem, planner, _, _, _, base_options, extra), p in pooled.items():
+        dr, cr = mean_ci(p[3])
+        ds, cs = mean_ci(p[4])
+        print(f"| {problem} | {planner} | {', '.join(str(x) for x in sorted(p[0]))} | "
+              f"{len(p[3])} | {base_options} | {extra} | {sum(p[1]) / len(p[1]):.2f} | "
+              f"{sum(p[2]) / len(p[2]):.2f} | {dr:+.2f} ± {cr:.2f} | {ds:+.1f} ± {cs:.1f} |")
 
 
 def compare(a_root, b_root):

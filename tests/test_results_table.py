@@ -419,6 +419,29 @@ def test_classic_paired_compares_runs_of_one_seed_episode_by_episode(tmp_path):
                     "-1.0 ± 2.5 |"]
 
 
+def test_classic_paired_pools_a_comparison_over_its_seeds(tmp_path):
+    # The same arm against the same base on seeds 7 and 8: differences 1, 2, 0 and 3, 3, 3 pool
+    # to six episodes, mean 2, sd 1.265, 95% t interval 2.571 x 1.265 / sqrt(6) = 1.33; steps
+    # -1, -2, 0, 0, 0, 0. A comparison made on one seed only has no pooled row.
+    base = {"problem": "vdptag", "planner": "kct", "seed": 7, "episodes": 3, "cpu_ms": 1000,
+            "time_ms": 0, "sims": 0, "rollout": "tonextml", "max_steps": 100,
+            "options": ["a=1"], "mean_discounted_return": 2.0,
+            "episode_returns": [1.0, 2.0, 3.0], "episode_steps": [10, 10, 10]}
+    arm = dict(base, options=["a=1", "d_lim=0.05"], mean_discounted_return=3.0,
+               episode_returns=[2.0, 4.0, 3.0], episode_steps=[9, 8, 10])
+    base8 = dict(base, seed=8, episode_returns=[0.0, 0.0, 0.0])
+    arm8 = dict(arm, seed=8, episode_returns=[3.0, 3.0, 3.0], episode_steps=[10, 10, 10])
+    once = dict(arm, options=["a=1", "w2=0"])
+    path = tmp_path / "runs.jsonl"
+    path.write_text("\n".join(json.dumps(r) for r in (base, arm, base8, arm8, once)) + "\n",
+                    encoding="utf-8")
+    out = results_table.capture(results_table.classic_paired, str(path))
+    pooled = out.split("pooled over their seeds")[1]
+    rows = [line for line in pooled.splitlines() if line.startswith("| vdptag")]
+    assert rows == ["| vdptag | kct | 7, 8 | 6 | a=1 | d_lim=0.05 | 1.00 | 3.00 | +2.00 ± 1.33 | "
+                    "-0.5 ± 0.9 |"]
+
+
 def test_classic_paired_against_a_base_planner(tmp_path):
     # VOMCPOW's run is the base; kCT's two runs are compared with it, episode by episode: the
     # first returns 1 less in every episode (interval 0), the second 1, 0, -2 more (mean -1/3).
