@@ -399,14 +399,22 @@ def test_classic_is_one_table_with_the_lqg_and_the_despot_runs_beside_it(tmp_pat
     assert "| 0.060 ± 0.006 |" in table[3] and "bench_classic.sh lqg`" in table[3]
 
 
+def vdptag_run(**changes):
+    """A kCT run of npfkct-bench on VDP Tag, seed 7, three episodes returning 1, 2, 3 in 10 steps
+    each, with `changes` applied."""
+    run = {"problem": "vdptag", "planner": "kct", "seed": 7, "episodes": 3, "cpu_ms": 1000,
+           "time_ms": 0, "sims": 0, "rollout": "tonextml", "max_steps": 100,
+           "options": ["a=1"], "mean_discounted_return": 2.0,
+           "episode_returns": [1.0, 2.0, 3.0], "episode_steps": [10, 10, 10]}
+    run.update(changes)
+    return run
+
+
 def test_classic_paired_compares_runs_of_one_seed_episode_by_episode(tmp_path):
     # Two runs of one seed: the base (fewest options) returns 1, 2, 3 in 10, 10, 10 steps, the
     # other 2, 4, 3 in 9, 8, 10: differences 1, 2, 0 (mean 1, sd 1, 95% t interval 4.303 /
     # sqrt(3) = 2.48) and -1, -2, 0 steps. A run of another seed has no base and no row.
-    base = {"problem": "vdptag", "planner": "kct", "seed": 7, "episodes": 3, "cpu_ms": 1000,
-            "time_ms": 0, "sims": 0, "rollout": "tonextml", "max_steps": 100,
-            "options": ["a=1"], "mean_discounted_return": 2.0,
-            "episode_returns": [1.0, 2.0, 3.0], "episode_steps": [10, 10, 10]}
+    base = vdptag_run()
     other = dict(base, options=["a=1", "d_lim=0.05"], mean_discounted_return=3.0,
                  episode_returns=[2.0, 4.0, 3.0], episode_steps=[9, 8, 10])
     alone = dict(base, seed=8)
@@ -423,10 +431,7 @@ def test_classic_paired_pools_a_comparison_over_its_seeds(tmp_path):
     # The same arm against the same base on seeds 7 and 8: differences 1, 2, 0 and 3, 3, 3 pool
     # to six episodes, mean 2, sd 1.265, 95% t interval 2.571 x 1.265 / sqrt(6) = 1.33; steps
     # -1, -2, 0, 0, 0, 0. A comparison made on one seed only has no pooled row.
-    base = {"problem": "vdptag", "planner": "kct", "seed": 7, "episodes": 3, "cpu_ms": 1000,
-            "time_ms": 0, "sims": 0, "rollout": "tonextml", "max_steps": 100,
-            "options": ["a=1"], "mean_discounted_return": 2.0,
-            "episode_returns": [1.0, 2.0, 3.0], "episode_steps": [10, 10, 10]}
+    base = vdptag_run()
     arm = dict(base, options=["a=1", "d_lim=0.05"], mean_discounted_return=3.0,
                episode_returns=[2.0, 4.0, 3.0], episode_steps=[9, 8, 10])
     base8 = dict(base, seed=8, episode_returns=[0.0, 0.0, 0.0])
