@@ -695,7 +695,8 @@ def classic_paired(path, base_planner=None):
                   f"{base['mean_discounted_return']:.2f} | {r['mean_discounted_return']:.2f} | "
                   f"{dr:+.2f} ± {cr:.2f} | {ds:+.1f} ± {cs:.1f} |")
             key = (problem, planner, r.get("cpu_ms"), r.get("time_ms"), r.get("sims"),
-                   ", ".join(base["options"]) or "–", ", ".join(extra) or "–")
+                   r.get("rollout"), r.get("max_steps"), ", ".join(base["options"]) or "–",
+                   ", ".join(extra) or "–")
             p = pooled.setdefault(key, ([], [], [], [], []))
             p[0].append(seed)
             p[1].extend(base["episode_returns"])
@@ -709,7 +710,7 @@ def classic_paired(path, base_planner=None):
     print("| Problem | Planner | Seeds | Episodes | Base options | Options beside the base | "
           "Base return | Return | Difference ± 95% | Steps difference ± 95% |")
     print("|---|---|---|---|---|---|---|---|---|---|")
-    for (problem, planner, _, _, _, base_options, extra), p in pooled.items():
+    for (problem, planner, *_, base_options, extra), p in pooled.items():
         dr, cr = mean_ci(p[3])
         ds, cs = mean_ci(p[4])
         print(f"| {problem} | {planner} | {', '.join(str(x) for x in sorted(p[0]))} | "
