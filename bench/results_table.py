@@ -668,11 +668,15 @@ def classic_paired(path, base_planner=None):
                                       "time_ms", "sims", "rollout", "max_steps")
                     if not (base_planner and k == "planner"))
         groups.setdefault(key, []).append(r)
-    print("| Problem | Planner | Seed | Episodes | Base options | Options beside the base | "
-          "Base return | Return | Difference ± 95% | Steps difference ± 95% |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
-    # The same comparison on several seeds, pooled: (problem, planner, budget, base and extra
-    # options) -> seeds, base returns, returns, return and step differences.
+    def header(seed_column):
+        print(f"| Problem | Planner | {seed_column} | Episodes | Base options | "
+              "Options beside the base | Base return | Return | Difference ± 95% | "
+              "Steps difference ± 95% |")
+        print("|---|---|---|---|---|---|---|---|---|---|")
+
+    header("Seed")
+    # The same comparison on several seeds, pooled: (problem, planner, budget, rollout, episode
+    # length, base and extra options) -> its seeds and episodes.
     pooled = {}
     for runs in groups.values():
         candidates = [r for r in runs if not base_planner or r["planner"] == base_planner]
@@ -686,37 +690,36 @@ def classic_paired(path, base_planner=None):
             planner = r["planner"]
             if planner != base["planner"]:
                 planner = f"{planner} (base: {base['planner']})"
-            extra = [o for o in r["options"] if o not in base["options"]]
-            dr, cr = mean_ci([a - b for a, b in zip(r["episode_returns"],
-                                                    base["episode_returns"])])
-            ds, cs = mean_ci([a - b for a, b in zip(r["episode_steps"], base["episode_steps"])])
-            print(f"| {problem} | {planner} | {seed} | {episodes} | "
-                  f"{', '.join(base['options']) or '–'} | {', '.join(extra) or '–'} | "
+            base_options = ", ".join(base["options"]) or "–"
+            extra = ", ".join(o for o in r["options"] if o not in base["options"]) or "–"
+            d_returns = [a - b for a, b in zip(r["episode_returns"], base["episode_returns"])]
+            d_steps = [a - b for a, b in zip(r["episode_steps"], base["episode_steps"])]
+            dr, cr = mean_ci(d_returns)
+            ds, cs = mean_ci(d_steps)
+            print(f"| {problem} | {planner} | {seed} | {episodes} | {base_options} | {extra} | "
                   f"{base['mean_discounted_return']:.2f} | {r['mean_discounted_return']:.2f} | "
                   f"{dr:+.2f} ± {cr:.2f} | {ds:+.1f} ± {cs:.1f} |")
             key = (problem, planner, r.get("cpu_ms"), r.get("time_ms"), r.get("sims"),
-                   r.get("rollout"), r.get("max_steps"), ", ".join(base["options"]) or "–",
-                   ", ".join(extra) or "–")
-            p = pooled.setdefault(key, ([], [], [], [], []))
-            p[0].append(seed)
-            p[1].extend(base["episode_returns"])
-            p[2].extend(r["episode_returns"])
-            p[3].extend(a - b for a, b in zip(r["episode_returns"], base["episode_returns"]))
-            p[4].extend(a - b for a, b in zip(r["episode_steps"], base["episode_steps"]))
-    pooled = {k: v for k, v in pooled.items() if len(v[0]) > 1}
+                   r.get("rollout"), r.get("max_steps"), base_options, extra)
+            p = pooled.setdefault(key, {"seeds": [], "base": [], "run": [], "returns": [],
+                                        "steps": []})
+            p["seeds"].append(seed)
+            p["base"].extend(base["episode_returns"])
+            p["run"].extend(r["episode_returns"])
+            p["returns"].extend(d_returns)
+            p["steps"].extend(d_steps)
+    pooled = {k: p for k, p in pooled.items() if len(p["seeds"]) > 1}
     if not pooled:
         return
     print("\nThe same comparisons pooled over their seeds (95% t of the per-episode differences):\n")
-    print("| Problem | Planner | Seeds | Episodes | Base options | Options beside the base | "
-          "Base return | Return | Difference ± 95% | Steps difference ± 95% |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    header("Seeds")
     for (problem, planner, *_, base_options, extra), p in pooled.items():
-        dr, cr = mean_ci(p[3])
-        ds, cs = mean_ci(p[4])
-        print(f"| {problem} | {planner} | {', '.join(str(x) for x in sorted(p[0]))} | "
-              f"{len(p[3])} | {base_options} | {extra} | {sum(p[1]) / len(p[1]):.2f} | "
-              f"{sum(p[2]) / len(p[2]):.2f} | {dr:+.2f} ± {cr:.2f} | {ds:+.1f} ± {cs:.1f} |")
-
+        dr, cr = mean_ci(p["returns"])
+        ds, cs = mean_ci(p["steps"])
+        print(f"| {problem} | {planner} | {', '.join(str(x) for x in sorted(p['seeds']))} | "
+              f"{len(p['returns'])} | {base_options} | {extra} | "
+              f"{sum(p['base']) / len(p['base']):.2f} | {sum(p['run']) / len(p['run']):.2f} | "
+              f"{dr:+.2f} ± {cr:.2f} | {ds:+.1f} ± {cs:.1f} |")
 
 def compare(a_root, b_root):
     a, b = load_cells(a_root), load_cells(b_root)

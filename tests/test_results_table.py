@@ -400,8 +400,8 @@ def test_classic_is_one_table_with_the_lqg_and_the_despot_runs_beside_it(tmp_pat
 
 
 def vdptag_run(**changes):
-    """A kCT run of npfkct-bench on VDP Tag, seed 7, three episodes returning 1, 2, 3 in 10 steps
-    each, with `changes` applied."""
+    """A run of npfkct-bench on VDP Tag (kCT, seed 7, 1 s of CPU), three episodes returning 1, 2,
+    3 in 10 steps each, with `changes` applied."""
     run = {"problem": "vdptag", "planner": "kct", "seed": 7, "episodes": 3, "cpu_ms": 1000,
            "time_ms": 0, "sims": 0, "rollout": "tonextml", "max_steps": 100,
            "options": ["a=1"], "mean_discounted_return": 2.0,
@@ -450,10 +450,7 @@ def test_classic_paired_pools_a_comparison_over_its_seeds(tmp_path):
 def test_classic_paired_against_a_base_planner(tmp_path):
     # VOMCPOW's run is the base; kCT's two runs are compared with it, episode by episode: the
     # first returns 1 less in every episode (interval 0), the second 1, 0, -2 more (mean -1/3).
-    base = {"problem": "vdptag", "planner": "vomcpow", "seed": 7, "episodes": 3, "cpu_ms": 100,
-            "time_ms": 0, "sims": 0, "rollout": "tonextml", "max_steps": 100,
-            "options": ["a=1"], "mean_discounted_return": 2.0,
-            "episode_returns": [1.0, 2.0, 3.0], "episode_steps": [10, 10, 10]}
+    base = vdptag_run(planner="vomcpow", cpu_ms=100)
     kct = dict(base, planner="kct", mean_discounted_return=1.0,
                episode_returns=[0.0, 1.0, 2.0], episode_steps=[11, 11, 11])
     arm = dict(kct, options=["a=1", "w2=0"], episode_returns=[2.0, 2.0, 1.0])
