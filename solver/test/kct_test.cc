@@ -60,6 +60,12 @@ TEST(KctOptionsTest, ValidateNamesTheOption) {
   EXPECT_NE(o.Validate().message().find("final_lcb"), std::string::npos);
   o.final_lcb = std::numeric_limits<double>::quiet_NaN();
   EXPECT_NE(o.Validate().message().find("final_lcb"), std::string::npos);
+  o = {};
+  o.point_k = 0.0;
+  EXPECT_NE(o.Validate().message().find("point_k"), std::string::npos);
+  o = {};
+  o.point_alpha = 1.5;
+  EXPECT_NE(o.Validate().message().find("point_alpha"), std::string::npos);
 }
 
 TEST(KctTest, FLimClampsToTheRefinementRate) {
@@ -181,6 +187,83 @@ TEST(KctTest, TreeReuseKeepsTheSubtreeAndAddsNewSpheres) {
   size_t new_spheres = 0;
   for (const auto& [kind, list] : planner.spheres()) new_spheres += list.size();
   EXPECT_GE(planner.RootList().size(), list_before + new_spheres);
+  EXPECT_TRUE(planner.CheckInvariants().ok());
+}
+
+TEST(KctTest, PointChildrenFindThePeakAndKeepTheirSubtreesThroughRefinementAndReuse) {
+  PeakSearch model;
+  Rng rng(11);
+  KctOptions o = PeakOptions();
+  o.point_children = true;
+  KCenterTree<PeakSearch> planner(model, o);
+  planner.Reset(rng);
+  auto d = planner.Plan(Budget::Simulations(20000), rng);
+  ASSERT_TRUE(d.status.ok()) << d.status.ToString();
+  EXPECT_GT(d.stats.refinements, 5);
+  ASSERT_EQ(d.action.kind, 0);
+  EXPECT_LT((d.action.x - model.Peak(0)).norm(), 0.15);
+  // Every sphere's visits are its point children's, after the refinements moved them.
+  Status invariants = planner.CheckInvariants();
+  EXPECT_TRUE(invariants.ok()) << invariants.ToString();
+  // The root list and the decision's statistics hold spheres only.
+  int64_t visits = 0;
+  for (const auto& r : d.root) visits += r.visits;
+  EXPECT_EQ(visits, planner.RootVisits());
+  EXPECT_EQ(d.root.size(), planner.RootList().size());
+  // The executed action is a point the search tried: its subtree is kept.
+  Rng sim(12);
+  auto step = model.Step(0, d.action, sim);
+  planner.Advance(d.action, step.observation, rng);
+  EXPECT_GT(planner.RootVisits(), 100);
+  EXPECT_TRUE(planner.CheckInvariants().ok());
+  auto d2 = planner.Plan(Budget::Simulations(1000), rng);
+  ASSERT_TRUE(d2.status.ok());
+  EXPECT_TRUE(planner.CheckInvariants().ok());
+}
+
+TEST(KctTest, FlatPointsRefineTheirSpheresWithoutCopies) {
+  PeakSearch model;
+  Rng rng(17);
+  KctOptions o = PeakOptions();
+  o.point_children = true;
+  o.point_flat = true;
+  o.point_k = 8.0;
+  o.point_alpha = 0.25;
+  o.point_final = true;
+  for (int threads : {1, 2}) {
+    o.search.threads = threads;
+    o.point_voo = threads == 2;
+    KCenterTree<PeakSearch> planner(model, o);
+    planner.Reset(rng);
+    auto d = planner.Plan(Budget::Simulations(20000), rng);
+    ASSERT_TRUE(d.status.ok()) << d.status.ToString();
+    EXPECT_GT(d.stats.refinements, 3);
+    ASSERT_EQ(d.action.kind, 0);
+    EXPECT_LT((d.action.x - model.Peak(0)).norm(), 0.15);
+    // The spheres' records are their points' records, through the refinements.
+    Status invariants = planner.CheckInvariants();
+    EXPECT_TRUE(invariants.ok()) << invariants.ToString();
+    Rng sim(18);
+    auto step = model.Step(0, d.action, sim);
+    planner.Advance(d.action, step.observation, rng);
+    auto d2 = planner.Plan(Budget::Simulations(1000), rng);
+    ASSERT_TRUE(d2.status.ok());
+    EXPECT_TRUE(planner.CheckInvariants().ok());
+  }
+}
+
+TEST(KctTest, PointChildrenUnderRootParallelSearch) {
+  PeakSearch model;
+  Rng rng(13);
+  KctOptions o = PeakOptions();
+  o.point_children = true;
+  o.search.threads = 2;
+  KCenterTree<PeakSearch> planner(model, o);
+  planner.Reset(rng);
+  auto d = planner.Plan(Budget::Simulations(20000), rng);
+  ASSERT_TRUE(d.status.ok()) << d.status.ToString();
+  ASSERT_EQ(d.action.kind, 0);
+  EXPECT_LT((d.action.x - model.Peak(0)).norm(), 0.15);
   EXPECT_TRUE(planner.CheckInvariants().ok());
 }
 

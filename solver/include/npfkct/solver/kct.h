@@ -125,6 +125,39 @@ struct KctOptions {
   /// Draws tried inside the tree to find a point of a sphere that passes the model's
   /// reasonability check (1: no check in the tree, the paper's behaviour).
   int tree_feasibility_tries = 1;
+  /// Point children: a sphere chosen in the tree executes one of its own points, each an action
+  /// node with its own subtree, widened progressively (a new point while the sphere has fewer
+  /// than point_k N^point_alpha of them, else UCB1 over them). Without them every point drawn in
+  /// a sphere shares the sphere's subtree. The executed action is then the most visited point of
+  /// the chosen sphere.
+  bool point_children = false;
+  /// With point_children: the progressive widening's coefficient.
+  double point_k = 1.0;
+  /// With point_children: the progressive widening's exponent.
+  double point_alpha = 0.5;
+  /// With point_children: a sphere's value in U is its most visited point's (not the mean over
+  /// all its points).
+  bool point_value = false;
+  /// With point_children: the executed action is the most visited point of the root, whatever its
+  /// sphere.
+  bool point_final = false;
+  /// With point_children: the share of new points drawn within point_local_radius of the sphere's
+  /// best point (by mean return) rather than in the whole sphere (VOO's local proposals).
+  double point_local = 0.0;
+  /// With point_local: the radius of the ball around the best point.
+  double point_local_radius = 0.3;
+  /// With point_children: the tree picks among all of a node's points by U (flat, one bandit per
+  /// node), widening the node progressively (a new point while it has fewer than point_k
+  /// N^point_alpha); the spheres decide where a new point is drawn (U over the spheres, then
+  /// Action_sam in the chosen one), and a refinement splits a sphere by k-means of its points and
+  /// reassigns them, copying no subtree.
+  bool point_flat = false;
+  /// With point_flat: new points as VOMCPOW proposes them (VOO): with probability 1 -
+  /// voo.uniform_probability in the Voronoi cell of the node's best point, else where the spheres
+  /// say.
+  bool point_voo = false;
+  /// With point_voo: the Voronoi proposals' settings.
+  VooOptions voo;
   /// Observation branching.
   ObservationWidening observations;
 
@@ -175,6 +208,15 @@ struct KctOptions {
     }
     if (tree_feasibility_tries < 1 || tree_feasibility_tries > 1000) {
       return InvalidArgumentError("tree_feasibility_tries must be in [1, 1000]");
+    }
+    if (!(point_k > 0.0 && point_k <= 1000.0)) {
+      return InvalidArgumentError("point_k must be in (0, 1000]");
+    }
+    if (!(point_alpha >= 0.0 && point_alpha <= 1.0)) {
+      return InvalidArgumentError("point_alpha must be in [0, 1]");
+    }
+    if (point_voo) {
+      if (Status s = voo.Validate(); !s.ok()) return Prefixed("voo", s);
     }
     return Prefixed("observations", observations.Validate());
   }
@@ -284,6 +326,10 @@ class KCenterTree : public PlannerBase<KCenterTree<M>, M, KctOptions> {
     // At the root: which of this step's initial entries it descends from (merging the workers'
     // statistics), or a negative worker-unique code for entries kept from earlier steps.
     int64_t origin = -1;
+    // A worker-unique id of a sphere (> 0), and for a point child the id of its sphere (0: not a
+    // point). Ids, unlike node indices, survive the compaction of a kept subtree.
+    int64_t sid = 0;
+    int64_t point_of = 0;
     // The candidates it covers (shared by the copies of an initial sphere); null: none.
     std::shared_ptr<const std::vector<ActionVec>> members;
     std::vector<uint32_t> ids;     // episode ids, increasing
@@ -306,6 +352,7 @@ class KCenterTree : public PlannerBase<KCenterTree<M>, M, KctOptions> {
     double vmin = std::numeric_limits<double>::infinity();
     double vmax = -std::numeric_limits<double>::infinity();
     int last_entry = -1;
+    int64_t next_sid = 1;
     Status status;
     std::vector<int> scratch;
     const TerminationCondition* stop = nullptr;  // this worker's, while Plan() runs
@@ -375,6 +422,20 @@ class KCenterTree : public PlannerBase<KCenterTree<M>, M, KctOptions> {
 
   int Select(const Worker& w, int node) const;
 
+  // With point_children: the point child of sphere `ai` to execute (a new one while the widening
+  // allows, else by UCB1 over the sphere's points).
+  int SelectPoint(Worker& w, int node, int ai, const State& s);
+
+  // With point_flat: the action node to descend (a point, or a discrete entry) and in *sphere
+  // the entry whose statistics it also updates (itself for a discrete entry).
+  int SelectFlat(Worker& w, int node, const State& s, int* sphere);
+
+  // With point_flat: Refine by k-means of the sphere's points; returns false when not due.
+  bool RefinePoints(Worker& w, int node, int ai);
+
+  // With point_children: the most visited feasible point child of root sphere `ai` (-1: none).
+  int MostVisitedPoint(const Worker& w, int ai, const State& s) const;
+
   double VStar(const Tree& tree, int node) const;
 
   HybridAction SampleInSphere(const Tree& tree, int ai, Rng& rng) const;
@@ -393,6 +454,11 @@ class KCenterTree : public PlannerBase<KCenterTree<M>, M, KctOptions> {
   static bool Contains(const std::vector<uint32_t>& sorted, uint32_t id) {
     return std::binary_search(sorted.begin(), sorted.end(), id);
   }
+
+  // The candidates a refined sphere covered, each to the nearest new center (null: none).
+  static std::vector<std::shared_ptr<const std::vector<ActionVec>>> SplitMembers(
+      const BoxSpace& box, const std::shared_ptr<const std::vector<ActionVec>>& parent,
+      const std::vector<Cluster>& clusters);
 
   // Copies action node `ai` and its subtree keeping only the episodes in `keep`; returns the new
   // (unattached) action node.

@@ -61,6 +61,7 @@ auto KCenterTree<M>::RootList() const
   if (tree.root < 0) return out;
   for (int ai : tree.obs[tree.root].actions) {
     const auto& an = tree.act[ai];
+    if (an.data.point_of != 0) continue;
     out.push_back(
         {{an.action.kind, an.action.x, an.data.range, an.data.members}, {an.action, an.n, an.q}});
   }
@@ -159,11 +160,44 @@ Status KCenterTree<M>::Decide(const TerminationCondition& stop, Rng& rng, Decisi
   // thousands of spheres cost thousands of times one sphere's draws after the budget (a 200 ms
   // plan ran 35 s with max_feasibility_tries 10,000). A cancelled plan stops passing over.
   const State& s0 = belief_.Sample(rng);
-  int chosen_worker = 0, best = -1;
+  int chosen_worker = 0, best = -1, point = -1;
   std::set<std::pair<int, int>> excluded;
   bool executable = false;
-  for (int tried = 0; tried < kMaxFinalEntries && ChooseRootEntry(excluded, &chosen_worker, &best);
+  if (options_.point_children && options_.point_final) {
+    // The most visited point of the root (first worker's tree), its sphere as the entry.
+    const Worker& w = workers_[0];
+    for (int bi : w.tree.obs[w.tree.root].actions) {
+      const auto& bn = w.tree.act[bi];
+      if (bn.data.point_of == 0 || bn.n == 0) continue;
+      if (point >= 0 && (bn.n < w.tree.act[point].n ||
+                         (bn.n == w.tree.act[point].n && bn.q <= w.tree.act[point].q))) {
+        continue;
+      }
+      if (IsFeasibleAction(model_, s0, bn.action)) point = bi;
+    }
+    if (point >= 0) {
+      for (int ai : w.tree.obs[w.tree.root].actions) {
+        if (w.tree.act[ai].data.point_of == 0 &&
+            w.tree.act[ai].data.sid == w.tree.act[point].data.point_of) {
+          best = ai;
+        }
+      }
+      d->action = w.tree.act[point].action;
+      executable = best >= 0;
+      if (!executable) point = -1;
+    }
+  }
+  for (int tried = 0;
+       !executable && tried < kMaxFinalEntries && ChooseRootEntry(excluded, &chosen_worker, &best);
        ++tried) {
+    if (options_.point_children) {
+      point = MostVisitedPoint(workers_[chosen_worker], best, s0);
+      if (point >= 0) {
+        d->action = workers_[chosen_worker].tree.act[point].action;
+        executable = true;
+        break;
+      }
+    }
     if (SampleExecutable(workers_[chosen_worker], best, s0, rng, &d->action)) {
       executable = true;
       break;
@@ -182,7 +216,7 @@ Status KCenterTree<M>::Decide(const TerminationCondition& stop, Rng& rng, Decisi
       for (int ai : tree.obs[tree.root].actions) {
         const auto& entry = tree.act[ai];
         if (entry.n == 0 || entry.q <= best_q || excluded.count({t, ai}) ||
-            !IsFeasibleAction(model_, s0, entry.action)) {
+            entry.data.point_of != 0 || !IsFeasibleAction(model_, s0, entry.action)) {
           continue;
         }
         best_q = entry.q;
@@ -202,7 +236,7 @@ Status KCenterTree<M>::Decide(const TerminationCondition& stop, Rng& rng, Decisi
   d->value = an.q;
   for (int ai : cw.tree.obs[cw.tree.root].actions) {
     const auto& e = cw.tree.act[ai];
-    d->root.push_back({e.action, e.n, e.q});
+    if (e.data.point_of == 0) d->root.push_back({e.action, e.n, e.q});
   }
   for (const Worker& w : workers_) {
     d->stats.tree_nodes += w.tree.size();
@@ -211,7 +245,7 @@ Status KCenterTree<M>::Decide(const TerminationCondition& stop, Rng& rng, Decisi
   d->stats.root_actions = static_cast<int>(cw.tree.obs[cw.tree.root].actions.size());
   last_sphere_ = {an.action.kind, an.action.x, an.data.range, an.data.members};
   for (Worker& w : workers_) w.last_entry = -1;
-  cw.last_entry = best;
+  cw.last_entry = point >= 0 ? point : best;
   return OkStatus();
 }
 
@@ -351,6 +385,7 @@ void KCenterTree<M>::AddSphere(Worker& w, int node, const Hypersphere& h, int64_
   Sphere data;
   data.range = h.range;
   data.origin = origin;
+  data.sid = w.next_sid++;
   data.members = h.members;
   w.tree.NewActNode(node, std::move(a), std::move(data));
 }
@@ -428,23 +463,50 @@ template <HybridActionModel M>
 int KCenterTree<M>::Select(const Worker& w, int node) const {
   const auto& on = w.tree.obs[node];
   const double log_n = std::log(static_cast<double>(std::max<int64_t>(on.n, 1)));
+  // A sphere's value: its mean return, or with point_value its most visited point's.
+  struct Top {
+    int64_t sid, n;
+    double q;
+  };
+  std::vector<Top> top;  // per sphere id: its most visited point's visits and value
+  if (options_.point_children && options_.point_value) {
+    for (int bi : on.actions) {
+      const auto& bn = w.tree.act[bi];
+      if (bn.data.point_of == 0 || bn.n == 0) continue;
+      auto it = std::find_if(top.begin(), top.end(),
+                             [&](const Top& t) { return t.sid == bn.data.point_of; });
+      if (it == top.end()) {
+        top.push_back({bn.data.point_of, bn.n, bn.q});
+      } else if (bn.n > it->n || (bn.n == it->n && bn.q > it->q)) {
+        it->n = bn.n;
+        it->q = bn.q;
+      }
+    }
+  }
+  const auto value = [&](const auto& an) {
+    for (const Top& t : top) {
+      if (t.sid == an.data.sid) return t.q;
+    }
+    return an.q;
+  };
   double lo = std::numeric_limits<double>::infinity(), hi = -lo;
   if (options_.normalization == KctOptions::Normalization::kSiblingRange) {
     for (int ai : on.actions) {
-      if (w.tree.act[ai].n == 0) continue;
-      lo = std::min(lo, w.tree.act[ai].q);
-      hi = std::max(hi, w.tree.act[ai].q);
+      if (w.tree.act[ai].n == 0 || w.tree.act[ai].data.point_of != 0) continue;
+      lo = std::min(lo, value(w.tree.act[ai]));
+      hi = std::max(hi, value(w.tree.act[ai]));
     }
   }
-  int best = on.actions.front();
+  int best = -1;
   double best_score = -std::numeric_limits<double>::infinity();
   for (int ai : on.actions) {
     const auto& an = w.tree.act[ai];
+    if (an.data.point_of != 0) continue;
     const double q = options_.normalization == KctOptions::Normalization::kSiblingRange
-                         ? (hi > lo ? (an.q - lo) / (hi - lo) : 0.0)
-                         : Normalized(w, an.q);
+                         ? (hi > lo ? (value(an) - lo) / (hi - lo) : 0.0)
+                         : Normalized(w, value(an));
     const double score = Ucb1(q, an.n, log_n, options_.w1) + used_.w2 * an.data.range;
-    if (score > best_score) {
+    if (best < 0 || score > best_score) {
       best_score = score;
       best = ai;
     }
@@ -453,10 +515,226 @@ int KCenterTree<M>::Select(const Worker& w, int node) const {
 }
 
 template <HybridActionModel M>
+int KCenterTree<M>::SelectPoint(Worker& w, int node, int ai, const State& s) {
+  const int64_t sid = w.tree.act[ai].data.sid;
+  int count = 0, top = -1;
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (int bi : w.tree.obs[node].actions) {
+    const auto& bn = w.tree.act[bi];
+    if (bn.data.point_of != sid) continue;
+    ++count;
+    if (bn.n == 0) continue;
+    if (top < 0 || bn.q > w.tree.act[top].q) top = bi;
+    lo = std::min(lo, bn.q);
+    hi = std::max(hi, bn.q);
+  }
+  const int64_t n = w.tree.act[ai].n;
+  if (count < options_.point_k * std::pow(static_cast<double>(n + 1), options_.point_alpha)) {
+    HybridAction a;
+    if (top >= 0 && options_.point_local > 0.0 && w.rng.Bernoulli(options_.point_local)) {
+      a = w.tree.act[top].action;
+      a.x = model_.KindSpace(a.kind).SampleInBall(a.x, options_.point_local_radius, w.rng);
+    } else {
+      a = SampleFeasibleInSphere(w.tree, ai, s, w.rng);
+    }
+    Sphere data;
+    data.origin = w.tree.act[ai].data.origin;
+    data.point_of = sid;
+    return w.tree.NewActNode(node, std::move(a), std::move(data));
+  }
+  const double log_n = std::log(static_cast<double>(std::max<int64_t>(n, 1)));
+  int best = -1;
+  double best_score = -std::numeric_limits<double>::infinity();
+  for (int bi : w.tree.obs[node].actions) {
+    const auto& bn = w.tree.act[bi];
+    if (bn.data.point_of != sid) continue;
+    const double q = options_.normalization == KctOptions::Normalization::kSiblingRange
+                         ? (hi > lo ? (bn.q - lo) / (hi - lo) : 0.0)
+                         : Normalized(w, bn.q);
+    const double score = Ucb1(q, bn.n, log_n, options_.w1);
+    if (best < 0 || score > best_score) {
+      best_score = score;
+      best = bi;
+    }
+  }
+  return best;
+}
+
+template <HybridActionModel M>
+int KCenterTree<M>::SelectFlat(Worker& w, int node, const State& s, int* sphere) {
+  Tree& tree = w.tree;
+  const auto is_point = [&](int bi) {
+    const auto& bn = tree.act[bi];
+    return bn.data.point_of != 0 || model_.KindSpace(bn.action.kind).dim() == 0;
+  };
+  int points = 0;
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (int bi : tree.obs[node].actions) {
+    if (!is_point(bi)) continue;
+    ++points;
+    if (tree.act[bi].n == 0) continue;
+    lo = std::min(lo, tree.act[bi].q);
+    hi = std::max(hi, tree.act[bi].q);
+  }
+  const int64_t n = tree.obs[node].n;
+  if (points < options_.point_k * std::pow(static_cast<double>(n + 1), options_.point_alpha)) {
+    if (options_.point_voo && points > 1 && !w.rng.Bernoulli(options_.voo.uniform_probability)) {
+      // VOO: a new point in the Voronoi cell of the node's best point, in that point's sphere.
+      int best = -1;
+      std::vector<const HybridAction*> existing;
+      for (int bi : tree.obs[node].actions) {
+        if (!is_point(bi)) continue;
+        existing.push_back(&tree.act[bi].action);
+        if (tree.act[bi].n > 0 && tree.act[bi].data.point_of != 0 &&
+            (best < 0 || tree.act[bi].q > tree.act[best].q)) {
+          best = bi;
+        }
+      }
+      if (best >= 0) {
+        HybridAction a = SampleVoronoiAround(model_, s, tree.act[best].action, existing,
+                                             options_.voo, w.rng, false);
+        Sphere data;
+        data.origin = tree.act[best].data.origin;
+        data.point_of = tree.act[best].data.point_of;
+        for (int ai : tree.obs[node].actions) {
+          if (tree.act[ai].data.point_of == 0 && tree.act[ai].data.sid == data.point_of) {
+            *sphere = ai;
+          }
+        }
+        return tree.NewActNode(node, std::move(a), std::move(data));
+      }
+    }
+    // Widen: a new point where U over the spheres says, after refining the sphere when due.
+    int ai = Select(w, node);
+    if (RefinePoints(w, node, ai)) ai = Select(w, node);
+    *sphere = ai;
+    if (model_.KindSpace(tree.act[ai].action.kind).dim() == 0) return ai;
+    HybridAction a = SampleFeasibleInSphere(tree, ai, s, w.rng);
+    Sphere data;
+    data.origin = tree.act[ai].data.origin;
+    data.point_of = tree.act[ai].data.sid;
+    return tree.NewActNode(node, std::move(a), std::move(data));
+  }
+  const double log_n = std::log(static_cast<double>(std::max<int64_t>(n, 1)));
+  int best = -1;
+  double best_score = -std::numeric_limits<double>::infinity();
+  for (int bi : tree.obs[node].actions) {
+    if (!is_point(bi)) continue;
+    const auto& bn = tree.act[bi];
+    const double q = options_.normalization == KctOptions::Normalization::kSiblingRange
+                         ? (hi > lo ? (bn.q - lo) / (hi - lo) : 0.0)
+                         : Normalized(w, bn.q);
+    const double score = Ucb1(q, bn.n, log_n, options_.w1);
+    if (best < 0 || score > best_score) {
+      best_score = score;
+      best = bi;
+    }
+  }
+  *sphere = best;
+  if (const int64_t of = tree.act[best].data.point_of; of != 0) {
+    for (int ai : tree.obs[node].actions) {
+      if (tree.act[ai].data.point_of == 0 && tree.act[ai].data.sid == of) *sphere = ai;
+    }
+  }
+  return best;
+}
+
+template <HybridActionModel M>
+bool KCenterTree<M>::RefinePoints(Worker& w, int node, int ai) {
+  Tree& tree = w.tree;
+  const int kind = tree.act[ai].action.kind;
+  const BoxSpace& box = model_.KindSpace(kind);
+  const double range = tree.act[ai].data.range;
+  if (box.dim() == 0 || !(range > options_.d_lim)) return false;
+  if (static_cast<double>(tree.act[ai].n) < 1.0 / (used_.c_r * range * range)) return false;
+  const int64_t sid = tree.act[ai].data.sid;
+  std::vector<int> kids;
+  std::vector<ActionVec> points;
+  for (int bi : tree.obs[node].actions) {
+    if (tree.act[bi].data.point_of != sid) continue;
+    kids.push_back(bi);
+    points.push_back(tree.act[bi].action.x);
+  }
+  if (static_cast<int>(points.size()) < options_.k) return false;
+  const std::vector<Cluster> clusters =
+      KMeans(box, points, options_.k, w.rng, [&w] { return w.stop->ShouldStop(0); });
+  if (clusters.size() < 2) return false;
+  const auto members = SplitMembers(box, tree.act[ai].data.members, clusters);
+  const int64_t origin = tree.act[ai].data.origin;
+  std::vector<int> entry(clusters.size(), ai);
+  for (size_t j = 0; j < clusters.size(); ++j) {
+    Sphere data;
+    data.origin = origin;
+    data.range = FLim(clusters[j].radius, range, options_);
+    data.members = members[j];
+    data.sid = w.next_sid++;
+    if (j == 0) {
+      tree.act[ai].action.x = clusters[0].center;
+      tree.act[ai].data = std::move(data);
+    } else {
+      entry[j] = tree.NewActNode(node, HybridAction{kind, clusters[j].center}, std::move(data));
+    }
+  }
+  // Each new sphere's statistics are its points' records, in episode order.
+  const int dim = box.dim();
+  const double gamma = model_.Discount();
+  for (size_t j = 0; j < clusters.size(); ++j) {
+    auto& sphere = tree.act[entry[j]];
+    std::vector<std::pair<uint32_t, std::pair<int, int>>> order;  // (id, (kid, record))
+    for (int m : clusters[j].members) {
+      auto& point = tree.act[kids[m]];
+      point.data.point_of = sphere.data.sid;
+      for (size_t r = 0; r < point.data.ids.size(); ++r) {
+        order.push_back({point.data.ids[r], {kids[m], static_cast<int>(r)}});
+      }
+    }
+    std::sort(order.begin(), order.end());
+    Sphere& sp = sphere.data;
+    sphere.n = static_cast<int64_t>(order.size());
+    sphere.q = 0.0;
+    for (size_t i = 0; i < order.size(); ++i) {
+      const auto& [kid, r] = order[i].second;
+      const auto& src = tree.act[kid];
+      sp.ids.push_back(order[i].first);
+      sp.returns.push_back(src.data.returns[r]);
+      sp.rewards.push_back(src.data.rewards[r]);
+      sp.entries.push_back(-1);
+      for (int d = 0; d < dim; ++d) sp.points.push_back(src.action.x[d]);
+      double v = src.data.returns[r];
+      if (options_.backup == KctOptions::Backup::kBellman) {
+        const int e = src.data.entries[r];
+        v = src.data.rewards[r] + (e < 0 ? 0.0 : gamma * VStar(tree, src.children.child(e)));
+      }
+      sphere.q += (v - sphere.q) / static_cast<double>(i + 1);
+    }
+  }
+  ++w.refinements;
+  return true;
+}
+
+template <HybridActionModel M>
+int KCenterTree<M>::MostVisitedPoint(const Worker& w, int ai, const State& s) const {
+  const int64_t sid = w.tree.act[ai].data.sid;
+  int best = -1;
+  for (int bi : w.tree.obs[w.tree.root].actions) {
+    const auto& bn = w.tree.act[bi];
+    if (bn.data.point_of != sid || bn.n == 0) continue;
+    if (best >= 0 &&
+        (bn.n < w.tree.act[best].n || (bn.n == w.tree.act[best].n && bn.q <= w.tree.act[best].q))) {
+      continue;
+    }
+    if (IsFeasibleAction(model_, s, bn.action)) best = bi;
+  }
+  return best;
+}
+
+template <HybridActionModel M>
 double KCenterTree<M>::VStar(const Tree& tree, int node) const {
   double best = -std::numeric_limits<double>::infinity();
   for (int ai : tree.obs[node].actions) {
-    if (tree.act[ai].n > 0) best = std::max(best, tree.act[ai].q);
+    if (tree.act[ai].n > 0 && tree.act[ai].data.point_of == 0) {
+      best = std::max(best, tree.act[ai].q);
+    }
   }
   return std::isfinite(best) ? best : tree.obs[node].leaf_value;
 }
@@ -501,10 +779,24 @@ double KCenterTree<M>::Simulate(Worker& w, const State& s, int node, int depth, 
     }
     if (w.tree.obs[node].actions.empty()) return 0.0;
   }
-  const int ai = Select(w, node);
-  Refine(w, node, ai);
-  const HybridAction executed = SampleFeasibleInSphere(w.tree, ai, s, w.rng);
-  auto t = w.tree.Descend(model_, ai, executed, s, options_.observations, episode, w.rng);
+  int ai = -1;
+  int pi = -1;  // the action node descended: the sphere, or its point child
+  HybridAction executed;
+  if (options_.point_children && options_.point_flat) {
+    pi = SelectFlat(w, node, s, &ai);
+    executed = w.tree.act[pi].action;
+  } else {
+    ai = Select(w, node);
+    Refine(w, node, ai);
+    pi = ai;
+    if (options_.point_children && model_.KindSpace(w.tree.act[ai].action.kind).dim() > 0) {
+      pi = SelectPoint(w, node, ai, s);
+      executed = w.tree.act[pi].action;
+    } else {
+      executed = SampleFeasibleInSphere(w.tree, ai, s, w.rng);
+    }
+  }
+  auto t = w.tree.Descend(model_, pi, executed, s, options_.observations, episode, w.rng);
   const double gamma = model_.Discount();
   double total = t.reward;
   if (!t.terminal) {
@@ -516,25 +808,27 @@ double KCenterTree<M>::Simulate(Worker& w, const State& s, int node, int depth, 
       total += gamma * Simulate(w, t.state, t.child, depth + 1, episode);
     }
   }
-  // Backup (algorithm 6).
+  // Backup (algorithm 6), of the sphere and of its point child; a sphere with point children
+  // records no child entries (the subtree is the point's).
   ++w.tree.obs[node].n;
-  auto& an = w.tree.act[ai];
-  ++an.n;
-  if (options_.backup == KctOptions::Backup::kMonteCarlo) {
-    an.q += (total - an.q) / static_cast<double>(an.n);
-  } else {
-    const double target = t.reward + (t.terminal ? 0.0 : gamma * VStar(w.tree, t.child));
+  const double target = options_.backup == KctOptions::Backup::kMonteCarlo
+                            ? total
+                            : t.reward + (t.terminal ? 0.0 : gamma * VStar(w.tree, t.child));
+  for (int bi : {ai, pi}) {
+    auto& an = w.tree.act[bi];
+    ++an.n;
     an.q += (target - an.q) / static_cast<double>(an.n);
-  }
-  w.vmin = std::min({w.vmin, total, an.q});
-  w.vmax = std::max({w.vmax, total, an.q});
-  Sphere& sp = w.tree.act[ai].data;
-  sp.ids.push_back(episode);
-  sp.returns.push_back(total);
-  sp.rewards.push_back(t.reward);
-  sp.entries.push_back(t.terminal ? -1 : t.entry);
-  for (int i = 0; i < executed.x.size(); ++i) {
-    sp.points.push_back(static_cast<float>(executed.x[i]));
+    w.vmin = std::min({w.vmin, total, an.q});
+    w.vmax = std::max({w.vmax, total, an.q});
+    Sphere& sp = an.data;
+    sp.ids.push_back(episode);
+    sp.returns.push_back(total);
+    sp.rewards.push_back(t.reward);
+    sp.entries.push_back(t.terminal || bi != pi ? -1 : t.entry);
+    for (int i = 0; i < executed.x.size(); ++i) {
+      sp.points.push_back(static_cast<float>(executed.x[i]));
+    }
+    if (pi == ai) break;
   }
   return total;
 }
@@ -563,34 +857,16 @@ void KCenterTree<M>::Refine(Worker& w, int node, int ai) {
     for (int m : clusters[j].members) ids[j].push_back(data.ids[m]);
     std::sort(ids[j].begin(), ids[j].end());
   }
-  // The candidates the sphere covers go to the nearest new center.
-  std::vector<std::shared_ptr<const std::vector<ActionVec>>> members(clusters.size());
-  if (const auto& parent = tree.act[ai].data.members; parent && !parent->empty()) {
-    std::vector<std::vector<ActionVec>> split(clusters.size());
-    for (const ActionVec& m : *parent) {
-      size_t nearest = 0;
-      double best = std::numeric_limits<double>::infinity();
-      for (size_t j = 0; j < clusters.size(); ++j) {
-        const double d = box.SquaredDistance(m, clusters[j].center);
-        if (d < best) {
-          best = d;
-          nearest = j;
-        }
-      }
-      split[nearest].push_back(m);
-    }
-    for (size_t j = 0; j < clusters.size(); ++j) {
-      if (!split[j].empty()) {
-        members[j] = std::make_shared<const std::vector<ActionVec>>(std::move(split[j]));
-      }
-    }
-  }
+  const auto members = SplitMembers(box, tree.act[ai].data.members, clusters);
   // New spheres 2..k get filtered copies of the subtree; sphere 1 replaces the original.
+  const int64_t old_sid = tree.act[ai].data.sid;
+  std::vector<int64_t> sids(clusters.size());
   for (size_t j = 1; j < clusters.size(); ++j) {
     const int copy = CopyAction(w, ai, ids[j]);
     tree.act[copy].action.x = clusters[j].center;
     tree.act[copy].data.range = FLim(clusters[j].radius, range, options_);
     tree.act[copy].data.members = members[j];
+    tree.act[copy].data.sid = sids[j] = w.next_sid++;
     tree.obs[node].actions.push_back(copy);
   }
   const int first = CopyAction(w, ai, ids[0]);
@@ -599,7 +875,46 @@ void KCenterTree<M>::Refine(Worker& w, int node, int ai) {
   tree.act[ai].action.x = clusters[0].center;
   tree.act[ai].data.range = FLim(clusters[0].radius, range, options_);
   tree.act[ai].data.members = members[0];
+  tree.act[ai].data.sid = sids[0] = w.next_sid++;
+  // Point children follow their episodes (all of a point's records, one point, one cluster).
+  for (int bi : tree.obs[node].actions) {
+    Sphere& p = tree.act[bi].data;
+    if (p.point_of != old_sid || p.point_of == 0) continue;
+    p.point_of = sids[0];
+    if (p.ids.empty()) continue;
+    for (size_t j = 0; j < clusters.size(); ++j) {
+      if (Contains(ids[j], p.ids.front())) p.point_of = sids[j];
+    }
+  }
   ++w.refinements;
+}
+
+template <HybridActionModel M>
+auto KCenterTree<M>::SplitMembers(const BoxSpace& box,
+                                  const std::shared_ptr<const std::vector<ActionVec>>& parent,
+                                  const std::vector<Cluster>& clusters)
+    -> std::vector<std::shared_ptr<const std::vector<ActionVec>>> {
+  std::vector<std::shared_ptr<const std::vector<ActionVec>>> members(clusters.size());
+  if (!parent || parent->empty()) return members;
+  std::vector<std::vector<ActionVec>> split(clusters.size());
+  for (const ActionVec& m : *parent) {
+    size_t nearest = 0;
+    double best = std::numeric_limits<double>::infinity();
+    for (size_t j = 0; j < clusters.size(); ++j) {
+      const double d = box.SquaredDistance(m, clusters[j].center);
+      if (d < best) {
+        best = d;
+        nearest = j;
+      }
+    }
+    split[nearest].push_back(m);
+  }
+  for (size_t j = 0; j < clusters.size(); ++j) {
+    if (!split[j].empty()) {
+      members[j] = std::make_shared<const std::vector<ActionVec>>(std::move(split[j]));
+    }
+  }
+  return members;
 }
 
 template <HybridActionModel M>
@@ -724,6 +1039,7 @@ bool KCenterTree<M>::ChooseRootEntry(const std::set<std::pair<int, int>>& exclud
     for (int ai : w.tree.obs[w.tree.root].actions) {
       if (excluded.count({t, ai})) continue;
       const auto& an = w.tree.act[ai];
+      if (an.data.point_of != 0) continue;
       Group& g = groups[an.data.origin];
       g.n += an.n;
       g.q_sum += an.q * static_cast<double>(an.n);
@@ -756,7 +1072,9 @@ bool KCenterTree<M>::ChooseRootEntry(const std::set<std::pair<int, int>>& exclud
     if (w.tree.root < 0) continue;
     for (int ai : w.tree.obs[w.tree.root].actions) {
       const auto& an = w.tree.act[ai];
-      if (an.data.origin != best_origin || excluded.count({t, ai})) continue;
+      if (an.data.origin != best_origin || an.data.point_of != 0 || excluded.count({t, ai})) {
+        continue;
+      }
       double key = an.q;
       if (by_bound) {
         Moments m;
@@ -853,7 +1171,9 @@ bool KCenterTree<M>::RegressedPoint(const Worker& w, int ai, const State& s,
     if (other.tree.root < 0) continue;
     for (int bi : other.tree.obs[other.tree.root].actions) {
       const auto& bn = other.tree.act[bi];
-      if (bn.action.kind != an.action.kind || bn.data.points.empty()) continue;
+      if (bn.action.kind != an.action.kind || bn.data.points.empty() || bn.data.point_of != 0) {
+        continue;
+      }
       for (size_t r = 0; r < bn.data.ids.size(); ++r) {
         for (int i = 0; i < dim; ++i) point[i] = bn.data.points[r * dim + i];
         const ActionVec delta = box.Difference(point, an.action.x);
@@ -972,10 +1292,15 @@ Status KCenterTree<M>::CheckTree(const Tree& tree) const {
     stack.pop_back();
     const auto& on = tree.obs[node];
     int64_t sum = 0;
+    std::map<int64_t, int64_t> point_visits;  // sphere id -> visits of its point children
     for (int ai : on.actions) {
       const auto& an = tree.act[ai];
-      sum += an.n;
       const auto& d = an.data;
+      if (d.point_of != 0) {
+        point_visits[d.point_of] += an.n;
+      } else {
+        sum += an.n;
+      }
       if (an.n != static_cast<int64_t>(d.ids.size())) {
         return InternalError("sphere visit count differs from its recorded episodes");
       }
@@ -983,7 +1308,7 @@ Status KCenterTree<M>::CheckTree(const Tree& tree) const {
         return InternalError("episode ids out of order");
       }
       const bool continuous = model_.KindSpace(an.action.kind).dim() > 0;
-      if (continuous && d.range < options_.d_lim * (1 - 1e-12)) {
+      if (continuous && d.point_of == 0 && d.range < options_.d_lim * (1 - 1e-12)) {
         return InternalError("sphere range below d_lim");
       }
       if (options_.backup == KctOptions::Backup::kMonteCarlo && an.n > 0) {
@@ -1009,6 +1334,18 @@ Status KCenterTree<M>::CheckTree(const Tree& tree) const {
       for (int k = 0; k < an.children.size(); ++k) stack.push_back(an.children.child(k));
     }
     if (sum != on.n) return InternalError("N(node) differs from the sum of N(node, a)");
+    if (options_.point_children) {
+      for (int ai : on.actions) {
+        const auto& an = tree.act[ai];
+        if (an.data.point_of != 0 || model_.KindSpace(an.action.kind).dim() == 0) continue;
+        const auto it = point_visits.find(an.data.sid);
+        if (an.n != (it == point_visits.end() ? 0 : it->second)) {
+          return InternalError("a sphere's visits differ from its point children's");
+        }
+        if (it != point_visits.end()) point_visits.erase(it);
+      }
+      if (!point_visits.empty()) return InternalError("a point child without its sphere");
+    }
   }
   return OkStatus();
 }
