@@ -35,7 +35,11 @@ OptionList Sorted(OptionList list) {
 // ---- kCT (npfkct, kct) ----
 
 KctOptions KctDefaults() {
-  KctOptions o;  // paper defaults: k = 3, w1 = sqrt 2, D_lim = 0.2, w1_bar 0.6, w2_bar 0.3
+  KctOptions o;  // paper defaults: k = 3, w1 = sqrt 2, w1_bar 0.6, w2_bar 0.3
+  // The paper's tree: spheres whose draws share a subtree, D_lim = 0.2. The library's point
+  // children (docs/experiments.md, "Flat points") were measured on VDP Tag, not on the scenes.
+  o.point_children = false;
+  o.d_lim = 0.2;
   o.search.max_depth = kMaxDepth;
   o.search.num_particles = kParticles;
   o.observations.enabled = false;

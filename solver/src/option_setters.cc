@@ -175,12 +175,6 @@ const Table<KctOptions>& KctTable() {
         {"point_children", Bool(&KctOptions::point_children)},
         {"point_k", Real(&KctOptions::point_k)},
         {"point_alpha", Real(&KctOptions::point_alpha)},
-        {"point_value", Bool(&KctOptions::point_value)},
-        {"point_final", Bool(&KctOptions::point_final)},
-        {"point_local", Real(&KctOptions::point_local)},
-        {"point_local_radius", Real(&KctOptions::point_local_radius)},
-        {"point_flat", Bool(&KctOptions::point_flat)},
-        {"point_voo", Bool(&KctOptions::point_voo)},
     };
     AddSearch(t);
     AddWidening(t);

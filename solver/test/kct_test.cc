@@ -69,7 +69,8 @@ TEST(KctOptionsTest, ValidateNamesTheOption) {
 }
 
 TEST(KctTest, FLimClampsToTheRefinementRate) {
-  KctOptions o;  // w1_bar 0.6, w2_bar 0.3, d_lim 0.2
+  KctOptions o;  // w1_bar 0.6, w2_bar 0.3
+  o.d_lim = 0.2;
   EXPECT_DOUBLE_EQ(FLim(0.9, 1.0, o), 0.6);
   EXPECT_DOUBLE_EQ(FLim(0.45, 1.0, o), 0.45);
   EXPECT_DOUBLE_EQ(FLim(0.1, 1.0, o), 0.3);
@@ -79,7 +80,9 @@ TEST(KctTest, FLimClampsToTheRefinementRate) {
 TEST(KctTest, RefinesTowardsThePeakAndKeepsStatisticsConsistent) {
   PeakSearch model;
   Rng rng(1);
-  KCenterTree<PeakSearch> planner(model, PeakOptions());
+  KctOptions o = PeakOptions();
+  o.point_children = false;  // the paper's tree: refinement copies the subtree
+  KCenterTree<PeakSearch> planner(model, o);
   planner.Reset(rng);
   auto d = planner.Plan(Budget::Simulations(20000), rng);
   ASSERT_TRUE(d.status.ok()) << d.status.ToString();
@@ -119,6 +122,7 @@ TEST(KctTest, LowerBoundFinalChoiceWeighsTheSpreadOfTheReturns) {
   auto run = [&](KctOptions::FinalChoice choice, double lcb) {
     Rng rng(4);
     KctOptions o = PeakOptions();
+    o.point_children = false;  // the final choice among spheres is the paper's tree's
     o.final_choice = choice;
     o.final_lcb = lcb;
     KCenterTree<PeakSearch> planner(model, o);
@@ -190,49 +194,14 @@ TEST(KctTest, TreeReuseKeepsTheSubtreeAndAddsNewSpheres) {
   EXPECT_TRUE(planner.CheckInvariants().ok());
 }
 
-TEST(KctTest, PointChildrenFindThePeakAndKeepTheirSubtreesThroughRefinementAndReuse) {
-  PeakSearch model;
-  Rng rng(11);
-  KctOptions o = PeakOptions();
-  o.point_children = true;
-  KCenterTree<PeakSearch> planner(model, o);
-  planner.Reset(rng);
-  auto d = planner.Plan(Budget::Simulations(20000), rng);
-  ASSERT_TRUE(d.status.ok()) << d.status.ToString();
-  EXPECT_GT(d.stats.refinements, 5);
-  ASSERT_EQ(d.action.kind, 0);
-  EXPECT_LT((d.action.x - model.Peak(0)).norm(), 0.15);
-  // Every sphere's visits are its point children's, after the refinements moved them.
-  Status invariants = planner.CheckInvariants();
-  EXPECT_TRUE(invariants.ok()) << invariants.ToString();
-  // The root list and the decision's statistics hold spheres only.
-  int64_t visits = 0;
-  for (const auto& r : d.root) visits += r.visits;
-  EXPECT_EQ(visits, planner.RootVisits());
-  EXPECT_EQ(d.root.size(), planner.RootList().size());
-  // The executed action is a point the search tried: its subtree is kept.
-  Rng sim(12);
-  auto step = model.Step(0, d.action, sim);
-  planner.Advance(d.action, step.observation, rng);
-  EXPECT_GT(planner.RootVisits(), 100);
-  EXPECT_TRUE(planner.CheckInvariants().ok());
-  auto d2 = planner.Plan(Budget::Simulations(1000), rng);
-  ASSERT_TRUE(d2.status.ok());
-  EXPECT_TRUE(planner.CheckInvariants().ok());
-}
-
-TEST(KctTest, FlatPointsRefineTheirSpheresWithoutCopies) {
+TEST(KctTest, PointChildrenFindThePeakAndRefineTheirSpheresWithoutCopies) {
   PeakSearch model;
   Rng rng(17);
-  KctOptions o = PeakOptions();
-  o.point_children = true;
-  o.point_flat = true;
+  KctOptions o = PeakOptions();  // point children by default
   o.point_k = 8.0;
   o.point_alpha = 0.25;
-  o.point_final = true;
   for (int threads : {1, 2}) {
     o.search.threads = threads;
-    o.point_voo = threads == 2;
     KCenterTree<PeakSearch> planner(model, o);
     planner.Reset(rng);
     auto d = planner.Plan(Budget::Simulations(20000), rng);
@@ -240,31 +209,28 @@ TEST(KctTest, FlatPointsRefineTheirSpheresWithoutCopies) {
     EXPECT_GT(d.stats.refinements, 3);
     ASSERT_EQ(d.action.kind, 0);
     EXPECT_LT((d.action.x - model.Peak(0)).norm(), 0.15);
-    // The spheres' records are their points' records, through the refinements.
+    // The spheres' visits and records are their points', through the refinements.
     Status invariants = planner.CheckInvariants();
     EXPECT_TRUE(invariants.ok()) << invariants.ToString();
+    // The root list and the decision's statistics (one tree's) hold spheres only.
+    int64_t visits = 0;
+    for (const auto& r : d.root) visits += r.visits;
+    if (threads == 1) {
+      EXPECT_EQ(visits, planner.RootVisits());
+      EXPECT_EQ(d.root.size(), planner.RootList().size());
+    }
+    // The executed action is a point the search tried: its subtree is kept.
     Rng sim(18);
     auto step = model.Step(0, d.action, sim);
     planner.Advance(d.action, step.observation, rng);
+    if (threads == 1) {
+      EXPECT_GT(planner.RootVisits(), 100);
+    }
+    EXPECT_TRUE(planner.CheckInvariants().ok());
     auto d2 = planner.Plan(Budget::Simulations(1000), rng);
     ASSERT_TRUE(d2.status.ok());
     EXPECT_TRUE(planner.CheckInvariants().ok());
   }
-}
-
-TEST(KctTest, PointChildrenUnderRootParallelSearch) {
-  PeakSearch model;
-  Rng rng(13);
-  KctOptions o = PeakOptions();
-  o.point_children = true;
-  o.search.threads = 2;
-  KCenterTree<PeakSearch> planner(model, o);
-  planner.Reset(rng);
-  auto d = planner.Plan(Budget::Simulations(20000), rng);
-  ASSERT_TRUE(d.status.ok()) << d.status.ToString();
-  ASSERT_EQ(d.action.kind, 0);
-  EXPECT_LT((d.action.x - model.Peak(0)).norm(), 0.15);
-  EXPECT_TRUE(planner.CheckInvariants().ok());
 }
 
 // A sampler that proposes only points near one spot, as a trained filter would.

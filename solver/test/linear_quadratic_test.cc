@@ -142,7 +142,7 @@ TEST(LinearQuadraticTest, RolloutFirstPlannersLandNearThePublishedLqgOptimum) {
       o.search.max_depth = 3;
       o.search.num_particles = 1000;
       o.search.rollout_first = first;
-      o.final_action = KctOptions::FinalAction::kUniformInSphere;  // one sphere's point
+      o.final_action = KctOptions::FinalAction::kUniformInSphere;  // no fit: a point tried
       KCenterTree<LinearQuadratic> planner(model, o);
       Rng rng(seed);
       planner.Reset(rng);
@@ -159,7 +159,7 @@ TEST(LinearQuadraticTest, RolloutFirstPlannersLandNearThePublishedLqgOptimum) {
   // Published: POMCPOW 0.277, VOMCPOW 0.246 (1,000 plans); a uniform action of the box lies about
   // 9 away on average.
   EXPECT_LT(pomcpow, 0.45);
-  // kCT keeps the rollout's action as a root sphere of radius D_lim (0.2).
+  // kCT keeps the rollout's action at the root, as a sphere of radius D_lim and its point.
   EXPECT_LT(kct, 0.2);
   // Without it kCT's root visits spread over the whole box (docs/experiments.md): coarser.
   EXPECT_LT(kct_default, 2.0);
@@ -192,8 +192,7 @@ TEST(LinearQuadraticTest, KctsRegressedFinalActionFindsThePublishedLqgOptimum) {
   }
   const double fit = MeanWithInterval(regressed).mean;
   const double sphere = MeanWithInterval(uniform).mean;
-  std::printf("mean distance to (6, -6): regressed %.3f, uniform in the sphere %.3f\n", fit,
-              sphere);
+  std::printf("mean distance to (6, -6): regressed %.3f, without the fit %.3f\n", fit, sphere);
   EXPECT_LT(fit, 0.25);  // the acceptance figure
   EXPECT_LT(fit, 0.5 * sphere);
 }

@@ -15,6 +15,12 @@
 // rule; or the most visited one). With search.threads > 1, that many
 // independent trees search the same belief from the same initial spheres (root parallelism) and
 // the root statistics of spheres descending from the same initial sphere are merged.
+//
+// That is the paper's tree (KctOptions::point_children = false). By default every point drawn is
+// an action node of its own (point children): the tree picks among a node's points by U, widens
+// the node progressively, and asks the spheres where the next point goes; a sphere's refinement
+// regroups its points by k-means and copies nothing. The spheres keep the paper's role (where to
+// look, how finely), the points keep what each action earned.
 #pragma once
 
 #include <algorithm>
@@ -74,8 +80,11 @@ struct KctOptions {
   double c_r = 0.05;
   /// The share of N_p in appendix J's C_r rule (30% to 50% there).
   double refine_share = 0.4;
-  /// Minimum radius D_lim: spheres of this range or less are never refined.
-  double d_lim = 0.2;
+  /// Minimum radius D_lim: spheres of this range or less are never refined. The paper's 0.2 (its
+  /// appendix J, for a Fetch's configuration) stops the spheres at a fifth of a radian, wider than
+  /// the headings VDP Tag needs; with point children (below) a small sphere costs no subtree, so
+  /// the default is a tenth of it. Object search keeps the paper's 0.2.
+  double d_lim = 0.02;
   /// f_lim coefficients: refined radii are clamped to [w2_bar, w1_bar] x the parent range.
   double w1_bar = 0.6;
   double w2_bar = 0.3;
@@ -125,39 +134,21 @@ struct KctOptions {
   /// Draws tried inside the tree to find a point of a sphere that passes the model's
   /// reasonability check (1: no check in the tree, the paper's behaviour).
   int tree_feasibility_tries = 1;
-  /// Point children: a sphere chosen in the tree executes one of its own points, each an action
-  /// node with its own subtree, widened progressively (a new point while the sphere has fewer
-  /// than point_k N^point_alpha of them, else UCB1 over them). Without them every point drawn in
-  /// a sphere shares the sphere's subtree. The executed action is then the most visited point of
-  /// the chosen sphere.
-  bool point_children = false;
-  /// With point_children: the progressive widening's coefficient.
-  double point_k = 1.0;
+  /// Point children: every point the search draws is an action node with its own subtree, and
+  /// the tree picks among all of a node's points by U (one bandit per node), widening the node
+  /// progressively (a new point while it has fewer than point_k N^point_alpha); the spheres decide
+  /// where a new point is drawn (U over the spheres with the range term, then Action_sam in the
+  /// chosen one), and a refinement splits a sphere by k-means of its points and reassigns them,
+  /// copying no subtree. The executed action is the root's most visited point (or, with
+  /// kRegression, the fitted maximiser around its sphere); final_choice is the paper tree's.
+  /// False: the paper's tree, where every point drawn in a sphere shares the sphere's subtree. On
+  /// VDP Tag at 1 s the points lift kCT by about 10 (docs/experiments.md, "Flat points").
+  bool point_children = true;
+  /// With point_children: the progressive widening's coefficient (default: POMCPOW's VDP Tag
+  /// action widening, 30 N^(1/30)).
+  double point_k = 30.0;
   /// With point_children: the progressive widening's exponent.
-  double point_alpha = 0.5;
-  /// With point_children: a sphere's value in U is its most visited point's (not the mean over
-  /// all its points).
-  bool point_value = false;
-  /// With point_children: the executed action is the most visited point of the root, whatever its
-  /// sphere.
-  bool point_final = false;
-  /// With point_children: the share of new points drawn within point_local_radius of the sphere's
-  /// best point (by mean return) rather than in the whole sphere (VOO's local proposals).
-  double point_local = 0.0;
-  /// With point_local: the radius of the ball around the best point.
-  double point_local_radius = 0.3;
-  /// With point_children: the tree picks among all of a node's points by U (flat, one bandit per
-  /// node), widening the node progressively (a new point while it has fewer than point_k
-  /// N^point_alpha); the spheres decide where a new point is drawn (U over the spheres, then
-  /// Action_sam in the chosen one), and a refinement splits a sphere by k-means of its points and
-  /// reassigns them, copying no subtree.
-  bool point_flat = false;
-  /// With point_flat: new points as VOMCPOW proposes them (VOO): with probability 1 -
-  /// voo.uniform_probability in the Voronoi cell of the node's best point, else where the spheres
-  /// say.
-  bool point_voo = false;
-  /// With point_voo: the Voronoi proposals' settings.
-  VooOptions voo;
+  double point_alpha = 1.0 / 30.0;
   /// Observation branching.
   ObservationWidening observations;
 
@@ -214,9 +205,6 @@ struct KctOptions {
     }
     if (!(point_alpha >= 0.0 && point_alpha <= 1.0)) {
       return InvalidArgumentError("point_alpha must be in [0, 1]");
-    }
-    if (point_voo) {
-      if (Status s = voo.Validate(); !s.ok()) return Prefixed("voo", s);
     }
     return Prefixed("observations", observations.Validate());
   }
@@ -422,15 +410,11 @@ class KCenterTree : public PlannerBase<KCenterTree<M>, M, KctOptions> {
 
   int Select(const Worker& w, int node) const;
 
-  // With point_children: the point child of sphere `ai` to execute (a new one while the widening
-  // allows, else by UCB1 over the sphere's points).
-  int SelectPoint(Worker& w, int node, int ai, const State& s);
-
-  // With point_flat: the action node to descend (a point, or a discrete entry) and in *sphere
+  // With point_children: the action node to descend (a point, or a discrete entry) and in *sphere
   // the entry whose statistics it also updates (itself for a discrete entry).
   int SelectFlat(Worker& w, int node, const State& s, int* sphere);
 
-  // With point_flat: Refine by k-means of the sphere's points; returns false when not due.
+  // With point_children: Refine by k-means of the sphere's points; returns false when not due.
   bool RefinePoints(Worker& w, int node, int ai);
 
   // With point_children: the most visited feasible point child of root sphere `ai` (-1: none).

@@ -163,19 +163,30 @@ Status KCenterTree<M>::Decide(const TerminationCondition& stop, Rng& rng, Decisi
   int chosen_worker = 0, best = -1, point = -1;
   std::set<std::pair<int, int>> excluded;
   bool executable = false;
-  if (options_.point_children && options_.point_final) {
-    // The most visited point of the root (first worker's tree), its sphere as the entry.
+  if (options_.point_children) {
+    // The most visited point or discrete action of the root (first worker's tree); a point's
+    // sphere is the entry. Without points (discrete actions only) final_choice decides.
     const Worker& w = workers_[0];
+    int top = -1;
+    bool points = false;
     for (int bi : w.tree.obs[w.tree.root].actions) {
       const auto& bn = w.tree.act[bi];
-      if (bn.data.point_of == 0 || bn.n == 0) continue;
-      if (point >= 0 && (bn.n < w.tree.act[point].n ||
-                         (bn.n == w.tree.act[point].n && bn.q <= w.tree.act[point].q))) {
+      const bool discrete = model_.KindSpace(bn.action.kind).dim() == 0;
+      if ((bn.data.point_of == 0 && !discrete) || bn.n == 0) continue;
+      points = points || !discrete;
+      if (top >= 0 &&
+          (bn.n < w.tree.act[top].n || (bn.n == w.tree.act[top].n && bn.q <= w.tree.act[top].q))) {
         continue;
       }
-      if (IsFeasibleAction(model_, s0, bn.action)) point = bi;
+      if (IsFeasibleAction(model_, s0, bn.action)) top = bi;
     }
-    if (point >= 0) {
+    if (!points) top = -1;
+    if (top >= 0 && w.tree.act[top].data.point_of == 0) {
+      best = top;
+      d->action = w.tree.act[top].action;
+      executable = true;
+    } else if (top >= 0) {
+      point = top;
       for (int ai : w.tree.obs[w.tree.root].actions) {
         if (w.tree.act[ai].data.point_of == 0 &&
             w.tree.act[ai].data.sid == w.tree.act[point].data.point_of) {
@@ -185,6 +196,13 @@ Status KCenterTree<M>::Decide(const TerminationCondition& stop, Rng& rng, Decisi
       d->action = w.tree.act[point].action;
       executable = best >= 0;
       if (!executable) point = -1;
+      // A quadratic fitted to the records around the point's sphere, where it explains them,
+      // finds the optimum between the points (the linear-quadratic benchmark's first action).
+      HybridAction regressed;
+      if (executable && options_.final_action == KctOptions::FinalAction::kRegression &&
+          RegressedPoint(w, best, s0, &regressed)) {
+        d->action = std::move(regressed);
+      }
     }
   }
   for (int tried = 0;
@@ -233,7 +251,7 @@ Status KCenterTree<M>::Decide(const TerminationCondition& stop, Rng& rng, Decisi
   Worker& cw = workers_[chosen_worker];
   const auto& an = cw.tree.act[best];
   if (!executable) d->action = an.action;
-  d->value = an.q;
+  d->value = point >= 0 ? cw.tree.act[point].q : an.q;
   for (int ai : cw.tree.obs[cw.tree.root].actions) {
     const auto& e = cw.tree.act[ai];
     if (e.data.point_of == 0) d->root.push_back({e.action, e.n, e.q});
@@ -463,38 +481,12 @@ template <HybridActionModel M>
 int KCenterTree<M>::Select(const Worker& w, int node) const {
   const auto& on = w.tree.obs[node];
   const double log_n = std::log(static_cast<double>(std::max<int64_t>(on.n, 1)));
-  // A sphere's value: its mean return, or with point_value its most visited point's.
-  struct Top {
-    int64_t sid, n;
-    double q;
-  };
-  std::vector<Top> top;  // per sphere id: its most visited point's visits and value
-  if (options_.point_children && options_.point_value) {
-    for (int bi : on.actions) {
-      const auto& bn = w.tree.act[bi];
-      if (bn.data.point_of == 0 || bn.n == 0) continue;
-      auto it = std::find_if(top.begin(), top.end(),
-                             [&](const Top& t) { return t.sid == bn.data.point_of; });
-      if (it == top.end()) {
-        top.push_back({bn.data.point_of, bn.n, bn.q});
-      } else if (bn.n > it->n || (bn.n == it->n && bn.q > it->q)) {
-        it->n = bn.n;
-        it->q = bn.q;
-      }
-    }
-  }
-  const auto value = [&](const auto& an) {
-    for (const Top& t : top) {
-      if (t.sid == an.data.sid) return t.q;
-    }
-    return an.q;
-  };
   double lo = std::numeric_limits<double>::infinity(), hi = -lo;
   if (options_.normalization == KctOptions::Normalization::kSiblingRange) {
     for (int ai : on.actions) {
       if (w.tree.act[ai].n == 0 || w.tree.act[ai].data.point_of != 0) continue;
-      lo = std::min(lo, value(w.tree.act[ai]));
-      hi = std::max(hi, value(w.tree.act[ai]));
+      lo = std::min(lo, w.tree.act[ai].q);
+      hi = std::max(hi, w.tree.act[ai].q);
     }
   }
   int best = -1;
@@ -503,58 +495,12 @@ int KCenterTree<M>::Select(const Worker& w, int node) const {
     const auto& an = w.tree.act[ai];
     if (an.data.point_of != 0) continue;
     const double q = options_.normalization == KctOptions::Normalization::kSiblingRange
-                         ? (hi > lo ? (value(an) - lo) / (hi - lo) : 0.0)
-                         : Normalized(w, value(an));
+                         ? (hi > lo ? (an.q - lo) / (hi - lo) : 0.0)
+                         : Normalized(w, an.q);
     const double score = Ucb1(q, an.n, log_n, options_.w1) + used_.w2 * an.data.range;
     if (best < 0 || score > best_score) {
       best_score = score;
       best = ai;
-    }
-  }
-  return best;
-}
-
-template <HybridActionModel M>
-int KCenterTree<M>::SelectPoint(Worker& w, int node, int ai, const State& s) {
-  const int64_t sid = w.tree.act[ai].data.sid;
-  int count = 0, top = -1;
-  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-  for (int bi : w.tree.obs[node].actions) {
-    const auto& bn = w.tree.act[bi];
-    if (bn.data.point_of != sid) continue;
-    ++count;
-    if (bn.n == 0) continue;
-    if (top < 0 || bn.q > w.tree.act[top].q) top = bi;
-    lo = std::min(lo, bn.q);
-    hi = std::max(hi, bn.q);
-  }
-  const int64_t n = w.tree.act[ai].n;
-  if (count < options_.point_k * std::pow(static_cast<double>(n + 1), options_.point_alpha)) {
-    HybridAction a;
-    if (top >= 0 && options_.point_local > 0.0 && w.rng.Bernoulli(options_.point_local)) {
-      a = w.tree.act[top].action;
-      a.x = model_.KindSpace(a.kind).SampleInBall(a.x, options_.point_local_radius, w.rng);
-    } else {
-      a = SampleFeasibleInSphere(w.tree, ai, s, w.rng);
-    }
-    Sphere data;
-    data.origin = w.tree.act[ai].data.origin;
-    data.point_of = sid;
-    return w.tree.NewActNode(node, std::move(a), std::move(data));
-  }
-  const double log_n = std::log(static_cast<double>(std::max<int64_t>(n, 1)));
-  int best = -1;
-  double best_score = -std::numeric_limits<double>::infinity();
-  for (int bi : w.tree.obs[node].actions) {
-    const auto& bn = w.tree.act[bi];
-    if (bn.data.point_of != sid) continue;
-    const double q = options_.normalization == KctOptions::Normalization::kSiblingRange
-                         ? (hi > lo ? (bn.q - lo) / (hi - lo) : 0.0)
-                         : Normalized(w, bn.q);
-    const double score = Ucb1(q, bn.n, log_n, options_.w1);
-    if (best < 0 || score > best_score) {
-      best_score = score;
-      best = bi;
     }
   }
   return best;
@@ -578,32 +524,6 @@ int KCenterTree<M>::SelectFlat(Worker& w, int node, const State& s, int* sphere)
   }
   const int64_t n = tree.obs[node].n;
   if (points < options_.point_k * std::pow(static_cast<double>(n + 1), options_.point_alpha)) {
-    if (options_.point_voo && points > 1 && !w.rng.Bernoulli(options_.voo.uniform_probability)) {
-      // VOO: a new point in the Voronoi cell of the node's best point, in that point's sphere.
-      int best = -1;
-      std::vector<const HybridAction*> existing;
-      for (int bi : tree.obs[node].actions) {
-        if (!is_point(bi)) continue;
-        existing.push_back(&tree.act[bi].action);
-        if (tree.act[bi].n > 0 && tree.act[bi].data.point_of != 0 &&
-            (best < 0 || tree.act[bi].q > tree.act[best].q)) {
-          best = bi;
-        }
-      }
-      if (best >= 0) {
-        HybridAction a = SampleVoronoiAround(model_, s, tree.act[best].action, existing,
-                                             options_.voo, w.rng, false);
-        Sphere data;
-        data.origin = tree.act[best].data.origin;
-        data.point_of = tree.act[best].data.point_of;
-        for (int ai : tree.obs[node].actions) {
-          if (tree.act[ai].data.point_of == 0 && tree.act[ai].data.sid == data.point_of) {
-            *sphere = ai;
-          }
-        }
-        return tree.NewActNode(node, std::move(a), std::move(data));
-      }
-    }
     // Widen: a new point where U over the spheres says, after refining the sphere when due.
     int ai = Select(w, node);
     if (RefinePoints(w, node, ai)) ai = Select(w, node);
@@ -782,19 +702,14 @@ double KCenterTree<M>::Simulate(Worker& w, const State& s, int node, int depth, 
   int ai = -1;
   int pi = -1;  // the action node descended: the sphere, or its point child
   HybridAction executed;
-  if (options_.point_children && options_.point_flat) {
+  if (options_.point_children) {
     pi = SelectFlat(w, node, s, &ai);
     executed = w.tree.act[pi].action;
   } else {
     ai = Select(w, node);
     Refine(w, node, ai);
     pi = ai;
-    if (options_.point_children && model_.KindSpace(w.tree.act[ai].action.kind).dim() > 0) {
-      pi = SelectPoint(w, node, ai, s);
-      executed = w.tree.act[pi].action;
-    } else {
-      executed = SampleFeasibleInSphere(w.tree, ai, s, w.rng);
-    }
+    executed = SampleFeasibleInSphere(w.tree, ai, s, w.rng);
   }
   auto t = w.tree.Descend(model_, pi, executed, s, options_.observations, episode, w.rng);
   const double gamma = model_.Discount();
@@ -859,14 +774,12 @@ void KCenterTree<M>::Refine(Worker& w, int node, int ai) {
   }
   const auto members = SplitMembers(box, tree.act[ai].data.members, clusters);
   // New spheres 2..k get filtered copies of the subtree; sphere 1 replaces the original.
-  const int64_t old_sid = tree.act[ai].data.sid;
-  std::vector<int64_t> sids(clusters.size());
   for (size_t j = 1; j < clusters.size(); ++j) {
     const int copy = CopyAction(w, ai, ids[j]);
     tree.act[copy].action.x = clusters[j].center;
     tree.act[copy].data.range = FLim(clusters[j].radius, range, options_);
     tree.act[copy].data.members = members[j];
-    tree.act[copy].data.sid = sids[j] = w.next_sid++;
+    tree.act[copy].data.sid = w.next_sid++;
     tree.obs[node].actions.push_back(copy);
   }
   const int first = CopyAction(w, ai, ids[0]);
@@ -875,17 +788,7 @@ void KCenterTree<M>::Refine(Worker& w, int node, int ai) {
   tree.act[ai].action.x = clusters[0].center;
   tree.act[ai].data.range = FLim(clusters[0].radius, range, options_);
   tree.act[ai].data.members = members[0];
-  tree.act[ai].data.sid = sids[0] = w.next_sid++;
-  // Point children follow their episodes (all of a point's records, one point, one cluster).
-  for (int bi : tree.obs[node].actions) {
-    Sphere& p = tree.act[bi].data;
-    if (p.point_of != old_sid || p.point_of == 0) continue;
-    p.point_of = sids[0];
-    if (p.ids.empty()) continue;
-    for (size_t j = 0; j < clusters.size(); ++j) {
-      if (Contains(ids[j], p.ids.front())) p.point_of = sids[j];
-    }
-  }
+  tree.act[ai].data.sid = w.next_sid++;
   ++w.refinements;
 }
 
