@@ -139,10 +139,11 @@ struct KctOptions {
   /// progressively (a new point while it has fewer than point_k N^point_alpha); the spheres decide
   /// where a new point is drawn (U over the spheres with the range term, then Action_sam in the
   /// chosen one), and a refinement splits a sphere by k-means of its points and reassigns them,
-  /// copying no subtree. The executed action is the root's most visited point (or, with
-  /// kRegression, the fitted maximiser around its sphere); final_choice is the paper tree's.
-  /// False: the paper's tree, where every point drawn in a sphere shares the sphere's subtree. On
-  /// VDP Tag at 1 s the points lift kCT by about 10 (docs/experiments.md, "Flat points").
+  /// copying no subtree. The executed action is the root's most visited point or discrete action
+  /// (a point moved, with kRegression, to the fitted maximiser around its sphere where the fit
+  /// holds); final_choice decides only at a root without points. False: the paper's tree, where
+  /// every point drawn in a sphere shares the sphere's subtree (docs/experiments.md, "kCT's
+  /// defaults: point children").
   bool point_children = true;
   /// With point_children: the progressive widening's coefficient (default: POMCPOW's VDP Tag
   /// action widening, 30 N^(1/30)).
