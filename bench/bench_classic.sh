@@ -80,7 +80,8 @@ for section in "${sections[@]}"; do
       # The VPW paper's configuration (VOOTreeSearch.jl scripts/VDPTag2/compare.jl): ToNextML
       # rollouts, the root's first action towards the belief's mean target's next position
       # (RootToNextMLFirst = search.rollout_first), 100,000 particles; its constants are
-      # npfkct-bench's. kCT beside it with the same rollout, first action and particles.
+      # npfkct-bench's. kCT beside it with the same rollout, first action and particles (and
+      # VOMCPOW's observation widening).
       for planner in ${PLANNERS:-vomcpow kct pomcpow}; do
         run --problem vdptag --planner "$planner" --episodes "${EPISODES:-100}" --cpu-ms 1000 \
           --threads "$THREADS" --rollout tonextml --seed "$SEED" \

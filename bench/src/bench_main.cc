@@ -97,7 +97,16 @@ bool ApplyOptions(Options* o, const std::vector<std::string>& assignments) {
   return true;
 }
 
-void PrintJson(const Config& c, const RunSummary& s, int max_steps) {
+// kCT's tree in a run's record: "points" (point children, the default since they were measured on
+// VDP Tag) or "spheres" (the paper's tree); a record without the field predates the choice
+// (spheres).
+template <class Options>
+const char* KctTree(const Options& o) {
+  if constexpr (requires { o.point_children; }) return o.point_children ? "points" : "spheres";
+  return nullptr;
+}
+
+void PrintJson(const Config& c, const RunSummary& s, int max_steps, const char* kct_tree) {
   std::printf(
       "{\"problem\": \"%s\", \"planner\": \"%s\", \"episodes\": %d, \"time_ms\": %g, "
       "\"cpu_ms\": %g, \"sims\": %lld, \"max_steps\": %d, \"seed\": %llu, \"threads\": %d, "
@@ -108,8 +117,10 @@ void PrintJson(const Config& c, const RunSummary& s, int max_steps) {
   for (size_t i = 0; i < c.options.size(); ++i) {
     std::printf("%s\"%s\"", i ? ", " : "", JsonEscape(c.options[i]).c_str());
   }
+  std::printf("]");
+  if (kct_tree != nullptr) std::printf(", \"kct_tree\": \"%s\"", kct_tree);
   std::printf(
-      "], \"mean_discounted_return\": %.4f, \"stderr\": %.4f, \"ci95\": %.4f, "
+      ", \"mean_discounted_return\": %.4f, \"stderr\": %.4f, \"ci95\": %.4f, "
       "\"success_rate\": ",
       s.mean_return, s.stderr_return, s.ci95_return);
   if (s.success_rate) {
@@ -151,7 +162,7 @@ int Run(const Config& c, const M& model, Options options, int default_max_steps,
         return RunEpisode(model, planner, budget, max_steps, c.seed * 1000003ULL + i, success);
       },
       c.problem + "/" + c.planner);
-  PrintJson(c, summary, max_steps);
+  PrintJson(c, summary, max_steps, KctTree(options));
   return summary.failed_episodes == 0 ? 0 : 1;
 }
 
@@ -335,8 +346,8 @@ int RunVdpTag(const Config& c) {
     return Run<Model, Advt<Model>>(c, model, o, 100, true, tagged);
   }
   if (c.planner == "kct") {
-    KctOptions o;
-    o.observations.k = 5.0;
+    KctOptions o;  // the library's defaults, with VOMCPOW's observation widening, depth, particles
+    o.observations.k = 2.5;
     o.observations.alpha = 1.0 / 100.0;
     o.observations.check_repeat = false;
     o.search.max_depth = 10;
@@ -385,6 +396,7 @@ int RunLqg(const Config& c) {
     return r;
   };
   std::function<EpisodeResult(int)> run;
+  const char* kct_tree = nullptr;
   if (c.planner == "pomcpow" || c.planner == "vomcpow") {
     PomcpowOptions o = models::VpwLqgPomcpowOptions(c.planner == "vomcpow");
     if (!ApplyOptions(&o, c.options)) return 2;
@@ -397,6 +409,7 @@ int RunLqg(const Config& c) {
     o.search.max_depth = 3;
     o.search.num_particles = 1000;
     if (!ApplyOptions(&o, c.options)) return 2;
+    kct_tree = KctTree(o);
     run = [&, o](int i) {
       KCenterTree<Model> planner(model, o);
       return score(planner, i);
@@ -418,8 +431,10 @@ int RunLqg(const Config& c) {
   for (size_t i = 0; i < c.options.size(); ++i) {
     std::printf("%s\"%s\"", i ? ", " : "", JsonEscape(c.options[i]).c_str());
   }
+  std::printf("]");
+  if (kct_tree != nullptr) std::printf(", \"kct_tree\": \"%s\"", kct_tree);
   std::printf(
-      "], \"optimum\": [%.4f, %.4f], \"mean_action\": [%.4f, %.4f], \"mean_distance\": %.4f, "
+      ", \"optimum\": [%.4f, %.4f], \"mean_action\": [%.4f, %.4f], \"mean_distance\": %.4f, "
       "\"stderr\": %.4f, \"median_distance\": %.4f, \"median_sims_per_step\": %.1f, "
       "\"failed_plans\": %d}\n",
       model.OptimalFirstAction()[0], model.OptimalFirstAction()[1], mean_action[0], mean_action[1],
