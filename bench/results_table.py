@@ -824,12 +824,21 @@ VOMCPOW_CHUNK_SEEDS = list(range(2, 10))
 
 def vpw_vdptag(planner, seed=None, episodes=None):
     """The selector of a run of bench_classic.sh vdptag-published (the VPW paper's VDP Tag
-    configuration) of one planner; with a seed and episodes, of that run alone."""
+    configuration) of one planner; with a seed and episodes, of that run alone; kCT's runs of the
+    paper's tree."""
     selector = {"problem": "vdptag", "planner": planner, "cpu_ms": 1000,
                 "options": ["search.rollout_first=1", "search.num_particles=100000"]}
+    if planner == "kct":
+        selector["kct_tree"] = "spheres"
     if seed is not None:
         selector.update(seed=seed, episodes=episodes)
     return selector
+
+
+# kCT with point children (its defaults since) at the VPW configuration: 25 episodes on each of
+# these seeds, run before the records named the tree, their lines kept in their own file.
+KCT_POINTS_VDPTAG = "kct-points/vdptag-vpw-1s.jsonl"
+KCT_POINTS_SEEDS = list(range(2, 22))
 
 
 def vpw_vdptag_pooled(planner, seeds):
@@ -903,9 +912,12 @@ CLASSIC_ROWS = [
      "60.99 ± 0.41 (d_pomcp at that width, the best of seven; "
      "ContinuousPOMDPTreeSearchExperiments.jl icaps_2018 raw data)",
      "lightdark-discretised"),
-    ("VDP Tag (ToNextML rollout), seeds 1 and 2 pooled", "kCT", "1 s of CPU",
-     [{"problem": "vdptag", "planner": "kct", "cpu_ms": 1000, "threads": 1, "seed": 1},
-      {"problem": "vdptag", "planner": "kct", "cpu_ms": 1000, "threads": 1, "seed": 2}], "–",
+    ("VDP Tag (ToNextML rollout), seeds 1 and 2 pooled", "kCT, the paper's tree",
+     "1 s of CPU",
+     [{"problem": "vdptag", "planner": "kct", "cpu_ms": 1000, "threads": 1, "seed": 1,
+       "kct_tree": "spheres"},
+      {"problem": "vdptag", "planner": "kct", "cpu_ms": 1000, "threads": 1, "seed": 2,
+       "kct_tree": "spheres"}], "–",
      "THREADS=1 SEED=1 kct-vdptag; THREADS=1 SEED=2 kct-vdptag"),
     ("VDP Tag (ToNextML rollout), seeds 1 and 2 pooled", "VOMCPOW", "1 s of CPU",
      [{"problem": "vdptag", "planner": "vomcpow", "cpu_ms": 1000, "threads": 1, "seed": 1},
@@ -921,26 +933,36 @@ CLASSIC_ROWS = [
      "vdptag-published; PLANNERS=vomcpow EPISODES=25 SEED=S vdptag-published"),
     ("VDP Tag, the VPW paper's configuration", "POMCPOW", "1 s of CPU",
      [vpw_vdptag("pomcpow")], "28.3 ± 1.0 (ibid.)", "vdptag-published"),
-    ("VDP Tag, the VPW paper's configuration, seed 1", "kCT", "1 s of CPU",
+    ("VDP Tag, the VPW paper's configuration, seed 1", "kCT, the paper's tree", "1 s of CPU",
      [vpw_vdptag("kct", 1, 100)], "–", "vdptag-published"),
-    (f"VDP Tag, the VPW paper's configuration, seeds 1-{VDP_CHUNK_SEEDS[-1]} pooled", "kCT",
-     "1 s of CPU", vpw_vdptag_pooled("kct", VDP_CHUNK_SEEDS), "–",
+    (f"VDP Tag, the VPW paper's configuration, seeds 1-{VDP_CHUNK_SEEDS[-1]} pooled",
+     "kCT, the paper's tree", "1 s of CPU", vpw_vdptag_pooled("kct", VDP_CHUNK_SEEDS), "–",
      "PLANNERS=kct vdptag-published; PLANNERS=kct EPISODES=25 SEED=S vdptag-published"),
-    ("VDP Tag (ToNextML rollout), seed 1", "kCT", "1 s of CPU",
-     [{"problem": "vdptag", "planner": "kct", "cpu_ms": 1000, "threads": 1, "seed": 1}], "–",
+    (f"VDP Tag, the VPW paper's configuration, seeds {KCT_POINTS_SEEDS[0]}-"
+     f"{KCT_POINTS_SEEDS[-1]} pooled", "kCT (point children: the defaults)", "1 s of CPU",
+     [dict(vpw_vdptag("kct", s, 25), kct_tree=None, file=KCT_POINTS_VDPTAG)
+      for s in KCT_POINTS_SEEDS], "33.2 ± 0.9 (VOMCPOW; Lim, Tomlin & Sunberg 2021)",
+     "PLANNERS=kct EPISODES=25 SEED=S vdptag-published"),
+    ("VDP Tag (ToNextML rollout), seed 1", "kCT, the paper's tree",
+     "1 s of CPU",
+     [{"problem": "vdptag", "planner": "kct", "cpu_ms": 1000, "threads": 1, "seed": 1,
+       "kct_tree": "spheres"}], "–",
      "THREADS=1 SEED=1 kct-vdptag"),
     ("VDP Tag (ToNextML rollout), seed 1", "VOMCPOW", "1 s of CPU",
      [{"problem": "vdptag", "planner": "vomcpow", "cpu_ms": 1000, "threads": 1, "seed": 1}], "–",
      "THREADS=1 SEED=1 kct-vdptag"),
-    ("VDP Tag (ToNextML rollout), seed 2", "kCT", "1 s of CPU",
-     [{"problem": "vdptag", "planner": "kct", "cpu_ms": 1000, "threads": 1, "seed": 2}], "–",
+    ("VDP Tag (ToNextML rollout), seed 2", "kCT, the paper's tree",
+     "1 s of CPU",
+     [{"problem": "vdptag", "planner": "kct", "cpu_ms": 1000, "threads": 1, "seed": 2,
+       "kct_tree": "spheres"}], "–",
      "THREADS=1 SEED=2 kct-vdptag"),
     ("VDP Tag (ToNextML rollout), seed 2", "VOMCPOW", "1 s of CPU",
      [{"problem": "vdptag", "planner": "vomcpow", "cpu_ms": 1000, "threads": 1, "seed": 2}], "–",
      "THREADS=1 SEED=2 kct-vdptag"),
 ]
 # Defaults of fields older lines of classic.jsonl leave out.
-CLASSIC_DEFAULTS = {"cpu_ms": 0, "time_ms": 0, "sims": 0, "seed": 1, "rollout": ""}
+CLASSIC_DEFAULTS = {"cpu_ms": 0, "time_ms": 0, "sims": 0, "seed": 1, "rollout": "",
+                    "kct_tree": "spheres"}
 
 
 def classic_command(sections):
@@ -987,12 +1009,22 @@ def classic(path):
     DESPOT side-by-side (bench/bench_despot.sh, the files despot/rocksample-0.1s*.jsonl beside
     `path`, pooled), each row with the command that measures it."""
     lines = [json.loads(line) for line in open(path, encoding="utf-8") if line.strip()]
+    files = {path: lines}
 
     def last(selector):
-        found = [r for r in lines
-                 if all(r.get(k, CLASSIC_DEFAULTS.get(k)) == v for k, v in selector.items())]
+        """The last run matching the selector: in `path`, or in its "file" beside `path`; a
+        field whose selector value is None is not checked."""
+        where = path
+        if "file" in selector:
+            where = os.path.join(os.path.dirname(os.path.abspath(path)), selector["file"])
+            if where not in files:
+                files[where] = [json.loads(line) for line in open(where, encoding="utf-8")
+                                if line.strip()]
+        found = [r for r in files[where]
+                 if all(v is None or r.get(k, CLASSIC_DEFAULTS.get(k)) == v
+                        for k, v in selector.items() if k != "file")]
         if not found:
-            sys.exit(f"{path}: no run with {selector}")
+            sys.exit(f"{where}: no run with {selector}")
         return found[-1]
 
     print("| Problem | Planner | Budget | Episodes | Measure | Ours ± s.e. | Steps | Success | "
@@ -1022,15 +1054,18 @@ def classic(path):
     published = {"vomcpow": "0.246 (RolloutFirst; Lim, Tomlin & Sunberg 2021)",
                  "pomcpow": "0.277 (RolloutFirst; ibid.)"}
     latest = {}
-    for r in lines:  # the last LQG run of each planner and options
+    for r in lines:  # the last LQG run of each planner, options and kCT tree
         if r["problem"] == "lqg":
-            latest[(r["planner"], tuple(r["options"]))] = r
-    for (planner, options), r in latest.items():
+            tree = r.get("kct_tree", CLASSIC_DEFAULTS["kct_tree"])
+            latest[(r["planner"], tuple(r["options"]), tree)] = r
+    for (planner, options, tree), r in latest.items():
         name = {"kct": "kCT", "pomcpow": "POMCPOW", "vomcpow": "VOMCPOW"}[planner]
         if planner != "kct":
             name += ", RolloutFirst, the script's constants"
-        elif options:
-            name += ", " + ", ".join(f"`{o}`" for o in options)
+        else:
+            name += " (point children: the defaults)" if tree == "points" else ", the paper's tree"
+            if options:
+                name += ", " + ", ".join(f"`{o}`" for o in options)
         print(f"| The VPW paper's 2-D LQG | {name} | {r['sims']:,} sims | {r['plans']} plans | "
               f"first action's distance to the optimum (lower is better) | "
               f"{r['mean_distance']:.3f} ± {r['stderr']:.3f} | – | – | "
@@ -1582,11 +1617,17 @@ published (`solver/include/npfkct/solver/models/`), Tag at the DESPOT papers' pr
 DESPOT side-by-side (details in the next section) and the VPW paper's LQG, each row with the
 command that measures it. The rows at 1 s of CPU give kCT (the project's defaults) and the planner
 beside it the same rollout, run on one machine; the rows above them used wall-clock or simulation
-budgets. Pooled rows pool runs with new episodes (other seeds) as independent samples. "The VPW
-paper's configuration" is VOOTreeSearch.jl's `scripts/VDPTag2/compare.jl`: ToNextML rollouts,
-the root's first action towards the belief's mean target's next position (RootToNextMLFirst),
-100,000 particles; kCT is given the same. Standard errors are the sample standard deviation over
-the square root of the episodes (or plans).
+budgets. kCT's rows say which tree ran: "the paper's tree" (every point drawn in a sphere shares its
+subtree; the defaults until point children replaced them) or "point children" (each point its own
+subtree, the spheres choosing where the next goes: the defaults now; docs/experiments.md, "kCT's
+defaults: point children"; its 500 episodes at the VPW configuration ran before the records named
+the tree, and their lines are kept in `bench/results/kct-points/vdptag-vpw-1s.jsonl`). Pooled rows
+pool runs with new episodes (other seeds) as independent samples. "The VPW paper's configuration" is
+VOOTreeSearch.jl's `scripts/VDPTag2/compare.jl`: ToNextML rollouts, the root's first action towards
+the belief's mean target's next position (RootToNextMLFirst), 100,000 particles; kCT is given the
+same, and with point children VOMCPOW's observation widening (2.5 N^(1/100); the paper's tree ran
+with POMCPOW's, 5 N^(1/100)). Standard errors are the sample standard deviation over the square root
+of the episodes (or plans).
 
     bench/bench_classic.sh                     # every section; or name some: tiger rocksample ...
     SEED=2 THREADS=1 bench/bench_classic.sh kct-vdptag

@@ -345,6 +345,16 @@ def test_threads_gives_the_ratio_of_simulations_per_second(tmp_path):
     assert "| Loose1 | 100 | 250 | 2.50x | 10.0 ± 1.0 | 12.0 ± 1.0 |" in out.splitlines()
 
 
+def classic_with_rows(path, rows):
+    """results_table.classic on `path` with only `rows` of CLASSIC_ROWS."""
+    saved = results_table.CLASSIC_ROWS
+    results_table.CLASSIC_ROWS = rows
+    try:
+        return results_table.capture(results_table.classic, str(path))
+    finally:
+        results_table.CLASSIC_ROWS = saved
+
+
 def test_classic_pools_runs_as_independent_samples(tmp_path):
     # Two runs of 100 episodes: means 28 and 30, standard errors 3 and 4: pooled 29 ± 2.5.
     path = tmp_path / "classic.jsonl"
@@ -357,12 +367,7 @@ def test_classic_pools_runs_as_independent_samples(tmp_path):
                                      "mean_steps": 10.0, "success_rate": 1.0}))
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
     rows = [r for r in results_table.CLASSIC_ROWS if r[0].startswith("VDP Tag (ToNextML rollout),")]
-    saved = results_table.CLASSIC_ROWS
-    results_table.CLASSIC_ROWS = rows
-    try:
-        out = results_table.capture(results_table.classic, str(path))
-    finally:
-        results_table.CLASSIC_ROWS = saved
+    out = classic_with_rows(path, rows)
     pooled = [line for line in out.splitlines() if "pooled | kCT" in line]
     assert len(pooled) == 1 and "| 200 | return | 29.00 ± 2.50 |" in pooled[0]
 
@@ -385,18 +390,50 @@ def test_classic_is_one_table_with_the_lqg_and_the_despot_runs_beside_it(tmp_pat
         (tmp_path / "despot" / f"rocksample-0.1s-{run}.jsonl").write_text(
             "\n".join(json.dumps(e) for e in episodes) + "\n", encoding="utf-8")
     rows = [r for r in results_table.CLASSIC_ROWS if r[1] == "kCT" and r[0] == "SimpleLightDark"]
-    saved = results_table.CLASSIC_ROWS
-    results_table.CLASSIC_ROWS = rows
-    try:
-        out = results_table.capture(results_table.classic, str(tmp_path / "classic.jsonl"))
-    finally:
-        results_table.CLASSIC_ROWS = saved
+    out = classic_with_rows(tmp_path / "classic.jsonl", rows)
     table = [line for line in out.split("\n\n")[0].splitlines() if line.startswith("| ")]
     assert len(table) == 1 + 3  # the header, then one row each
     assert "| 10 | return | 60.00 ± 1.00 |" in table[1] and "kct-lightdark`" in table[1]
     # 1, 2, 3, 4: mean 2.5, sd 1.291, s.e. 0.645.
     assert "DESPOT (`despot`) | 0.1 s of CPU | 4 | return | 2.50 ± 0.65 |" in table[2]
     assert "| 0.060 ± 0.006 |" in table[3] and "bench_classic.sh lqg`" in table[3]
+
+
+def test_classic_keeps_kcts_trees_apart_and_reads_a_row_from_its_own_file(tmp_path):
+    # A record without kct_tree is of the paper's tree; a later one with point children does not
+    # replace it; the point-children row reads its own file beside classic.jsonl.
+    vpw = {"problem": "vdptag", "planner": "kct", "cpu_ms": 1000, "threads": 2,
+           "options": ["search.rollout_first=1", "search.num_particles=100000"],
+           "stderr": 2.0, "mean_steps": 15.0, "success_rate": 1.0}
+    lines = [dict(vpw, seed=1, episodes=100, mean_discounted_return=30.0),
+             dict(vpw, seed=1, episodes=100, mean_discounted_return=99.0, kct_tree="points")]
+    for distance, tree in ((0.06, None), (0.04, "points")):
+        run = {"problem": "lqg", "planner": "kct", "options": [], "plans": 1000, "sims": 1000,
+               "mean_distance": distance, "stderr": 0.005}
+        if tree:
+            run["kct_tree"] = tree
+        lines.append(run)
+    (tmp_path / "classic.jsonl").write_text("\n".join(json.dumps(r) for r in lines) + "\n",
+                                            encoding="utf-8")
+    side = tmp_path / results_table.KCT_POINTS_VDPTAG
+    side.parent.mkdir()
+    side.write_text("\n".join(json.dumps(dict(vpw, seed=s, episodes=25,
+                                              mean_discounted_return=float(s)))
+                              for s in results_table.KCT_POINTS_SEEDS) + "\n", encoding="utf-8")
+    rows = [r for r in results_table.CLASSIC_ROWS
+            if r[0].startswith("VDP Tag, the VPW paper's configuration") and r[1].startswith("kCT")
+            and "pooled" not in r[0] or "point children" in r[1]]
+    out = classic_with_rows(tmp_path / "classic.jsonl", rows)
+    table = [line for line in out.split("\n\n")[0].splitlines() if line.startswith("| ")]
+    assert len(table) == 1 + 2 + 2, table
+    assert "| kCT, the paper's tree | 1 s of CPU | 100 | return | 30.00 ± 2.00 |" in table[1]
+    seeds = results_table.KCT_POINTS_SEEDS
+    mean = sum(seeds) / len(seeds)
+    assert f"| kCT (point children: the defaults) | 1 s of CPU | {25 * len(seeds)} | return | " \
+           f"{mean:.2f} ± " in table[2]
+    assert "kCT, the paper's tree | 1,000 sims" in table[3] and "| 0.060 ± 0.005 |" in table[3]
+    assert "kCT (point children: the defaults) | 1,000 sims" in table[4]
+    assert "| 0.040 ± 0.005 |" in table[4]
 
 
 def vdptag_run(**changes):
