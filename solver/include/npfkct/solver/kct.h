@@ -409,7 +409,12 @@ class KCenterTree : public PlannerBase<KCenterTree<M>, M, KctOptions> {
 
   double Normalized(const Worker& w, double q) const;
 
-  int Select(const Worker& w, int node) const;
+  // The entry of `node` of highest U: among its spheres and discrete actions, or with `points`
+  // among its points and discrete actions (a point's range, 0, adds no range term).
+  int Select(const Worker& w, int node, bool points = false) const;
+
+  // The sphere of point `pi` of `node` (-1: none).
+  int SphereOf(const Tree& tree, int node, int pi) const;
 
   // With point_children: the action node to descend (a point, or a discrete entry) and in *sphere
   // the entry whose statistics it also updates (itself for a discrete entry).
@@ -418,8 +423,10 @@ class KCenterTree : public PlannerBase<KCenterTree<M>, M, KctOptions> {
   // With point_children: Refine by k-means of the sphere's points; returns false when not due.
   bool RefinePoints(Worker& w, int node, int ai);
 
-  // With point_children: the most visited feasible point child of root sphere `ai` (-1: none).
-  int MostVisitedPoint(const Worker& w, int ai, const State& s) const;
+  // The most visited root entry for which take(entry) holds and which is feasible in `s`, ties
+  // to the higher Qhat (-1: none visited).
+  template <class Take>
+  int MostVisitedAtRoot(const Worker& w, const State& s, Take take) const;
 
   double VStar(const Tree& tree, int node) const;
 

@@ -167,32 +167,20 @@ Status KCenterTree<M>::Decide(const TerminationCondition& stop, Rng& rng, Decisi
     // The most visited point or discrete action of the root (first worker's tree); a point's
     // sphere is the entry. Without points (discrete actions only) final_choice decides.
     const Worker& w = workers_[0];
-    int top = -1;
-    bool points = false;
-    for (int bi : w.tree.obs[w.tree.root].actions) {
-      const auto& bn = w.tree.act[bi];
-      const bool discrete = model_.KindSpace(bn.action.kind).dim() == 0;
-      if ((bn.data.point_of == 0 && !discrete) || bn.n == 0) continue;
-      points = points || !discrete;
-      if (top >= 0 &&
-          (bn.n < w.tree.act[top].n || (bn.n == w.tree.act[top].n && bn.q <= w.tree.act[top].q))) {
-        continue;
-      }
-      if (IsFeasibleAction(model_, s0, bn.action)) top = bi;
-    }
-    if (!points) top = -1;
+    const auto& root = w.tree.obs[w.tree.root].actions;
+    const bool points = std::any_of(root.begin(), root.end(), [&](int bi) {
+      return w.tree.act[bi].data.point_of != 0 && w.tree.act[bi].n > 0;
+    });
+    const int top = !points ? -1 : MostVisitedAtRoot(w, s0, [&](const auto& bn) {
+      return bn.data.point_of != 0 || model_.KindSpace(bn.action.kind).dim() == 0;
+    });
     if (top >= 0 && w.tree.act[top].data.point_of == 0) {
       best = top;
       d->action = w.tree.act[top].action;
       executable = true;
     } else if (top >= 0) {
       point = top;
-      for (int ai : w.tree.obs[w.tree.root].actions) {
-        if (w.tree.act[ai].data.point_of == 0 &&
-            w.tree.act[ai].data.sid == w.tree.act[point].data.point_of) {
-          best = ai;
-        }
-      }
+      best = SphereOf(w.tree, w.tree.root, point);
       d->action = w.tree.act[point].action;
       executable = best >= 0;
       if (!executable) point = -1;
@@ -209,7 +197,9 @@ Status KCenterTree<M>::Decide(const TerminationCondition& stop, Rng& rng, Decisi
        !executable && tried < kMaxFinalEntries && ChooseRootEntry(excluded, &chosen_worker, &best);
        ++tried) {
     if (options_.point_children) {
-      point = MostVisitedPoint(workers_[chosen_worker], best, s0);
+      const int64_t sid = workers_[chosen_worker].tree.act[best].data.sid;
+      point = MostVisitedAtRoot(workers_[chosen_worker], s0,
+                                [sid](const auto& bn) { return bn.data.point_of == sid; });
       if (point >= 0) {
         d->action = workers_[chosen_worker].tree.act[point].action;
         executable = true;
@@ -478,13 +468,17 @@ double KCenterTree<M>::Normalized(const Worker& w, double q) const {
 }
 
 template <HybridActionModel M>
-int KCenterTree<M>::Select(const Worker& w, int node) const {
+int KCenterTree<M>::Select(const Worker& w, int node, bool points) const {
   const auto& on = w.tree.obs[node];
+  const auto take = [&](const auto& an) {
+    return points ? an.data.point_of != 0 || model_.KindSpace(an.action.kind).dim() == 0
+                  : an.data.point_of == 0;
+  };
   const double log_n = std::log(static_cast<double>(std::max<int64_t>(on.n, 1)));
   double lo = std::numeric_limits<double>::infinity(), hi = -lo;
   if (options_.normalization == KctOptions::Normalization::kSiblingRange) {
     for (int ai : on.actions) {
-      if (w.tree.act[ai].n == 0 || w.tree.act[ai].data.point_of != 0) continue;
+      if (w.tree.act[ai].n == 0 || !take(w.tree.act[ai])) continue;
       lo = std::min(lo, w.tree.act[ai].q);
       hi = std::max(hi, w.tree.act[ai].q);
     }
@@ -493,7 +487,7 @@ int KCenterTree<M>::Select(const Worker& w, int node) const {
   double best_score = -std::numeric_limits<double>::infinity();
   for (int ai : on.actions) {
     const auto& an = w.tree.act[ai];
-    if (an.data.point_of != 0) continue;
+    if (!take(an)) continue;
     const double q = options_.normalization == KctOptions::Normalization::kSiblingRange
                          ? (hi > lo ? (an.q - lo) / (hi - lo) : 0.0)
                          : Normalized(w, an.q);
@@ -509,18 +503,10 @@ int KCenterTree<M>::Select(const Worker& w, int node) const {
 template <HybridActionModel M>
 int KCenterTree<M>::SelectFlat(Worker& w, int node, const State& s, int* sphere) {
   Tree& tree = w.tree;
-  const auto is_point = [&](int bi) {
-    const auto& bn = tree.act[bi];
-    return bn.data.point_of != 0 || model_.KindSpace(bn.action.kind).dim() == 0;
-  };
   int points = 0;
-  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
   for (int bi : tree.obs[node].actions) {
-    if (!is_point(bi)) continue;
-    ++points;
-    if (tree.act[bi].n == 0) continue;
-    lo = std::min(lo, tree.act[bi].q);
-    hi = std::max(hi, tree.act[bi].q);
+    const auto& bn = tree.act[bi];
+    if (bn.data.point_of != 0 || model_.KindSpace(bn.action.kind).dim() == 0) ++points;
   }
   const int64_t n = tree.obs[node].n;
   if (points < options_.point_k * std::pow(static_cast<double>(n + 1), options_.point_alpha)) {
@@ -535,28 +521,19 @@ int KCenterTree<M>::SelectFlat(Worker& w, int node, const State& s, int* sphere)
     data.point_of = tree.act[ai].data.sid;
     return tree.NewActNode(node, std::move(a), std::move(data));
   }
-  const double log_n = std::log(static_cast<double>(std::max<int64_t>(n, 1)));
-  int best = -1;
-  double best_score = -std::numeric_limits<double>::infinity();
-  for (int bi : tree.obs[node].actions) {
-    if (!is_point(bi)) continue;
-    const auto& bn = tree.act[bi];
-    const double q = options_.normalization == KctOptions::Normalization::kSiblingRange
-                         ? (hi > lo ? (bn.q - lo) / (hi - lo) : 0.0)
-                         : Normalized(w, bn.q);
-    const double score = Ucb1(q, bn.n, log_n, options_.w1);
-    if (best < 0 || score > best_score) {
-      best_score = score;
-      best = bi;
-    }
-  }
-  *sphere = best;
-  if (const int64_t of = tree.act[best].data.point_of; of != 0) {
-    for (int ai : tree.obs[node].actions) {
-      if (tree.act[ai].data.point_of == 0 && tree.act[ai].data.sid == of) *sphere = ai;
-    }
-  }
+  const int best = Select(w, node, /*points=*/true);
+  *sphere = tree.act[best].data.point_of != 0 ? SphereOf(tree, node, best) : best;
   return best;
+}
+
+template <HybridActionModel M>
+int KCenterTree<M>::SphereOf(const Tree& tree, int node, int pi) const {
+  int sphere = -1;
+  for (int ai : tree.obs[node].actions) {
+    const auto& an = tree.act[ai];
+    if (an.data.point_of == 0 && an.data.sid == tree.act[pi].data.point_of) sphere = ai;
+  }
+  return sphere;
 }
 
 template <HybridActionModel M>
@@ -633,12 +610,12 @@ bool KCenterTree<M>::RefinePoints(Worker& w, int node, int ai) {
 }
 
 template <HybridActionModel M>
-int KCenterTree<M>::MostVisitedPoint(const Worker& w, int ai, const State& s) const {
-  const int64_t sid = w.tree.act[ai].data.sid;
+template <class Take>
+int KCenterTree<M>::MostVisitedAtRoot(const Worker& w, const State& s, Take take) const {
   int best = -1;
   for (int bi : w.tree.obs[w.tree.root].actions) {
     const auto& bn = w.tree.act[bi];
-    if (bn.data.point_of != sid || bn.n == 0) continue;
+    if (!take(bn) || bn.n == 0) continue;
     if (best >= 0 &&
         (bn.n < w.tree.act[best].n || (bn.n == w.tree.act[best].n && bn.q <= w.tree.act[best].q))) {
       continue;
