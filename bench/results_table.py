@@ -165,6 +165,12 @@ def paired_difference(new, base):
     return m, ci, len(diffs)
 
 
+def json_lines(path):
+    """The JSON objects of a JSON-lines file, blank lines skipped."""
+    with open(path, encoding="utf-8") as f:
+        return [json.loads(line) for line in f if line.strip()]
+
+
 def load_cells(root, key=lambda path, r: (r["scenario"], r["planner"])):
     """{key(path, record): record} from ROOT/*/*.jsonl; by default keyed (scene, planner)."""
     cells = {}
@@ -755,7 +761,7 @@ def inside_count(old_root, new_root):
 
 
 def flat(path):
-    rows = [json.loads(line) for line in open(path, encoding="utf-8") if line.strip()]
+    rows = json_lines(path)
     modes = {r.get("observe", "geometric") for r in rows}
     scenes, planners, cells = [], [], {}
     for r in rows:
@@ -772,8 +778,8 @@ def flat(path):
 def threads(one_path, two_path):
     """Thread scaling (bench/bench_threads.sh): per scene the median simulations per second with
     one and two search threads, their ratio, and the rewards."""
-    one = [json.loads(line) for line in open(one_path, encoding="utf-8") if line.strip()]
-    two = [json.loads(line) for line in open(two_path, encoding="utf-8") if line.strip()]
+    one = json_lines(one_path)
+    two = json_lines(two_path)
     print("| Scene | sims/s, 1 thread | sims/s, 2 threads | ratio | reward, 1 thread | "
           "reward, 2 threads |")
     print("|---|---|---|---|---|---|")
@@ -981,7 +987,7 @@ def despot_runs(paths):
     runs = []
     by = {}
     for path in paths:
-        run = [json.loads(line) for line in open(path, encoding="utf-8") if line.strip()]
+        run = json_lines(path)
         runs.append((path, run))
         for r in run:
             by.setdefault(r["planner"], []).append(r)
@@ -1008,7 +1014,7 @@ def classic(path):
     the VPW paper's LQG (the first action's distance to the optimum) from the same file, and the
     DESPOT side-by-side (bench/bench_despot.sh, the files despot/rocksample-0.1s*.jsonl beside
     `path`, pooled), each row with the command that measures it."""
-    lines = [json.loads(line) for line in open(path, encoding="utf-8") if line.strip()]
+    lines = json_lines(path)
     files = {path: lines}
 
     def last(selector):
@@ -1018,8 +1024,7 @@ def classic(path):
         if "file" in selector:
             where = os.path.join(os.path.dirname(os.path.abspath(path)), selector["file"])
             if where not in files:
-                files[where] = [json.loads(line) for line in open(where, encoding="utf-8")
-                                if line.strip()]
+                files[where] = json_lines(where)
         found = [r for r in files[where]
                  if all(v is None or r.get(k, CLASSIC_DEFAULTS.get(k)) == v
                         for k, v in selector.items() if k != "file")]
@@ -1131,7 +1136,7 @@ FILTER_TEST_SETS = {"heldout": "Held-out generated scenes (seeds 900001-900030)"
 def filter_figures(eval_path, bench_path):
     """The neural filter's accuracy on its test sets (npfkct-train evaluate) and its time on one
     core (npfkct-train bench)."""
-    sets = [json.loads(line) for line in open(eval_path, encoding="utf-8") if line.strip()]
+    sets = json_lines(eval_path)
     rows = [
         ("Snapshots (16 context and 48 predicted queries each)",
          lambda x: f"{x['test_samples']:,}"),
