@@ -286,11 +286,13 @@ EpisodeResult RunTrial(const TrialContext& ctx) {
     result.target_return += discount * (obstacle_declared ? world.params.r_min : outcome.reward);
     discount *= world.params.discount;
     ++result.steps;
-    if (d.action.kind != object_search::kMoveKind && outcome.success) {
+    if (d.action.kind != object_search::kMoveKind) {
       const int object = object_search::KindObject(d.action.kind);
       const int offset = object_search::KindOffset(d.action.kind);
-      if (eyes && offset == object_search::kRemoveOffset) eyes->Removed(world.objects[object].key);
-      (void)object_search::ApplyDiscreteOutcome(&world, object, offset, true);
+      if (eyes && outcome.success && offset == object_search::kRemoveOffset) {
+        eyes->Removed(world.objects[object].key);
+      }
+      (void)object_search::ApplyDiscreteOutcome(&world, object, offset, outcome.success);
     }
     if (outcome.terminal) {
       if (ctx.trace) TraceStep(ctx, model, world, t, d, outcome.detail);

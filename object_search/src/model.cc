@@ -217,9 +217,7 @@ StepResult<State, Observation> ObjectSearchModel::Step(const State& s, const Act
       }
       if (legal) {
         outcome = SuccessfulOutcome(offset, obj.status);
-        obj.status = offset == kDeclareTargetOffset     ? kDeclaredTarget
-                     : offset == kDeclareObstacleOffset ? kDeclaredObstacle
-                                                        : kRemoved;
+        obj.status = StatusAfter(offset);
         n.terminal = outcome == ActionOutcome::kRemovedTarget;
       }
     }

@@ -89,10 +89,12 @@ Decision<HybridAction> NextBestView::Plan(const TerminationCondition& stop, Rng&
   const World& w = model_.world();
   const SearchParams& p = w.params;
   const int n = static_cast<int>(w.objects.size());
-  // 1. Remove what was declared; declare the target once its faces confirm it.
+  // 1. Remove what was declared (unless the robot failed to); declare the target once its faces
+  // confirm it.
   for (int i = 1; i < n; ++i) {
     const int8_t status = w.objects[i].status;
-    if (status == kDeclaredTarget || status == kDeclaredObstacle) {
+    if ((status == kDeclaredTarget || status == kDeclaredObstacle) &&
+        !w.objects[i].removal_failed) {
       d.action = OnObject(i, kRemoveOffset);
       return FinishSearch(std::move(d), stop);
     }

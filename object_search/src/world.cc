@@ -118,6 +118,12 @@ ActionOutcome SuccessfulOutcome(int kind_offset, int8_t status) {
   return ActionOutcome::kIllegal;
 }
 
+int8_t StatusAfter(int kind_offset) {
+  return kind_offset == kDeclareTargetOffset     ? kDeclaredTarget
+         : kind_offset == kDeclareObstacleOffset ? kDeclaredObstacle
+                                                 : kRemoved;
+}
+
 OccupancyMap::OccupancyMap(Vec2 min, Vec2 max, double resolution)
     : min_(min), max_(max), resolution_(resolution) {
   nx_ = std::max(1, static_cast<int>(std::ceil((max.x() - min.x()) / resolution)));
@@ -493,21 +499,18 @@ Status ApplyDiscreteOutcome(World* world, int object, int kind_offset, bool succ
   if (object <= 0 || object >= static_cast<int>(world->objects.size())) {
     return InvalidArgumentError("object " + std::to_string(object) + " does not exist");
   }
-  if (!success) return OkStatus();
-  ObjectKnowledge& o = world->objects[object];
-  switch (kind_offset) {
-    case 0:
-      o.status = kDeclaredTarget;
-      break;
-    case 1:
-      o.status = kDeclaredObstacle;
-      break;
-    case 2:
-      o.status = kRemoved;
-      break;
-    default:
-      return InvalidArgumentError("unknown discrete action offset " + std::to_string(kind_offset));
+  if (kind_offset < 0 || kind_offset > kRemoveOffset) {
+    return InvalidArgumentError("unknown discrete action offset " + std::to_string(kind_offset));
   }
+  ObjectKnowledge& o = world->objects[object];
+  if (!success) {
+    if (kind_offset == kRemoveOffset) {
+      o.removal_failed = true;
+      o.moveability = 0.0;
+    }
+    return OkStatus();
+  }
+  o.status = StatusAfter(kind_offset);
   return OkStatus();
 }
 
@@ -589,7 +592,7 @@ Status ApplyRealObservation(World* world, const RealObservation& observation) {
     }
     ObjectKnowledge& o = world->objects[index];
     o.box = d.box;
-    o.moveability = d.moveability;
+    o.moveability = o.removal_failed ? 0.0 : d.moveability;
     for (const FaceDetection& f : whole.empty() ? d.faces : whole) {
       const double q = std::clamp(f.score, 1e-6, 1.0 - 1e-6);
       const double step =

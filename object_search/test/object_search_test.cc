@@ -468,6 +468,41 @@ TEST(WorldTest, RealObservationAppendsObjectsAndUpdatesOdds) {
   EXPECT_NE(ApplyRealObservation(&w, bad).message().find("robot state"), std::string::npos);
 }
 
+// A removal the robot reports failed: the object keeps its status, becomes unremovable in every
+// particle, and later detections do not make it moveable again; a failed declaration changes
+// nothing.
+TEST(WorldTest, AFailedRemovalLeavesTheObjectUnremovable) {
+  World w = TestWorld();
+  w.objects.push_back(Object("box", Vec3(1.1, 0.1, 0.8), Vec3(0.1, 0.1, 0.1), -3.0f));
+  w.objects[1].moveability = 0.9;
+  ASSERT_TRUE(ApplyDiscreteOutcome(&w, 1, kDeclareObstacleOffset, false).ok());
+  EXPECT_EQ(w.objects[1].status, kUpdating);
+  ASSERT_TRUE(ApplyDiscreteOutcome(&w, 1, kDeclareObstacleOffset, true).ok());
+  ASSERT_EQ(w.objects[1].status, kDeclaredObstacle);
+  ASSERT_TRUE(ApplyDiscreteOutcome(&w, 1, kRemoveOffset, false).ok());
+  EXPECT_EQ(w.objects[1].status, kDeclaredObstacle);
+  EXPECT_TRUE(w.objects[1].removal_failed);
+  EXPECT_EQ(w.objects[1].moveability, 0.0);
+  RealObservation obs;
+  obs.achieved.tilt = 0.4;
+  ObjectDetection d;
+  d.key = "box";
+  d.box = w.objects[1].box;
+  d.moveability = 0.95;
+  obs.objects.push_back(d);
+  ASSERT_TRUE(ApplyRealObservation(&w, obs).ok());
+  EXPECT_EQ(w.objects[1].moveability, 0.0);
+  ObjectSearchModel model(std::make_shared<World>(w));
+  Rng rng(5);
+  for (int k = 0; k < 100; ++k) {
+    const State s = model.SampleInitialState(rng);
+    ASSERT_FALSE(s.objects[1].moveable);
+    EXPECT_EQ(model.Step(s, HybridAction{RemoveKind(1), {}}, rng).reward, -1000.0);
+  }
+  EXPECT_FALSE(ApplyDiscreteOutcome(&w, 1, 3, false).ok());
+  EXPECT_FALSE(ApplyDiscreteOutcome(&w, 2, kRemoveOffset, false).ok());
+}
+
 // A 3D box detector's one score per box: the faces the camera sees get it, hidden ones do not.
 TEST(WorldTest, AWholeBoxScoreGoesToTheFacesTheCameraSees) {
   World w = TestWorld();
@@ -1006,6 +1041,9 @@ TEST(NextBestViewTest, RemovesWhatWasDeclaredAndDeclaresAConfirmedTarget) {
   EXPECT_EQ(plan(declared).action.kind, RemoveKind(1));
   declared.objects[1].status = kDeclaredObstacle;
   EXPECT_EQ(plan(declared).action.kind, RemoveKind(1));
+  // The robot could not remove it: not again.
+  ASSERT_TRUE(ApplyDiscreteOutcome(&declared, 1, kRemoveOffset, false).ok());
+  EXPECT_NE(plan(declared).action.kind, RemoveKind(1));
 }
 
 TEST(NextBestViewTest, ClearsTheBoxThatHoldsTheTargetsMassWhenNothingElseCanBeSeen) {

@@ -423,12 +423,16 @@ StatusOr<api::ObserveReply> Session::Observe(api::ObserveRequest req, SessionSto
   bool done = false;
   using object_search::ActionOutcome;
   ActionOutcome outcome = req.succeeded ? ActionOutcome::kMoved : ActionOutcome::kIllegal;
-  if (!p.is_move() && req.succeeded) {
+  if (!p.is_move()) {
     const int object = object_search::KindObject(p.action.kind);
     const int offset = object_search::KindOffset(p.action.kind);
-    outcome = object_search::SuccessfulOutcome(offset, next.objects[object].status);
-    done = outcome == ActionOutcome::kRemovedTarget;
-    if (Status s = object_search::ApplyDiscreteOutcome(&next, object, offset, true); !s.ok()) {
+    if (req.succeeded) {
+      outcome = object_search::SuccessfulOutcome(offset, next.objects[object].status);
+      done = outcome == ActionOutcome::kRemovedTarget;
+    }
+    // A removal the robot could not make leaves the object unremovable in the belief.
+    if (Status s = object_search::ApplyDiscreteOutcome(&next, object, offset, req.succeeded);
+        !s.ok()) {
       return s;
     }
   }

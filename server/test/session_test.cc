@@ -249,5 +249,51 @@ TEST_F(SessionTest, ARestoredSessionGoesOnWhereItStopped) {
   EXPECT_TRUE(s->stale());
 }
 
+// A REMOVE the robot reports it could not make: the object stays in the belief as unremovable
+// (also after a restore), and the session does not send the robot back to the same removal.
+TEST_F(SessionTest, ARemovalTheRobotCouldNotMakeIsNotPlannedAgain) {
+  auto s = Make();
+  ASSERT_TRUE(s->Save(store_.get()).ok());
+  // A box on the table whose every face looks like the target: declare it, then remove it.
+  object_search::ObjectDetection box;
+  box.key = "mug";
+  box.box = api::Box{{1.25, 0, 0.85}, 0.0, {0.1, 0.1, 0.1}};
+  for (int k = 0; k < 8; ++k) box.faces.push_back({k, 0.99});
+  api::PlanReply plan;
+  for (int step = 0; step < 8; ++step) {
+    auto planned = s->Plan(Budget::Simulations(300), {}, store_.get());
+    ASSERT_TRUE(planned.ok()) << planned.status().ToString();
+    plan = *planned;
+    if (plan.action.type == api::ActionView::Type::kRemove) break;
+    api::ObserveRequest o = SawNothing(plan);
+    if (plan.action.type != api::ActionView::Type::kMove) o.robot_state.reset();
+    o.detections.push_back(box);
+    ASSERT_TRUE(s->Observe(o, store_.get()).ok());
+  }
+  ASSERT_EQ(plan.action.type, api::ActionView::Type::kRemove) << "the target was never removed";
+  EXPECT_EQ(plan.action.object_id, "mug");
+  api::ObserveRequest failed;
+  failed.action_id = plan.action_id;
+  failed.succeeded = false;
+  auto observed = s->Observe(failed, store_.get());
+  ASSERT_TRUE(observed.ok()) << observed.status().ToString();
+  EXPECT_FALSE(observed->done);
+  EXPECT_EQ(observed->reward, -1000.0);  // R_ill
+  const int mug = s->Belief()->FindObject("mug");
+  ASSERT_GT(mug, 0);
+  EXPECT_TRUE(s->Belief()->objects[mug].removal_failed);
+  EXPECT_EQ(s->Belief()->objects[mug].status, object_search::kDeclaredTarget);
+  // The restored session knows it too, and neither plans the removal again.
+  auto loaded = store_->Load(s->id());
+  ASSERT_TRUE(loaded.ok()) << loaded.status().ToString();
+  auto restored = Session::Restore(std::move(loaded->record), loaded->version, SamplerFactory(),
+                                   object_search::PlannerRegistry::BuiltIn(), SessionLimits());
+  ASSERT_TRUE(restored.ok()) << restored.status().ToString();
+  EXPECT_TRUE((*restored)->Belief()->objects[mug].removal_failed);
+  auto next = (*restored)->Plan(Budget::Simulations(300), {}, store_.get());
+  ASSERT_TRUE(next.ok()) << next.status().ToString();
+  EXPECT_NE(next->action.type, api::ActionView::Type::kRemove);
+}
+
 }  // namespace
 }  // namespace npfkct::server

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <set>
+#include <utility>
 
 #include "npfkct/api/api.h"
 #include "npfkct/api/wire.h"
@@ -434,6 +435,7 @@ Status ReadObjects(const json& objects, const Limits& limits, World* w) {
     }
     k.key = Utf8Prefix(String(o, "id"), HardLimits().max_id_length);
     k.moveability = Number(o, "moveability", 1.0);
+    k.removal_failed = Bool(o, "removalFailed", false);
     for (int i = 0; i < 8; ++i) {
       if (!o.at("odds")[i].is_number()) return Lost("object odds");
       k.odds[i] = o.at("odds")[i].get<float>();
@@ -735,11 +737,13 @@ json WorldJson(const World& w) {
   j["grid"] = GridJson(w.grid);
   j["objects"] = json::array();
   for (const auto& o : w.objects) {
-    j["objects"].push_back({{"id", o.key},
-                            {"box", BoxJson(o.box)},
-                            {"moveability", o.moveability},
-                            {"odds", o.odds},
-                            {"status", o.status}});
+    json object = {{"id", o.key},
+                   {"box", BoxJson(o.box)},
+                   {"moveability", o.moveability},
+                   {"odds", o.odds},
+                   {"status", o.status}};
+    if (o.removal_failed) object["removalFailed"] = true;
+    j["objects"].push_back(std::move(object));
   }
   j["robotConfig"] = ConfigJson(w.robot_config);
   j["steps"] = w.steps;
@@ -836,6 +840,7 @@ json BeliefJson(const World& w, const SessionView* session) {
                             {"faceLogOdds", o.odds},
                             {"status", kStatus[std::clamp(o.status + 2, 0, 3)]},
                             {"moveability", o.moveability},
+                            {"removalFailed", o.removal_failed},
                             {"targetProbability", 1.0 / (1.0 + std::exp(-mean))}});
   }
   return j;

@@ -96,6 +96,10 @@ double RewardOf(const SearchParams& p, ActionOutcome outcome);
 /// that succeeded on an object whose status was `status`.
 ActionOutcome SuccessfulOutcome(int kind_offset, int8_t status);
 
+/// The status an object takes when a declare/remove of `kind_offset` (0..2) on it succeeds:
+/// declared target, declared obstacle, removed.
+int8_t StatusAfter(int kind_offset);
+
 /// A 2-D occupancy map of the floor; the base may not stand where its footprint touches an
 /// occupied cell.
 class OccupancyMap {
@@ -150,6 +154,9 @@ struct ObjectKnowledge {
   double moveability = 1.0;     ///< Probability that the robot can remove it.
   std::array<float, 8> odds{};  ///< Face-grid log-odds (the box's 8 corners).
   int8_t status = kUpdating;
+  /// The robot reported a removal of it that failed: its moveability stays 0 whatever later
+  /// detections estimate.
+  bool removal_failed = false;
 };
 
 /// One face-grid detection of a real observation: corner index 0..7 and the probability that
@@ -281,6 +288,8 @@ StatusOr<World> BuildWorld(const PriorMap& prior);
 
 /// Applies the outcome of a declare/remove action executed for real (`success` says whether the
 /// robot managed it). Status changes follow the paper: declared target 1, obstacle 0, removed -2.
+/// A removal that failed marks the object unremovable (moveability 0 from then on): the model's
+/// removal of a moveable object never fails, so the planner would otherwise try it again.
 Status ApplyDiscreteOutcome(World* world, int object, int kind_offset, bool success);
 
 /// The real-step update (paper appendix A): the robot's configuration, detected objects (new ones
