@@ -10,7 +10,8 @@
 #   benchmark on its 2-D LQG, a few minutes; vdptag-published: VDP Tag at the VPW paper's own
 #   configuration, EPISODES per planner, default 100, PLANNERS, default "vomcpow kct pomcpow";
 #   kct-lightdark takes EPISODES, default 200, and PLANNERS, default "kct pomcpow", likewise;
-#   tag: Tag at DESPOT's protocol, EPISODES, default 60, PLANNERS, default "despot pomcp")
+#   tag: Tag at DESPOT's protocol, EPISODES, default 60, PLANNERS, default "despot pomcp";
+#   lightdark-leaf: what caps kCT on SimpleLightDark, its own file)
 # Takes about three and a half hours on a 2-core machine with every section (tag: 25 minutes).
 # env: THREADS (episodes at once; default: the number of cores), SEED (the kct and tag sections'
 # seed, default 1; a second seed gives new episodes to pool with the first).
@@ -95,6 +96,22 @@ for section in "${sections[@]}"; do
         run --problem tag --planner "$planner" --episodes "${EPISODES:-60}" --cpu-ms 1000 \
           --threads "$THREADS" --seed "$SEED"
       done
+      ;;
+    lightdark-leaf)
+      # What caps SimpleLightDark (docs/experiments.md): kCT on seed 11, 200 episodes, with the
+      # published leaf value (the fully observable MDP, "fo") and with the labelled detour by the
+      # light ("localize") at 30,000, 90,000 and 270,000 simulations, then with "fo" at 1 s of
+      # CPU; kCT with "localize" at 1 s on seed 2 (its "fo" run there is kct-lightdark's, in
+      # classic.jsonl). Its own file, bench/results/lightdark-leaf.jsonl; about an hour.
+      leaf_run() {
+        "$BENCH" --problem lightdark --planner kct --episodes 200 --time-ms 0 \
+          --threads "$THREADS" "$@" | tee -a "$NPFKCT_ROOT/bench/results/lightdark-leaf.jsonl"
+      }
+      for sims in 30000 90000 270000; do
+        for leaf in fo localize; do leaf_run --sims "$sims" --seed 11 --rollout "$leaf"; done
+      done
+      leaf_run --cpu-ms 1000 --seed 11 --rollout fo
+      leaf_run --cpu-ms 1000 --seed 2 --rollout localize
       ;;
     lqg)
       # The VPW paper's LQG (VOOTreeSearch.jl scripts/LQG/action_compare.jl): 1,000 plans of 1,000

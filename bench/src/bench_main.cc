@@ -245,7 +245,17 @@ int RunTag(const Config& c) {
 }
 
 int RunLightDark(const Config& c) {
-  const models::SimpleLightDark model;
+  // Leaves valued by the fully observable MDP (default, as published) or, labelled, by the detour
+  // to the light (models::SimpleLightDark::Leaf::kLocalize).
+  using Leaf = models::SimpleLightDark::Leaf;
+  Leaf leaf = Leaf::kFullyObservable;
+  if (c.rollout == "localize") {
+    leaf = Leaf::kLocalize;
+  } else if (!c.rollout.empty() && c.rollout != "fo") {
+    std::cerr << "npfkct-bench: lightdark leaf values (--rollout) are 'fo' or 'localize'\n";
+    return 2;
+  }
+  const models::SimpleLightDark model(0.0, leaf);
   auto declared_at_zero = [](const auto& step) { return step.reward == 100.0; };
   if (c.planner == "pomcp") {
     PomcpOptions o;  // the POMCPOW paper's POMCP with continuous observations
@@ -260,7 +270,7 @@ int RunLightDark(const Config& c) {
     // The authors' discretised POMCP (icaps_2018/ld_discretization.jl, "d_pomcp"): observations
     // in bins of 10^-1.5, their best width (60.99 +- 0.41 at 1 s in their raw data), c = 100,
     // depth 20; leaves valued by the fully observable MDP (theirs: rollouts of its policy).
-    static const models::SimpleLightDark discretised(std::pow(10.0, -1.5));
+    const models::SimpleLightDark discretised(std::pow(10.0, -1.5), leaf);
     PomcpOptions o;
     o.exploration_c = 100.0;
     o.search.max_depth = 20;
@@ -285,8 +295,7 @@ int RunLightDark(const Config& c) {
   if (c.planner == "kct") {
     // The actions are discrete: kCT's list holds them as points (no spheres to refine), with the
     // POMCPOW paper's observation widening, depth, particles and leaf values.
-    static const models::SimpleLightDark base;
-    static const DiscreteAsHybrid<models::SimpleLightDark> hybrid(base);
+    const DiscreteAsHybrid<models::SimpleLightDark> hybrid(model);
     KctOptions o;
     o.observations.k = 5.0;
     o.observations.alpha = 1.0 / 15.0;
@@ -484,7 +493,8 @@ int main(int argc, char** argv) {
   app.add_option("--max-steps", c.max_steps, "episode length limit (default per problem)");
   app.add_option("--rollout", c.rollout,
                  "tiger: listen (default) | random; vdptag: random (default) | tonextml; lqg: "
-                 "lqr (default) | uniform; scenarios: aimed (default) | clear | greedy | random");
+                 "lqr (default) | uniform; lightdark (the leaf value): fo (default) | localize; "
+                 "scenarios: aimed (default) | clear | greedy | random");
   double plan_r_co = std::nan("");
   app.add_option("--plan-r-co", plan_r_co,
                  "scenarios: R_co of the planners' model (the simulator pays the scenario's)");

@@ -174,6 +174,21 @@ TEST(SimpleLightDarkTest, MdpValueIsExact) {
   EXPECT_NEAR(ld.HeuristicValue(11), -1.0 + 0.95 * (-1.0 + 0.95 * 100.0), 1e-9);
 }
 
+// The labelled leaf value: the light first by the fewest moves, then 0 and the declaration.
+TEST(SimpleLightDarkTest, LocalizeLeafGoesByTheLight) {
+  SimpleLightDark ld(0.0, SimpleLightDark::Leaf::kLocalize);
+  const double at_light = -1.0 + 0.95 * 100.0;  // -10, then declare
+  EXPECT_NEAR(ld.HeuristicValue(10), at_light, 1e-9);
+  EXPECT_NEAR(ld.HeuristicValue(0), -1.0 + 0.95 * at_light, 1e-9);  // +10 first
+  EXPECT_NEAR(ld.HeuristicValue(9), -1.0 + 0.95 * at_light, 1e-9);  // +1
+  // -28: +10 +10 +10 +10 -1 -1 (6 moves), fewer than +10 x3 and +1 x8.
+  const double g6 = std::pow(0.95, 6);
+  EXPECT_NEAR(ld.HeuristicValue(-28), -(1.0 - g6) / 0.05 + g6 * at_light, 1e-9);
+  EXPECT_EQ(ld.HeuristicValue(SimpleLightDark::kTerminal), 0.0);
+  // The default leaf is the fully observable value.
+  EXPECT_NEAR(SimpleLightDark().HeuristicValue(0), 100.0, 1e-9);
+}
+
 TEST(VdpTagTest, TargetFollowsVanDerPolWithRk4) {
   // One RK4 substep by hand from (1, 0): f = (mu (x - x^3/3 - y), x / mu).
   double x = 1.0, y = 0.0;

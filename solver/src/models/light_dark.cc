@@ -6,7 +6,7 @@
 
 namespace npfkct::models {
 
-SimpleLightDark::SimpleLightDark(double observation_bin)
+SimpleLightDark::SimpleLightDark(double observation_bin, Leaf leaf)
     : observation_bin_(observation_bin > 0.0 && std::isfinite(observation_bin) ? observation_bin
                                                                                : 0.0),
       mdp_value_(2 * kRadius + 1, 0.0) {
@@ -26,6 +26,30 @@ SimpleLightDark::SimpleLightDark(double observation_bin)
     }
     mdp_value_.swap(next);
     if (change < 1e-9) break;
+  }
+  leaf_value_ = mdp_value_;
+  if (leaf == Leaf::kLocalize) {
+    // The fewest moves to the light (relaxed until nothing changes), then the light's own value
+    // (one move to 0 and the declaration), each move costing 1 and discounted.
+    std::vector<int> moves(mdp_value_.size(), 2 * kRadius + 1);
+    moves[kLight + kRadius] = 0;
+    for (bool changed = true; changed;) {
+      changed = false;
+      for (int s = -kRadius; s <= kRadius; ++s) {
+        for (int move : kMoves) {
+          if (move == 0) continue;
+          const int to = std::clamp(s + move, -kRadius, kRadius);
+          if (moves[to + kRadius] + 1 < moves[s + kRadius]) {
+            moves[s + kRadius] = moves[to + kRadius] + 1;
+            changed = true;
+          }
+        }
+      }
+    }
+    for (int s = -kRadius; s <= kRadius; ++s) {
+      const double g = std::pow(Discount(), moves[s + kRadius]);
+      leaf_value_[s + kRadius] = -(1.0 - g) / (1.0 - Discount()) + g * mdp_value_[kLight + kRadius];
+    }
   }
 }
 
@@ -65,7 +89,7 @@ double SimpleLightDark::ObservationLikelihood(const Action&, const State& sp,
 
 double SimpleLightDark::HeuristicValue(const State& s) const {
   if (s == kTerminal) return 0.0;
-  return mdp_value_[s + kRadius];
+  return leaf_value_[s + kRadius];
 }
 
 bool SimpleLightDark::Reinvigorate(const State&, const Action& a, const Observation& o, Rng& rng,

@@ -26,10 +26,21 @@ class SimpleLightDark {
   static constexpr int kDeclare = 2;
   static constexpr int kMoves[5] = {-10, -1, 0, 1, 10};
 
+  /// What HeuristicValue (the planners' leaf value) gives.
+  enum class Leaf {
+    /// The fully observable MDP's V*(s), as the published experiments value leaves.
+    kFullyObservable,
+    /// The value of first going to the light by the fewest moves, then to 0 and declaring: the
+    /// detour that the observations make necessary (only at the light is one exact).
+    /// Hand-written knowledge of this problem, for the experiment of docs/experiments.md
+    /// ("What caps kCT on SimpleLightDark?"), not what the published figures used.
+    kLocalize,
+  };
+
   /// The continuous problem, or with `observation_bin` > 0 the authors' discretised one
   /// (DSimpleLightDark of ContinuousPOMDPTreeSearchExperiments.jl): the observation is the bin
   /// index floor(o / observation_bin), its likelihood the Gaussian's mass on the bin.
-  explicit SimpleLightDark(double observation_bin = 0.0);
+  explicit SimpleLightDark(double observation_bin = 0.0, Leaf leaf = Leaf::kFullyObservable);
 
   State SampleInitialState(Rng& rng) const;
   StepResult<State, Observation> Step(const State& s, const Action& a, Rng& rng) const;
@@ -37,7 +48,8 @@ class SimpleLightDark {
   bool IsTerminal(const State& s) const { return s == kTerminal; }
   int NumActions() const { return 5; }
   double ObservationLikelihood(const Action& a, const State& sp, const Observation& o) const;
-  /// The fully observable MDP value V*(s), computed once by value iteration (POMCPOW's FOValue).
+  /// The leaf value of s: the fully observable MDP value V*(s), computed once by value iteration
+  /// (POMCPOW's FOValue), or with Leaf::kLocalize the value of the detour by the light.
   double HeuristicValue(const State& s) const;
   /// A particle consistent with observation o: round(N(o, |o - 10| + 1e-4)), clamped.
   bool Reinvigorate(const State& near, const Action& a, const Observation& o, Rng& rng,
@@ -52,7 +64,8 @@ class SimpleLightDark {
 
  private:
   double observation_bin_ = 0.0;
-  std::vector<double> mdp_value_;  // index s + kRadius
+  std::vector<double> mdp_value_;   // index s + kRadius
+  std::vector<double> leaf_value_;  // HeuristicValue, index s + kRadius
 };
 
 }  // namespace npfkct::models
