@@ -738,20 +738,22 @@ def lightdark_leaf(*paths):
     """SimpleLightDark's leaf values (bench/bench_classic.sh lightdark-leaf): every SimpleLightDark
     run of the first file with its return ± standard error, steps, success and simulations per
     step; then, episode by episode, each run with the detour leaf against the run with the fully
-    observable leaf of the same planner, seed, episodes and budget (in any of the files), and each
-    fully observable run against the one before it in the first file with the same planner, seed
-    and episodes (more search)."""
+    observable leaf of the same planner, options, seed, episodes and budget (in any of the files),
+    each fully observable run against the one before it in the first file with the same planner,
+    options, seed and episodes (more search), and each run with options against the run without
+    them of the same leaf, budget and seed."""
     runs = [r for path in paths for r in json_lines(path) if r.get("problem") == "lightdark"]
     mine = [r for r in json_lines(paths[0]) if r.get("problem") == "lightdark"]
     leaf = lambda r: "localize" if r.get("rollout") == "localize" else "fo"
     budget = lambda r: (f"{r['cpu_ms']} ms CPU" if r.get("cpu_ms") else
                         f"{r['sims']:,} sims" if r.get("sims") else f"{r['time_ms']} ms")
-    episodes = lambda r: (r["planner"], r["seed"], r["episodes"])
-    print("| Planner | Leaf value | Budget | Seed | Episodes | Return ± s.e. | Steps | Success | "
-          "Median sims/step |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    episodes = lambda r: (r["planner"], r["seed"], r["episodes"], tuple(r.get("options", [])))
+    print("| Planner | Leaf value | Options | Budget | Seed | Episodes | Return ± s.e. | Steps | "
+          "Success | Median sims/step |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for r in mine:
-        print(f"| {r['planner']} | {leaf(r)} | {budget(r)} | {r['seed']} | {r['episodes']} | "
+        print(f"| {r['planner']} | {leaf(r)} | {', '.join(r.get('options', [])) or '–'} | "
+              f"{budget(r)} | {r['seed']} | {r['episodes']} | "
               f"{r['mean_discounted_return']:.2f} ± {r['stderr']:.2f} | {r['mean_steps']:.2f} | "
               f"{100 * r['success_rate']:.1f}% | {r['median_sims_per_step']:,.0f} |")
     pairs = []
@@ -766,6 +768,12 @@ def lightdark_leaf(*paths):
         before = [b for b in fo[:i] if episodes(b) == episodes(r)]
         if before:
             pairs.append(("more search", before[-1], r))
+    for r in mine:
+        if r.get("options"):
+            base = next((b for b in mine if not b.get("options") and leaf(b) == leaf(r) and
+                         budget(b) == budget(r) and episodes(b)[:3] == episodes(r)[:3]), None)
+            if base is not None:
+                pairs.append((", ".join(r["options"]), base, r))
     print("\nEpisode by episode (the same initial states; 95% t of the differences):\n")
     print("| Change | Planner | Seed | Episodes | Base | Base return | Run | Return | "
           "Difference ± 95% | Steps difference ± 95% | Episodes that differ |")

@@ -510,7 +510,8 @@ def test_lightdark_leaf_pairs_the_leaves_and_the_budgets(tmp_path):
     # Seed 11: fo at 100 sims (returns 1, 2, 3), localize at 100 sims (2, 4, 3: +1 ± 2.48), fo at
     # 300 sims (1, 2, 5: one episode differs, +0.67 ± 2.87) and at 1 s (the same episodes: +0, 0
     # differ). Seed 2: localize at 1 s against the other file's fo run there (3, 3, 3 against
-    # 1, 2, 3: +1 ± 2.48). A localize run without an fo run of its budget has no pair.
+    # 1, 2, 3: +1 ± 2.48). A localize run without an fo run of its budget has no pair. An option
+    # (k=2: 1, 1, 1) against the run without it: -1 ± 2.48, and no "more search" row.
     run = lambda **c: dict({"problem": "lightdark", "planner": "kct", "seed": 11, "episodes": 3,
                             "cpu_ms": 0, "time_ms": 0, "sims": 100, "rollout": "",
                             "mean_discounted_return": 2.0, "stderr": 0.5, "mean_steps": 9.0,
@@ -522,15 +523,17 @@ def test_lightdark_leaf_pairs_the_leaves_and_the_budgets(tmp_path):
             run(sims=0, cpu_ms=1000, mean_discounted_return=2.67, episode_returns=[1.0, 2.0, 5.0]),
             run(sims=0, cpu_ms=1000, seed=2, rollout="localize", mean_discounted_return=3.0,
                 episode_returns=[3.0, 3.0, 3.0]),
-            run(sims=900, rollout="localize")]
+            run(sims=900, rollout="localize"),
+            run(options=["k=2"], mean_discounted_return=1.0, episode_returns=[1.0, 1.0, 1.0])]
     other = [run(sims=0, cpu_ms=1000, seed=2), dict(run(), problem="vdptag")]
     for path, runs in (("mine.jsonl", mine), ("other.jsonl", other)):
         (tmp_path / path).write_text("\n".join(json.dumps(r) for r in runs) + "\n",
                                      encoding="utf-8")
     out = results_table.capture(results_table.lightdark_leaf, str(tmp_path / "mine.jsonl"),
                                 str(tmp_path / "other.jsonl"))
-    assert len([line for line in out.splitlines() if line.startswith("| kct |")]) == 6
-    pairs = [line for line in out.splitlines() if line.startswith(("| the detour", "| more"))]
+    assert len([line for line in out.splitlines() if line.startswith("| kct |")]) == 7
+    pairs = [line for line in out.splitlines()
+             if line.startswith(("| the detour", "| more", "| k="))]
     assert pairs == [
         "| the detour leaf | kct | 11 | 3 | fo, 100 sims | 2.00 | localize, 100 sims | 3.00 | "
         "+1.00 ± 2.48 | +0.00 ± 0.00 | 2 |",
@@ -539,7 +542,9 @@ def test_lightdark_leaf_pairs_the_leaves_and_the_budgets(tmp_path):
         "| more search | kct | 11 | 3 | fo, 100 sims | 2.00 | fo, 300 sims | 2.67 | "
         "+0.67 ± 2.87 | +0.00 ± 0.00 | 1 |",
         "| more search | kct | 11 | 3 | fo, 300 sims | 2.67 | fo, 1000 ms CPU | 2.67 | "
-        "+0.00 ± 0.00 | +0.00 ± 0.00 | 0 |"]
+        "+0.00 ± 0.00 | +0.00 ± 0.00 | 0 |",
+        "| k=2 | kct | 11 | 3 | fo, 100 sims | 2.00 | fo, 100 sims | 1.00 | -1.00 ± 2.48 | "
+        "+0.00 ± 0.00 | 2 |"]
 
 
 def test_despot_pools_runs_and_subtracts_the_authors_figure(tmp_path):
