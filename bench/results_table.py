@@ -742,8 +742,8 @@ def lightdark_leaf(*paths):
     each fully observable run against the one before it in the first file with the same planner,
     options, seed and episodes (more search), and each run with options against the run without
     them of the same leaf, budget and seed."""
-    runs = [r for path in paths for r in json_lines(path) if r.get("problem") == "lightdark"]
-    mine = [r for r in json_lines(paths[0]) if r.get("problem") == "lightdark"]
+    files = [[r for r in json_lines(path) if r.get("problem") == "lightdark"] for path in paths]
+    runs, mine = [r for f in files for r in f], files[0]
     leaf = lambda r: "localize" if r.get("rollout") == "localize" else "fo"
     budget = lambda r: (f"{r['cpu_ms']} ms CPU" if r.get("cpu_ms") else
                         f"{r['sims']:,} sims" if r.get("sims") else f"{r['time_ms']} ms")

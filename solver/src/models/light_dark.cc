@@ -9,9 +9,9 @@ namespace npfkct::models {
 SimpleLightDark::SimpleLightDark(double observation_bin, Leaf leaf)
     : observation_bin_(observation_bin > 0.0 && std::isfinite(observation_bin) ? observation_bin
                                                                                : 0.0),
-      mdp_value_(2 * kRadius + 1, 0.0) {
-  // Value iteration on the fully observable problem.
-  std::vector<double> next(mdp_value_.size());
+      leaf_value_(2 * kRadius + 1, 0.0) {
+  // Value iteration on the fully observable problem: the leaf value unless kLocalize replaces it.
+  std::vector<double> next(leaf_value_.size());
   for (int iter = 0; iter < 2000; ++iter) {
     double change = 0.0;
     for (int s = -kRadius; s <= kRadius; ++s) {
@@ -19,19 +19,19 @@ SimpleLightDark::SimpleLightDark(double observation_bin, Leaf leaf)
       for (int move : kMoves) {
         if (move == 0) continue;
         const int sp = std::clamp(s + move, -kRadius, kRadius);
-        best = std::max(best, -1.0 + Discount() * mdp_value_[sp + kRadius]);
+        best = std::max(best, -1.0 + Discount() * leaf_value_[sp + kRadius]);
       }
       next[s + kRadius] = best;
-      change = std::max(change, std::abs(best - mdp_value_[s + kRadius]));
+      change = std::max(change, std::abs(best - leaf_value_[s + kRadius]));
     }
-    mdp_value_.swap(next);
+    leaf_value_.swap(next);
     if (change < 1e-9) break;
   }
-  leaf_value_ = mdp_value_;
   if (leaf == Leaf::kLocalize) {
+    const double at_light = leaf_value_[kLight + kRadius];
     // The fewest moves to the light (relaxed until nothing changes), then the light's own value
     // (one move to 0 and the declaration), each move costing 1 and discounted.
-    std::vector<int> moves(mdp_value_.size(), 2 * kRadius + 1);
+    std::vector<int> moves(leaf_value_.size(), 2 * kRadius + 1);
     moves[kLight + kRadius] = 0;
     for (bool changed = true; changed;) {
       changed = false;
@@ -48,7 +48,7 @@ SimpleLightDark::SimpleLightDark(double observation_bin, Leaf leaf)
     }
     for (int s = -kRadius; s <= kRadius; ++s) {
       const double g = std::pow(Discount(), moves[s + kRadius]);
-      leaf_value_[s + kRadius] = -(1.0 - g) / (1.0 - Discount()) + g * mdp_value_[kLight + kRadius];
+      leaf_value_[s + kRadius] = -(1.0 - g) / (1.0 - Discount()) + g * at_light;
     }
   }
 }

@@ -64,7 +64,6 @@ class SimpleLightDark {
 
  private:
   double observation_bin_ = 0.0;
-  std::vector<double> mdp_value_;   // index s + kRadius
   std::vector<double> leaf_value_;  // HeuristicValue, index s + kRadius
 };
 
