@@ -72,7 +72,7 @@ def test_a_session_on_a_slam_map_finds_the_target(server, tmp_path):
     robot = SimRobot("loose1", seed=2)
     try:
         for _ in range(30):
-            plan = client.plan(session.id, time_ms=250)
+            plan = client.plan(session.id, simulations=500)
             if plan.action.type == "MOVE":  # the base stands where the map is free
                 c = plan.action.configuration
                 assert any(r["min"][0] <= c.x <= r["max"][0] and r["min"][1] <= c.y <= r["max"][1]
