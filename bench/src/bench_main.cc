@@ -3,11 +3,13 @@
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cmath>
+#include <concepts>
 #include <cstdio>
 #include <functional>
 #include <iostream>
 #include <memory>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "episode_runner.h"
@@ -43,17 +45,71 @@ struct Config {
   int max_steps = 0;
   std::string rollout;
   std::vector<std::string> options;
+  bool trace = false;
+};
+
+// A value of an episode's trace: a number, or a hybrid action's kind (the discrete index of a
+// discrete model run as a hybrid one, as kCT runs SimpleLightDark).
+template <class T>
+concept TraceNumber = std::is_arithmetic_v<T>;
+template <class T>
+concept Traceable = TraceNumber<T> || std::same_as<T, HybridAction>;
+
+template <Traceable T>
+double TraceValue(const T& v) {
+  if constexpr (std::same_as<T, HybridAction>) {
+    return v.kind;
+  } else {
+    return static_cast<double>(v);
+  }
+}
+
+/// Whether an episode of M can be traced (its states, actions and observations are numbers).
+template <class M>
+constexpr bool kTraceable = Traceable<typename M::State> && Traceable<typename M::Action> &&
+                            Traceable<typename M::Observation>;
+
+/// One episode's trace as a JSON line: the states from the initial one, and each step's action,
+/// observation and reward.
+struct EpisodeTrace {
+  std::vector<double> states, actions, observations, rewards;
+
+  std::string Json(const std::string& label, int episode) const {
+    std::string out = "{\"trace\": \"" + JsonEscape(label) + "\", \"episode\": " +
+                      std::to_string(episode);
+    auto list = [&out](const char* name, const std::vector<double>& v) {
+      out += std::string(", \"") + name + "\": [";
+      char buf[32];
+      for (size_t i = 0; i < v.size(); ++i) {
+        if (std::isfinite(v[i])) {
+          std::snprintf(buf, sizeof buf, "%s%.9g", i ? ", " : "", v[i]);
+        } else {
+          std::snprintf(buf, sizeof buf, "%snull", i ? ", " : "");
+        }
+        out += buf;
+      }
+      out += "]";
+    };
+    list("states", states);
+    list("actions", actions);
+    list("observations", observations);
+    list("rewards", rewards);
+    return out + "}\n";
+  }
 };
 
 /// Runs one closed-loop episode: the planner plans on its belief, the true model executes.
 template <class M, class P, class SuccessFn>
 EpisodeResult RunEpisode(const M& model, P& planner, const Budget& budget, int max_steps,
-                         uint64_t seed, SuccessFn success) {
+                         uint64_t seed, SuccessFn success, EpisodeTrace* trace = nullptr) {
   EpisodeResult result;
   Rng rng(seed);
   Rng world(seed ^ 0x5bd1e995u);
   planner.Reset(rng);
   auto state = model.SampleInitialState(world);
+  if constexpr (kTraceable<M>) {
+    if (trace != nullptr) trace->states.push_back(TraceValue(state));
+  }
   double discount = 1.0;
   for (int t = 0; t < max_steps; ++t) {
     auto d = planner.Plan(budget, rng);
@@ -65,6 +121,14 @@ EpisodeResult RunEpisode(const M& model, P& planner, const Budget& budget, int m
     result.ms_per_step.push_back(d.stats.elapsed_ms);
     result.cpu_ms_per_step.push_back(d.stats.cpu_ms);
     auto step = model.Step(state, d.action, world);
+    if constexpr (kTraceable<M>) {
+      if (trace != nullptr) {
+        trace->actions.push_back(TraceValue(d.action));
+        trace->observations.push_back(TraceValue(step.observation));
+        trace->rewards.push_back(step.reward);
+        trace->states.push_back(TraceValue(step.state));
+      }
+    }
     result.discounted_return += discount * step.reward;
     result.undiscounted_return += step.reward;
     discount *= model.Discount();
@@ -155,13 +219,24 @@ int Run(const Config& c, const M& model, Options options, int default_max_steps,
     return 2;
   }
   const int max_steps = c.max_steps > 0 ? c.max_steps : default_max_steps;
+  if (c.trace && !kTraceable<M>) {
+    std::cerr << "npfkct-bench: --trace needs a problem whose states, actions and observations "
+                 "are numbers (lightdark, tiger); '"
+              << c.problem << "' has others\n";
+    return 2;
+  }
+  const std::string label = c.problem + "/" + c.planner;
   auto summary = RunEpisodes(
       c.episodes, c.threads, success_defined,
       [&](int i) {
         P planner(model, options);
-        return RunEpisode(model, planner, budget, max_steps, c.seed * 1000003ULL + i, success);
+        EpisodeTrace trace;
+        EpisodeResult r = RunEpisode(model, planner, budget, max_steps,
+                                     c.seed * 1000003ULL + i, success, c.trace ? &trace : nullptr);
+        if (c.trace) std::fputs(trace.Json(label, i).c_str(), stderr);  // one line, one call
+        return r;
       },
-      c.problem + "/" + c.planner);
+      label);
   PrintJson(c, summary, max_steps, KctTree(options));
   return summary.failed_episodes == 0 ? 0 : 1;
 }
@@ -522,7 +597,9 @@ int main(int argc, char** argv) {
          "depth with a simulated detector's 2D boxes of the target)")
       ->delimiter(',');
   app.add_flag("--trace", search.trace,
-               "scenarios: print each step of every trial on stderr (each line names its trial)");
+               "scenarios: print each step of every trial on stderr (each line names its trial); "
+               "lightdark, tiger: each episode's states, actions, observations and rewards as a "
+               "JSON line on stderr");
   app.add_option("--render", search.render_dir,
                  "scenarios: write per-step PNGs of the first trial into this directory");
   CLI11_PARSE(app, argc, argv);
@@ -544,6 +621,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   c.planner = search.planners[0];
+  c.trace = search.trace;
   if (c.problem == "tiger") return npfkct::bench::RunTiger(c);
   if (c.problem == "rocksample") return npfkct::bench::RunRockSample(c);
   if (c.problem == "lightdark") return npfkct::bench::RunLightDark(c);
