@@ -11,7 +11,9 @@
 #   configuration, EPISODES per planner, default 100, PLANNERS, default "vomcpow kct pomcpow";
 #   kct-lightdark takes EPISODES, default 200, and PLANNERS, default "kct pomcpow", likewise;
 #   tag: Tag at DESPOT's protocol, EPISODES, default 60, PLANNERS, default "despot pomcp";
-#   lightdark-leaf: what caps kCT on SimpleLightDark, its own file)
+#   lightdark-leaf: what caps kCT on SimpleLightDark, its own file; lightdark-optimum: a
+#   reference for SimpleLightDark's optimum, kCT's decisions scored against it, and shallow
+#   lookaheads by leaf value, about two hours)
 # Takes about three and a half hours on a 2-core machine with every section (tag: 25 minutes).
 # env: THREADS (episodes at once; default: the number of cores), SEED (the kct and tag sections'
 # seed, default 1; a second seed gives new episodes to pool with the first).
@@ -116,6 +118,31 @@ for section in "${sections[@]}"; do
       # two and a half times narrower, at 270,000 simulations.
       for k in 20 2; do
         leaf_run --sims 270000 --seed 11 --rollout fo --opt observations.k="$k"
+      done
+      ;;
+    lightdark-optimum)
+      # How far SimpleLightDark's optimum is (docs/experiments.md): bench/lightdark_optimum.py
+      # solves the problem offline with binned observations (point-based value iteration on the
+      # exact belief; a lower bound on the optimum) and plays its policy for 5,000 episodes; kCT's
+      # 200 episodes of seed 11 at 270,000 simulations (the same episodes, action for action, as
+      # at 1 s of CPU; lightdark-leaf) are traced and each decision scored against it. One line
+      # in classic.jsonl; the trace is kept beside it in bench/results/lightdark-kct-trace.jsonl.
+      trace="$NPFKCT_ROOT/bench/results/lightdark-kct-trace.jsonl"
+      "$BENCH" --problem lightdark --planner kct --episodes 200 --time-ms 0 --sims 270000 \
+        --seed 11 --threads "$THREADS" --trace 2> "$trace" > /dev/null
+      python3 "$NPFKCT_ROOT/bench/lightdark_optimum.py" --walks 30 --rounds 4 \
+        --round-episodes 100 --episodes 5000 --score "$trace" | tee -a "$OUT"
+      # Which leaf value a shallow search needs: sparse sampling on the exact belief, the trees'
+      # leaf (fo) against the value of a plan the agent can follow (plan), depths 1-3.
+      for depth in 1 2; do
+        for leaf in fo plan; do
+          python3 "$NPFKCT_ROOT/bench/lightdark_optimum.py" --lookahead "$leaf" --depth "$depth" \
+            --width 8 --episodes 500 | tee -a "$OUT"
+        done
+      done
+      for leaf in fo plan; do
+        python3 "$NPFKCT_ROOT/bench/lightdark_optimum.py" --lookahead "$leaf" --depth 3 \
+          --width 4 --episodes 300 | tee -a "$OUT"
       done
       ;;
     lqg)

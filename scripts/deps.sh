@@ -29,6 +29,8 @@ NPFKCT_PACKAGES=(
   "${NPFKCT_BUILD_PACKAGES[@]}" ccache curl jq libgtest-dev libgmock-dev
   python3 python3-requests python3-pytest python3-jsonschema python3-yaml
   python3-venv python3-setuptools python3-wheel
+  # bench/lightdark_optimum.py (the SimpleLightDark reference) solves with numpy.
+  python3-numpy
   # The Debian packages (cpack -G DEB: dpkg-shlibdeps) and the fresh root they are tested on.
   dpkg-dev mmdebstrap
   ros-core-dev python3-rospy python3-rosgraph python3-roslaunch
