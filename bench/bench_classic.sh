@@ -13,7 +13,7 @@
 #   tag: Tag at DESPOT's protocol, EPISODES, default 60, PLANNERS, default "despot pomcp";
 #   lightdark-leaf: what caps kCT on SimpleLightDark, its own file; lightdark-optimum: a
 #   reference for SimpleLightDark's optimum, kCT's decisions scored against it, and shallow
-#   lookaheads by leaf value, about two hours)
+#   lookaheads by leaf value, about an hour)
 # Takes about three and a half hours on a 2-core machine with every section (tag: 25 minutes).
 # env: THREADS (episodes at once; default: the number of cores), SEED (the kct and tag sections'
 # seed, default 1; a second seed gives new episodes to pool with the first).
