@@ -14,13 +14,19 @@ bound on the continuous problem's optimum. It prints, as one JSON line like npfk
 - `upper_bound_qmdp`: the QMDP value of the initial belief (full observability from the first
   step on), which no policy exceeds.
 
-The model is written again here (numpy, from the header's documented constants), not read from the
-C++; tests/test_lightdark_optimum.py checks its fully observable values against the ones the bench
-prints and the bounds' order. Binning: a bin of +-1e-3 around the light (where the noise is 1e-4,
-so a reading there says "at the light"), bins of `--bin` (default 1.0) for readings in [-20, 40),
-four times wider beyond, to +-120. Finer bins can only raise the bound.
+With `--score FILE` (lines of `npfkct-bench --problem lightdark --trace`) it adds each traced
+decision's regret against the reference; with `--lookahead fo|plan` it plays a sparse-sampling
+lookahead on the exact belief instead of solving (docs/experiments.md, "How far is
+SimpleLightDark's optimum?").
 
-    python3 bench/lightdark_optimum.py                      # about 30 minutes on one core
+The model is written again here (numpy, from the header's documented constants), not read from the
+C++; tests/test_lightdark_optimum.py replays episodes that npfkct-bench plays against it and checks
+the bounds' order. Binning: a bin of +-1e-3 around the light (where the noise is 1e-4, so a
+reading there says "at the light"), bins of `--bin` (default 1.0) for readings in [-20, 40), four
+times wider beyond, to +-120. Halving `--bin` refines these bins, which can only raise the binned
+problem's optimum.
+
+    python3 bench/lightdark_optimum.py                      # about 15 minutes on one core
     python3 bench/lightdark_optimum.py --episodes 200 --rounds 0 --max-iterations 5   # a smoke run
 """
 import argparse
@@ -110,8 +116,8 @@ class Solver:
         return float(np.max(self.alphas @ b))
 
     def _move_scores(self, b, a):
-        """For move a from b: the predicted belief's support, and per (alpha, bin) the value of
-        following that alpha after that bin (unnormalised)."""
+        """For move a from b, per (alpha, bin): the value of following that alpha after that bin,
+        weighted by the bin's probability (the predicted belief's support only)."""
         p = after_move(b, a)
         k = np.nonzero(p > 1e-14)[0]
         return (self.alphas[:, k] * p[k]) @ self.obs[k]
@@ -341,15 +347,17 @@ def score(solver, edges, traces, worst=0):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--bin", type=float, default=1.0, help="bin width in [-20, 40) (default 1.0)")
-    ap.add_argument("--walks", type=int, default=200, help="random-walk episodes for the first "
-                    "beliefs (default 200)")
-    ap.add_argument("--rounds", type=int, default=2, help="rounds of beliefs met by the policy "
-                    "found so far (default 2)")
-    ap.add_argument("--round-episodes", type=int, default=200)
+    ap.add_argument("--walks", type=int, default=30, help="random-walk episodes for the first "
+                    "beliefs (default 30)")
+    ap.add_argument("--rounds", type=int, default=4, help="rounds of beliefs met by the policy "
+                    "found so far (default 4)")
+    ap.add_argument("--round-episodes", type=int, default=100, help="episodes a round "
+                    "(default 100)")
     ap.add_argument("--tolerance", type=float, default=0.05, help="a stage's largest gain that "
                     "ends a round (default 0.05)")
     ap.add_argument("--max-iterations", type=int, default=60, help="stages per round at most")
-    ap.add_argument("--episodes", type=int, default=2000, help="evaluation episodes")
+    ap.add_argument("--episodes", type=int, default=5000, help="evaluation episodes "
+                    "(default 5000)")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--save", help="write the alpha-vectors and beliefs to this .npz file")
     ap.add_argument("--load", help="read the alpha-vectors of an earlier --save instead of solving")

@@ -73,8 +73,8 @@
   results_table.py lightdark-optimum FILE
                                    SimpleLightDark's reference (bench/bench_classic.sh
                                    lightdark-optimum): the last perseus-binned record of FILE,
-                                   its bounds and policy, and the traced planner's decisions
-                                   scored against it.
+                                   its bounds and policy, the lookaheads by leaf value, and the
+                                   traced planner's decisions scored against it.
   results_table.py despot FILE     The solver beside the authors' DESPOT on RockSample(7,8)
                                    (bench/bench_despot.sh, one JSON line per planner and episode):
                                    return ± standard error, steps, trials per step, and each
@@ -796,8 +796,9 @@ def lightdark_leaf(*paths):
 
 def lightdark_optimum(path):
     """SimpleLightDark's reference (bench/bench_classic.sh lightdark-optimum): the last
-    perseus-binned record of `path`, its bounds and policy; then the traced planner's decisions
-    scored against it, their regret summed by the belief's spread at the decision."""
+    perseus-binned record of `path`, its bounds and policy; every lookahead record of `path` (the
+    exact-belief lookaheads by leaf value); then the traced planner's decisions scored against the
+    reference, their regret summed by the belief's spread at the decision."""
     r = last_matching(path, {"problem": "lightdark", "planner": "perseus-binned"})
     print("| Observation bins | Beliefs | Alpha-vectors | Solve, CPU s | First action | "
           "Lower bound at b0 | Its policy: return ± s.e. | Episodes | Steps | Success | "
