@@ -144,6 +144,11 @@ for section in "${sections[@]}"; do
         python3 "$NPFKCT_ROOT/bench/lightdark_optimum.py" --lookahead "$leaf" --depth 3 \
           --width 4 --episodes 300 | tee -a "$OUT"
       done
+      # Depth 2 with depth 3's width: what the narrower sampling alone costs each leaf.
+      for leaf in fo plan; do
+        python3 "$NPFKCT_ROOT/bench/lightdark_optimum.py" --lookahead "$leaf" --depth 2 \
+          --width 4 --episodes 500 | tee -a "$OUT"
+      done
       ;;
     lqg)
       # The VPW paper's LQG (VOOTreeSearch.jl scripts/LQG/action_compare.jl): 1,000 plans of 1,000

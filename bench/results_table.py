@@ -819,7 +819,7 @@ def lightdark_optimum(path):
         print("| Leaf | Depth | Observations sampled per move | Episodes | Return ± s.e. | Steps | "
               "Success | CPU s |")
         print("|---|---|---|---|---|---|---|---|")
-        for x in sorted(looks, key=lambda x: (x["depth"], x["planner"])):
+        for x in sorted(looks, key=lambda x: (x["depth"], -x["width"], x["planner"])):
             print(f"| {x['planner'].split('-', 1)[1]} | {x['depth']} | {x['width']} | "
                   f"{x['episodes']} | {x['mean_discounted_return']:.2f} ± {x['stderr']:.2f} | "
                   f"{x['mean_steps']:.2f} | {100 * x['success_rate']:.1f}% | "
