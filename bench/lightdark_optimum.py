@@ -174,6 +174,11 @@ class Solver:
         return float(((beliefs @ self.alphas.T).max(axis=1) - before).max())
 
 
+def bin_of(edges, o):
+    """The index of the bin holding observation o."""
+    return int(np.searchsorted(edges, o, side="right") - 1)
+
+
 def update(b, a, z, obs):
     p = after_move(b, a) * obs[:, z]
     total = p.sum()
@@ -205,20 +210,20 @@ def evaluate(act, obs, edges, episodes, rng):
     binned for the policy."""
     returns, steps, successes = [], [], 0
     for _ in range(episodes):
-        s = int(rng.integers(61)) - 30
+        i = int(rng.integers(61)) + RADIUS - 30  # the position's index
         b = initial_belief()
         ret, discount = 0.0, 1.0
         for t in range(100):
             a = act(b)
             if a == DECLARE:
-                ret += discount * (100.0 if s == 0 else -100.0)
-                successes += s == 0
+                ret += discount * DECLARE_VALUE[i]
+                successes += i == RADIUS
                 break
-            s = int(np.clip(s + MOVES[a], -RADIUS, RADIUS))
+            i = int(NEXT[a][i])
             ret += discount * MOVE_COST
             discount *= GAMMA
-            o = rng.normal(s, noise_std(s))
-            b = update(b, a, int(np.searchsorted(edges, o, side="right") - 1), obs)
+            o = rng.normal(i - RADIUS, noise_std(i - RADIUS))
+            b = update(b, a, bin_of(edges, o), obs)
         returns.append(ret)
         steps.append(t + 1)
     returns = np.array(returns)
@@ -316,17 +321,18 @@ def score(solver, edges, traces, worst=0):
             q = solver.q_values(b)
             best = int(np.argmax(q))
             regret = discount * (q[best] - q[a + 1])
-            spread = math.sqrt(float(b @ (positions - b @ positions) ** 2))
+            mean = float(b @ positions)
+            spread = math.sqrt(float(b @ (positions - mean) ** 2))
             name = "first action" if t == 0 else next(n for lo, n in SPREAD_GROUPS if spread >= lo)
             groups[name] += regret
             decisions[name] += 1
-            listed.append((regret, trace["episode"], t, float(b @ positions), spread, a, best - 1))
+            listed.append((regret, trace["episode"], t, mean, spread, a, best - 1))
             agree += best == a + 1
             total_decisions += 1
             if a == DECLARE:
                 break
             discount *= GAMMA
-            b = update(b, a, int(np.searchsorted(edges, o, side="right") - 1), solver.obs)
+            b = update(b, a, bin_of(edges, o), solver.obs)
             if b is None:
                 raise ValueError(f"episode {trace['episode']}: observation {o} impossible")
         returns.append(sum(r * GAMMA ** t for t, r in enumerate(trace["rewards"])))
@@ -372,8 +378,10 @@ def main(argv=None):
                     "move (default 10)")
     args = ap.parse_args(argv)
     if not (0.05 <= args.bin <= 10.0) or min(args.walks, args.round_episodes, args.episodes) < 1 \
-            or args.rounds < 0 or args.max_iterations < 1 or not args.tolerance > 0:
-        ap.error("--bin in [0.05, 10], --walks/--round-episodes/--episodes >= 1, --rounds >= 0")
+            or args.rounds < 0 or args.max_iterations < 1 or not args.tolerance > 0 \
+            or args.worst < 0:
+        ap.error("--bin in [0.05, 10], --walks/--round-episodes/--episodes >= 1, --rounds >= 0, "
+                 "--worst >= 0")
     if args.lookahead and (args.load or args.save or args.score or not 1 <= args.depth <= 4 or
                            not 1 <= args.width <= 100):
         ap.error("--lookahead takes --depth 1-4 and --width 1-100, not --load, --save or --score")

@@ -799,7 +799,11 @@ def lightdark_optimum(path):
     perseus-binned record of `path`, its bounds and policy; every lookahead record of `path` (the
     exact-belief lookaheads by leaf value); then the traced planner's decisions scored against the
     reference, their regret summed by the belief's spread at the decision."""
-    r = last_matching(path, {"problem": "lightdark", "planner": "perseus-binned"})
+    lines = [x for x in json_lines(path) if x.get("problem") == "lightdark"]
+    solved = [x for x in lines if x.get("planner") == "perseus-binned"]
+    if not solved:
+        sys.exit(f"{path}: no lightdark perseus-binned record")
+    r = solved[-1]
     print("| Observation bins | Beliefs | Alpha-vectors | Solve, CPU s | First action | "
           "Lower bound at b0 | Its policy: return ± s.e. | Episodes | Steps | Success | "
           "QMDP upper bound |")
@@ -809,8 +813,7 @@ def lightdark_optimum(path):
           f"{r['lower_bound']:.2f} | {r['mean_discounted_return']:.2f} ± {r['stderr']:.2f} | "
           f"{r['episodes']:,} | {r['mean_steps']:.2f} | {100 * r['success_rate']:.1f}% | "
           f"{r['upper_bound_qmdp']:.2f} |")
-    looks = [x for x in json_lines(path) if x.get("problem") == "lightdark" and
-             x.get("planner", "").startswith("lookahead-")]
+    looks = [x for x in lines if x.get("planner", "").startswith("lookahead-")]
     if looks:
         print("\nSparse-sampling lookahead on the exact belief (`--lookahead LEAF`), by the leaf "
               "value: fo, the fully observable value averaged over the belief (what the trees' "
@@ -839,14 +842,6 @@ def lightdark_optimum(path):
           " | ".join(f"{s['regret_by_group'][g]:.2f} ({s['decisions_by_group'][g]:,})"
                      for g in groups) +
           f" | {100 * s['share_of_decisions_as_reference']:.1f}% |")
-
-
-def last_matching(path, selector):
-    """The last record of a JSON-lines file whose fields equal `selector`'s."""
-    found = [r for r in json_lines(path) if all(r.get(k) == v for k, v in selector.items())]
-    if not found:
-        sys.exit(f"{path}: no record with {selector}")
-    return found[-1]
 
 
 def compare(a_root, b_root):

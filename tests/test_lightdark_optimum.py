@@ -83,7 +83,12 @@ def test_a_small_solve_bounds_its_own_policy_and_scores_a_trace(traces, capsys):
     assert s["traced_mean_discounted_return"] == pytest.approx(sum(returns) / 6, abs=1e-3)
 
 
-def test_bad_arguments_are_refused(capsys):
+@pytest.mark.parametrize("args, named", [
+    (["--bin", "0"], "--bin"), (["--bin", "11"], "--bin"), (["--episodes", "0"], "--episodes"),
+    (["--worst", "-1"], "--worst"), (["--lookahead", "fo", "--depth", "5"], "--depth"),
+    (["--lookahead", "plan", "--width", "101"], "--width"),
+    (["--lookahead", "fo", "--score", "x.jsonl"], "--score")])
+def test_bad_arguments_are_refused(capsys, args, named):
     with pytest.raises(SystemExit) as e:
-        ld.main(["--bin", "0"])
-    assert e.value.code == 2 and "--bin" in capsys.readouterr().err
+        ld.main(args)
+    assert e.value.code == 2 and named in capsys.readouterr().err
